@@ -1,0 +1,54 @@
+//! `rho(G19)` and `rho(G21)` over a log-spaced range of time steps.
+
+use rayon::prelude::*;
+use serde::Serialize;
+
+use super::spectral::EigenMethod;
+use super::{rho_split, AnalysisError, IterationSystem, Spectrum};
+
+/// One time step of a sweep.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct SweepPoint {
+    /// Time step.
+    pub dt: f64,
+    /// `rho(G19)`.
+    pub rho_plain: f64,
+    /// `rho(G21)`.
+    pub rho_split: f64,
+}
+
+/// `count` log-spaced values from `lo` to `hi` inclusive.
+pub fn log_space(lo: f64, hi: f64, count: usize) -> Vec<f64> {
+    if count == 1 {
+        return vec![lo];
+    }
+    let (a, b) = (lo.ln(), hi.ln());
+    (0..count)
+        .map(|i| (a + (b - a) * i as f64 / (count - 1) as f64).exp())
+        .collect()
+}
+
+/// Spectral radii of both schemes at each time step (time steps in parallel).
+pub fn sweep(
+    sys: &IterationSystem,
+    spectrum: &Spectrum,
+    dts: &[f64],
+    method: EigenMethod,
+) -> Result<Vec<SweepPoint>, AnalysisError> {
+    dts.par_iter()
+        .map(|&dt| {
+            Ok(SweepPoint {
+                dt,
+                rho_plain: spectrum.rho_plain(dt),
+                rho_split: rho_split(sys, dt, method)?,
+            })
+        })
+        .collect()
+}
+
+/// A default range: two decades below `h*_19` to two decades above the larger critical step.
+pub fn default_range(spectrum: &Spectrum) -> (f64, f64) {
+    let h19 = spectrum.critical_dt_plain();
+    let top = spectrum.critical_dt_split().unwrap_or(h19).max(h19);
+    (h19 * 1e-2, top * 1e2)
+}

@@ -1,0 +1,261 @@
+//! Linear tetrahedral FEM operators: per-tet geometry (seed Eq. 23), lumped mass and the
+//! per-axis stiffness ("Laplacian") matrix `L = sum_t mu_t V_t A_t^T A_t` (seed Eq. 22).
+//!
+//! The three axes decouple (`L (x) I3`), so everything here is the `n x n` block. The sparsity
+//! pattern of `L` is built once ([`StiffnessPattern`]); assembling new values (other material,
+//! per-element weights) is a scatter into that pattern, with no sorting or allocation per tet.
+
+mod csc;
+mod pattern;
+
+pub use csc::SymCsc;
+pub use pattern::StiffnessPattern;
+
+use faer::sparse::SparseColMat;
+use nalgebra::{Matrix3, Vector3};
+use rayon::prelude::*;
+
+use crate::mesh::quality::barycentric_gradients;
+use crate::mesh::TetMesh;
+
+/// Errors from building FEM operators.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum FemError {
+    /// A tet's edge matrix is singular or its volume is not positive.
+    #[error("tet {tet}: rest edge matrix is singular or inverted (volume {volume:e})")]
+    DegenerateTet {
+        /// Tet index.
+        tet: usize,
+        /// Signed volume.
+        volume: f64,
+    },
+    /// A material coefficient is not a finite positive number.
+    #[error("{name} must be finite and positive, got {value}")]
+    BadCoefficient {
+        /// Which coefficient.
+        name: &'static str,
+        /// The offending value.
+        value: f64,
+    },
+    /// A per-element coefficient vector has the wrong length.
+    #[error("{name}: expected {expected} per-tet values, got {got}")]
+    WrongLength {
+        /// Which coefficient.
+        name: &'static str,
+        /// Number of tets.
+        expected: usize,
+        /// Given length.
+        got: usize,
+    },
+}
+
+/// Rest geometry of one tet.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TetGeometry {
+    /// Rest edge matrix `P = [q1-q0, q2-q0, q3-q0]` (seed Eq. 23).
+    pub p: Matrix3<f64>,
+    /// `P^-1`, so that `F = [x1-x0, x2-x0, x3-x0] P^-1`.
+    pub p_inv: Matrix3<f64>,
+    /// Rest volume `det P / 6 > 0`.
+    pub volume: f64,
+    /// Columns `a_i` of the gradient operator `A = [-P^-T s, P^-T]` (seed Eq. 23).
+    pub grads: [Vector3<f64>; 4],
+}
+
+impl TetGeometry {
+    /// Geometry of a tet given its edge matrix; `None` if singular or inverted.
+    pub fn from_edge_matrix(p: Matrix3<f64>) -> Option<Self> {
+        let volume = p.determinant() / 6.0;
+        if !(volume > 0.0) {
+            return None;
+        }
+        let p_inv = p.try_inverse()?;
+        let grads = barycentric_gradients(&p)?;
+        Some(Self {
+            p,
+            p_inv,
+            volume,
+            grads,
+        })
+    }
+
+    /// Local stiffness block `V A^T A` (4 x 4, without the material factor): entry
+    /// `(i, j) = V <a_i, a_j>`.
+    pub fn local_laplacian(&self) -> [[f64; 4]; 4] {
+        let mut k = [[0.0; 4]; 4];
+        for i in 0..4 {
+            for j in i..4 {
+                let v = self.volume * self.grads[i].dot(&self.grads[j]);
+                k[i][j] = v;
+                k[j][i] = v;
+            }
+        }
+        k
+    }
+}
+
+/// A material coefficient, uniform or per tet.
+#[derive(Debug, Clone, Copy)]
+pub enum Coefficient<'a> {
+    /// The same value for every tet.
+    Uniform(f64),
+    /// One value per tet.
+    PerTet(&'a [f64]),
+}
+
+impl Coefficient<'_> {
+    fn check(&self, name: &'static str, tets: usize) -> Result<(), FemError> {
+        let bad = |value: f64| {
+            if value.is_finite() && value > 0.0 {
+                Ok(())
+            } else {
+                Err(FemError::BadCoefficient { name, value })
+            }
+        };
+        match self {
+            Coefficient::Uniform(v) => bad(*v),
+            Coefficient::PerTet(v) => {
+                if v.len() != tets {
+                    return Err(FemError::WrongLength {
+                        name,
+                        expected: tets,
+                        got: v.len(),
+                    });
+                }
+                v.iter().try_for_each(|&x| bad(x))
+            }
+        }
+    }
+
+    fn at(&self, t: usize) -> f64 {
+        match self {
+            Coefficient::Uniform(v) => *v,
+            Coefficient::PerTet(v) => v[t],
+        }
+    }
+}
+
+/// FEM operators of one mesh: per-tet geometry and the sparsity pattern of `L`.
+#[derive(Debug, Clone)]
+pub struct FemOperators {
+    /// Tets (copied from the mesh).
+    pub tets: Vec<[usize; 4]>,
+    /// Rest geometry per tet.
+    pub geometry: Vec<TetGeometry>,
+    /// Sparsity pattern of `L` with per-tet scatter slots.
+    pub pattern: StiffnessPattern,
+}
+
+impl FemOperators {
+    /// Compute per-tet geometry (in parallel) and the sparsity pattern.
+    pub fn new(mesh: &TetMesh) -> Result<Self, FemError> {
+        let geometry: Vec<TetGeometry> = (0..mesh.num_tets())
+            .into_par_iter()
+            .map(|t| {
+                let p = mesh.edge_matrix(t);
+                TetGeometry::from_edge_matrix(p).ok_or(FemError::DegenerateTet {
+                    tet: t,
+                    volume: p.determinant() / 6.0,
+                })
+            })
+            .collect::<Result<_, _>>()?;
+        let pattern = StiffnessPattern::new(mesh.num_vertices(), &mesh.tets);
+        Ok(Self {
+            tets: mesh.tets.clone(),
+            geometry,
+            pattern,
+        })
+    }
+
+    /// Number of vertices.
+    pub fn num_vertices(&self) -> usize {
+        self.pattern.n
+    }
+
+    /// Total rest volume.
+    pub fn total_volume(&self) -> f64 {
+        self.geometry.iter().map(|g| g.volume).sum()
+    }
+
+    /// Lumped mass: each tet gives `rho V / 4` to each corner (seed Eq. 22).
+    pub fn lumped_mass(&self, rho: Coefficient<'_>) -> Result<Vec<f64>, FemError> {
+        rho.check("density", self.tets.len())?;
+        let mut m = vec![0.0; self.num_vertices()];
+        for (t, (tet, g)) in self.tets.iter().zip(&self.geometry).enumerate() {
+            let share = rho.at(t) * g.volume / 4.0;
+            for &i in tet {
+                m[i] += share;
+            }
+        }
+        Ok(m)
+    }
+
+    /// Values of `L = sum_t mu_t V_t A_t^T A_t` in the pattern's order (seed Eq. 22).
+    pub fn laplacian_values(&self, mu: Coefficient<'_>) -> Result<Vec<f64>, FemError> {
+        mu.check("stiffness mu", self.tets.len())?;
+        let mut values = vec![0.0; self.pattern.nnz()];
+        for (t, g) in self.geometry.iter().enumerate() {
+            let k = g.local_laplacian();
+            let slots = &self.pattern.tet_slots[t];
+            let c = mu.at(t);
+            for a in 0..4 {
+                for b in 0..4 {
+                    values[slots[4 * a + b] as usize] += c * k[a][b];
+                }
+            }
+        }
+        Ok(values)
+    }
+
+    /// `L` as a symmetric CSC matrix.
+    pub fn laplacian_csc(&self, mu: Coefficient<'_>) -> Result<SymCsc, FemError> {
+        Ok(self.pattern.to_sym_csc(self.laplacian_values(mu)?))
+    }
+
+    /// `L` as a faer sparse matrix (both triangles stored).
+    pub fn laplacian(&self, mu: Coefficient<'_>) -> Result<SparseColMat<usize, f64>, FemError> {
+        Ok(self.pattern.to_faer(self.laplacian_values(mu)?))
+    }
+}
+
+/// Sign structure of a stiffness matrix: how far it is from an M-matrix.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+pub struct SignPattern {
+    /// Positive off-diagonal entries `L_ij > 0`, `i != j`, counting both triangles.
+    pub positive_offdiagonal_entries: usize,
+    /// The same as edges (unordered pairs): `positive_offdiagonal_entries / 2`.
+    pub positive_offdiagonal_edges: usize,
+    /// Rows with `sum_{j != i} |L_ij| > L_ii` (not weakly diagonally dominant).
+    pub rows_not_diagonally_dominant: usize,
+    /// True when every off-diagonal entry is `<= 0` (then `L` is an M-matrix).
+    pub is_m_matrix: bool,
+}
+
+/// Count positive off-diagonal entries and non-dominant rows. An entry counts as positive when
+/// `L_ij > tol sqrt(L_ii L_jj)` with `tol = 1e-12`, so right-angle round-off is not counted.
+pub fn sign_pattern(l: &SymCsc) -> SignPattern {
+    const TOL: f64 = 1e-12;
+    let diag = l.diagonal();
+    let mut positive = 0;
+    let mut non_dominant = 0;
+    for j in 0..l.n {
+        let mut off = 0.0;
+        for (i, v) in l.column(j) {
+            if i != j {
+                off += v.abs();
+                if v > TOL * (diag[i] * diag[j]).sqrt() {
+                    positive += 1;
+                }
+            }
+        }
+        if off > diag[j] * (1.0 + TOL) {
+            non_dominant += 1;
+        }
+    }
+    SignPattern {
+        positive_offdiagonal_entries: positive,
+        positive_offdiagonal_edges: positive / 2,
+        rows_not_diagonally_dominant: non_dominant,
+        is_m_matrix: positive == 0,
+    }
+}

@@ -1,0 +1,255 @@
+//! `diffsoft` command-line interface: parses arguments, calls the library, prints summaries.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context, Result};
+use clap::{Parser, Subcommand, ValueEnum};
+
+use diffsoft::analysis::bounds::{self, BoundsParams};
+use diffsoft::analysis::spectral::EigenMethod;
+use diffsoft::analysis::sweep::{self, log_space};
+use diffsoft::analysis::{Attachments, IterationSystem, Spectrum};
+use diffsoft::mesh::generate::{BoxSpec, CellSplit};
+use diffsoft::mesh::{self, LoadOptions};
+use diffsoft::report::write_json;
+use diffsoft::verify;
+
+#[derive(Parser)]
+#[command(name = "diffsoft", version, about = "Differentiable soft multi-body simulation and its verification harness")]
+struct Cli {
+    /// Worker threads (default: all cores).
+    #[arg(long, global = true)]
+    threads: Option<usize>,
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Spectral radii and critical time steps of iterations (19) and (21), Appendix A/B verdicts.
+    Bounds {
+        #[command(flatten)]
+        input: MeshArgs,
+        /// Time step (s).
+        #[arg(long)]
+        dt: f64,
+        /// Also run both iterations and compare observed and predicted contraction.
+        #[arg(long)]
+        empirical: bool,
+        /// Write the JSON report here.
+        #[arg(long)]
+        json: Option<PathBuf>,
+    },
+    /// rho(G19) and rho(G21) over a log range of time steps, as JSON and an SVG plot.
+    Sweep {
+        #[command(flatten)]
+        input: MeshArgs,
+        /// Smallest time step (default: h*_19 / 100).
+        #[arg(long)]
+        dt_min: Option<f64>,
+        /// Largest time step (default: 100 x the larger critical step).
+        #[arg(long)]
+        dt_max: Option<f64>,
+        /// Number of time steps.
+        #[arg(long, default_value_t = 41)]
+        points: usize,
+        /// Mark this time step on the plot (e.g. the scene's).
+        #[arg(long)]
+        mark_dt: Option<f64>,
+        /// Write the JSON here.
+        #[arg(long)]
+        json: Option<PathBuf>,
+        /// Write the SVG plot here.
+        #[arg(long)]
+        svg: Option<PathBuf>,
+    },
+    /// Mesh quality: counts, volumes, dihedral angles, sign pattern of L.
+    Quality {
+        /// Mesh file (.obj with t lines, .node/.ele, .msh).
+        #[arg(long)]
+        mesh: PathBuf,
+        /// Write the JSON report here.
+        #[arg(long)]
+        json: Option<PathBuf>,
+    },
+    /// Write a structured box mesh (for tests and studies).
+    Generate {
+        /// Cells per axis, e.g. 4,4,8.
+        #[arg(long, value_delimiter = ',', required = true)]
+        cells: Vec<usize>,
+        /// Box size per axis, e.g. 1,1,2.
+        #[arg(long, value_delimiter = ',', default_values_t = [1.0, 1.0, 1.0])]
+        size: Vec<f64>,
+        /// Cell split.
+        #[arg(long, value_enum, default_value_t = Split::Kuhn)]
+        split: Split,
+        /// Random vertex displacement as a fraction of the cell size.
+        #[arg(long, default_value_t = 0.0)]
+        jitter: f64,
+        /// Seed for the jitter.
+        #[arg(long, default_value_t = 0)]
+        seed: u64,
+        /// Output file: .obj, .node (writes .node + .ele) or .msh.
+        #[arg(long)]
+        out: PathBuf,
+        /// Gmsh version for .msh output.
+        #[arg(long, default_value = "4.1")]
+        gmsh_version: String,
+    },
+    /// The main job: run the verification suite and write reports/.
+    Verify {
+        /// Suite definition.
+        #[arg(long, default_value = "verification/suite.json")]
+        suite: PathBuf,
+        /// Output directory.
+        #[arg(long, default_value = "reports")]
+        out: PathBuf,
+    },
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum Split {
+    Kuhn,
+    Five,
+}
+
+#[derive(clap::Args)]
+struct MeshArgs {
+    /// Mesh file (.obj with t lines, TetGen .node/.ele, Gmsh .msh).
+    #[arg(long)]
+    mesh: PathBuf,
+    /// Density rho (kg/m^3).
+    #[arg(long)]
+    rho: f64,
+    /// Stiffness coefficient mu of L = sum mu V A^T A (Pa).
+    #[arg(long)]
+    mu: f64,
+    /// Multiply vertex positions by this factor first (the paper's "Scale").
+    #[arg(long, default_value_t = 1.0)]
+    scale: f64,
+    /// Eigensolver: dense (exact), krylov (Lanczos), auto (dense up to 1500 vertices).
+    #[arg(long, value_enum, default_value_t = EigenMethod::Auto)]
+    method: EigenMethod,
+    /// Reject tets whose normalised volume 6 sqrt(2) V / l_rms^3 is below this.
+    #[arg(long, default_value_t = 1e-9)]
+    min_tet_quality: f64,
+}
+
+impl MeshArgs {
+    fn load(&self) -> Result<(mesh::TetMesh, mesh::MeshInfo)> {
+        if !(self.scale.is_finite() && self.scale > 0.0) {
+            bail!("--scale must be finite and positive, got {}", self.scale);
+        }
+        let loaded = mesh::load_with(&self.mesh, LoadOptions { min_quality: self.min_tet_quality })?;
+        Ok((loaded.mesh.scaled(self.scale), loaded.info))
+    }
+}
+
+fn main() {
+    let cli = Cli::parse();
+    if let Some(n) = cli.threads {
+        if let Err(e) = rayon::ThreadPoolBuilder::new().num_threads(n).build_global() {
+            eprintln!("error: cannot set thread count: {e}");
+            std::process::exit(2);
+        }
+    }
+    if let Err(e) = run(cli.command) {
+        eprintln!("error: {e:#}");
+        std::process::exit(1);
+    }
+}
+
+fn run(command: Command) -> Result<()> {
+    match command {
+        Command::Bounds { input, dt, empirical, json } => {
+            let (mesh, info) = input.load()?;
+            let params = BoundsParams {
+                rho: input.rho,
+                mu: input.mu,
+                dt,
+                attachments: Attachments::default(),
+                method: input.method,
+                empirical,
+            };
+            let report = bounds::analyze(&mesh, &info, &params)?;
+            print!("{}", verify::bounds_summary(&report));
+            if let Some(path) = json {
+                write_json(&path, &report)?;
+                println!("wrote {}", path.display());
+            }
+        }
+        Command::Sweep { input, dt_min, dt_max, points, mark_dt, json, svg } => {
+            let (mesh, info) = input.load()?;
+            let sys = IterationSystem::new(&mesh, input.rho, input.mu, &Attachments::default())?;
+            let spectrum = Spectrum::compute(&sys, input.method)?;
+            let (lo, hi) = sweep::default_range(&spectrum);
+            let (lo, hi) = (dt_min.unwrap_or(lo), dt_max.unwrap_or(hi));
+            if !(lo > 0.0 && hi > lo && points >= 2) {
+                bail!("need 0 < --dt-min < --dt-max and --points >= 2 (got {lo}, {hi}, {points})");
+            }
+            let pts = sweep::sweep(&sys, &spectrum, &log_space(lo, hi, points), spectrum.method)?;
+            let report = verify::SweepReport::new(&info.path, input.rho, input.mu, mark_dt, &spectrum, pts);
+            print!("{}", verify::sweep_summary(&report));
+            if let Some(path) = json {
+                write_json(&path, &report)?;
+                println!("wrote {}", path.display());
+            }
+            if let Some(path) = svg {
+                diffsoft::plot::write_svg(&path, &report.chart(&format!("{}: spectral radius vs time step", info.path)))?;
+                println!("wrote {}", path.display());
+            }
+        }
+        Command::Quality { mesh: path, json } => {
+            let loaded = mesh::load(&path)?;
+            let report = verify::QualityReport::new(&loaded)?;
+            print!("{}", verify::quality_summary(&report));
+            if let Some(out) = json {
+                write_json(&out, &report)?;
+                println!("wrote {}", out.display());
+            }
+        }
+        Command::Generate { cells, size, split, jitter, seed, out, gmsh_version } => {
+            if cells.len() != 3 || size.len() != 3 {
+                bail!("--cells and --size take three comma-separated values, e.g. --cells 4,4,8 --size 1,1,2");
+            }
+            if cells.contains(&0) || !size.iter().all(|s| s.is_finite() && *s > 0.0) {
+                bail!("--cells must be positive and --size finite and positive (got {cells:?}, {size:?})");
+            }
+            if !(0.0..0.5).contains(&jitter) {
+                bail!("--jitter must be in [0, 0.5) (fraction of the cell size), got {jitter}");
+            }
+            let spec = BoxSpec::new([cells[0], cells[1], cells[2]], [size[0], size[1], size[2]])
+                .split(match split {
+                    Split::Kuhn => CellSplit::Kuhn6,
+                    Split::Five => CellSplit::Five,
+                })
+                .jitter(jitter, seed);
+            let m = spec.build()?;
+            write_mesh(&m, &out, &gmsh_version)?;
+            println!("wrote {} ({} vertices, {} tets)", out.display(), m.num_vertices(), m.num_tets());
+        }
+        Command::Verify { suite, out } => {
+            verify::run_suite(&suite, &out)?;
+        }
+    }
+    Ok(())
+}
+
+fn write_mesh(m: &mesh::TetMesh, out: &Path, gmsh_version: &str) -> Result<()> {
+    let ext = out.extension().and_then(|e| e.to_str()).unwrap_or("");
+    let write = |p: &Path, s: String| std::fs::write(p, s).with_context(|| format!("cannot write {}", p.display()));
+    match ext {
+        "obj" => write(out, mesh::write::obj(m)),
+        "node" | "ele" => {
+            let (node, ele) = mesh::write::tetgen(m, 0);
+            write(&out.with_extension("node"), node)?;
+            write(&out.with_extension("ele"), ele)
+        }
+        "msh" => match gmsh_version {
+            "2.2" => write(out, mesh::write::gmsh22(m)),
+            "4.1" => write(out, mesh::write::gmsh41(m)),
+            v => bail!("--gmsh-version must be 2.2 or 4.1, got {v}"),
+        },
+        _ => bail!("output must end in .obj, .node or .msh: {}", out.display()),
+    }
+}

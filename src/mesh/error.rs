@@ -1,0 +1,118 @@
+//! Mesh errors: every error names the file, and the line or element it is about.
+
+use std::fmt;
+
+/// Where in an input a mesh error was found.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Location {
+    /// File path as given by the caller (or `<generated>` / `<memory>`).
+    pub path: String,
+    /// 1-based line number, when the error belongs to one line.
+    pub line: Option<usize>,
+}
+
+impl fmt::Display for Location {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self.line {
+            Some(line) => write!(f, "{}:{}", self.path, line),
+            None => write!(f, "{}", self.path),
+        }
+    }
+}
+
+/// What went wrong while reading or validating a mesh.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum MeshErrorKind {
+    /// The file could not be read.
+    #[error("cannot read file: {0}")]
+    Io(String),
+    /// The file type or format version is not supported.
+    #[error("unsupported mesh format: {0}")]
+    UnsupportedFormat(String),
+    /// The file ends before the data its headers announce.
+    #[error("unexpected end of file: {0}")]
+    Truncated(String),
+    /// A token is not a number of the expected kind.
+    #[error("expected {expected}, found '{found}'")]
+    BadNumber {
+        /// What kind of number was expected.
+        expected: &'static str,
+        /// The offending token.
+        found: String,
+    },
+    /// A coordinate is NaN or infinite.
+    #[error("non-finite coordinate '{0}'")]
+    NonFinite(String),
+    /// A vertex (node) index does not refer to an existing vertex.
+    #[error("tet {tet}: vertex index {index} out of range ({valid})")]
+    IndexOutOfRange {
+        /// 0-based tet number in file order.
+        tet: usize,
+        /// The index as written in the file.
+        index: i64,
+        /// The valid range, in the file's numbering.
+        valid: String,
+    },
+    /// A tet uses the same vertex twice.
+    #[error("tet {tet}: vertex {vertex} appears more than once")]
+    RepeatedVertex {
+        /// 0-based tet number in file order.
+        tet: usize,
+        /// The repeated vertex, in the file's numbering.
+        vertex: i64,
+    },
+    /// A tet has zero or near-zero volume.
+    #[error(
+        "tet {tet}: degenerate (volume {volume:e}; 6*sqrt(2)*|V|/l_rms^3 = {quality:e} is below {threshold:e})"
+    )]
+    DegenerateTet {
+        /// 0-based tet number in file order.
+        tet: usize,
+        /// Signed volume.
+        volume: f64,
+        /// Normalised volume (1 for a regular tet).
+        quality: f64,
+        /// The rejection threshold on the normalised volume.
+        threshold: f64,
+    },
+    /// A structural problem: wrong token count, missing section, inconsistent header.
+    #[error("{0}")]
+    Syntax(String),
+    /// The mesh has no tetrahedra.
+    #[error("mesh has no tetrahedra")]
+    NoTets,
+}
+
+/// A mesh error with its location.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{location}: {kind}")]
+pub struct MeshError {
+    /// File and line.
+    pub location: Location,
+    /// What went wrong.
+    pub kind: MeshErrorKind,
+}
+
+impl MeshError {
+    /// An error about one line of a file.
+    pub fn at(path: &str, line: usize, kind: MeshErrorKind) -> Self {
+        Self {
+            location: Location {
+                path: path.to_string(),
+                line: Some(line),
+            },
+            kind,
+        }
+    }
+
+    /// An error about a whole file.
+    pub fn file(path: &str, kind: MeshErrorKind) -> Self {
+        Self {
+            location: Location {
+                path: path.to_string(),
+                line: None,
+            },
+            kind,
+        }
+    }
+}

@@ -1,0 +1,402 @@
+//! Tetrahedral meshes: the [`TetMesh`] type, readers (OBJ with `t` lines, TetGen `.node`/`.ele`,
+//! Gmsh `.msh` ASCII 2.2 and 4.1), writers, structured generators and quality measures.
+//!
+//! Every reader goes through one validation pass ([`TetMesh::from_raw`]): indices in range, no
+//! repeated vertex in a tet, finite coordinates, no zero or near-zero volume. Inverted tets
+//! (negative signed volume) are not errors: they are re-oriented (two vertices swapped) and
+//! counted in [`MeshInfo`]. Vertices that no tet uses are dropped and counted; [`MeshInfo`] keeps
+//! each kept vertex's id in the file so scene files can refer to vertices by their file index.
+//!
+//! This module knows nothing about physics.
+
+mod error;
+pub mod generate;
+mod gmsh;
+mod lines;
+mod obj;
+pub mod quality;
+mod tetgen;
+pub mod write;
+
+pub use error::{Location, MeshError, MeshErrorKind};
+
+use nalgebra::{Matrix3, Vector3};
+use serde::Serialize;
+use std::path::Path;
+
+/// A tetrahedral mesh: rest positions and positively oriented tets (0-based vertex indices).
+#[derive(Debug, Clone, PartialEq)]
+pub struct TetMesh {
+    /// Vertex positions.
+    pub vertices: Vec<Vector3<f64>>,
+    /// Tets as four vertex indices, ordered so that the signed volume is positive.
+    pub tets: Vec<[usize; 4]>,
+}
+
+/// The file format a mesh came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum MeshFormat {
+    /// Wavefront OBJ with `v` vertex lines and `t` tet lines (0-based).
+    Obj,
+    /// TetGen `.node` + `.ele`.
+    Tetgen,
+    /// Gmsh ASCII 2.2.
+    Gmsh22,
+    /// Gmsh ASCII 4.1.
+    Gmsh41,
+    /// Built in memory (generator or API).
+    Memory,
+}
+
+/// What loading a mesh did besides parsing: dropped nodes, re-oriented tets, file ids.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct MeshInfo {
+    /// The path the mesh was read from.
+    pub path: String,
+    /// The file format.
+    pub format: MeshFormat,
+    /// Number of nodes in the file that no tet uses (dropped).
+    pub dropped_nodes: usize,
+    /// Number of tets whose vertex order was inverted in the file and was swapped.
+    pub reoriented_tets: usize,
+    /// Up to 10 indices of re-oriented tets, for the report.
+    pub first_reoriented: Vec<usize>,
+    /// Non-tet elements skipped (Gmsh: points, lines, triangles, ...).
+    pub skipped_elements: usize,
+    /// For each kept vertex, its id in the file's own numbering.
+    #[serde(skip)]
+    pub file_ids: Vec<i64>,
+}
+
+/// A mesh together with what loading it did.
+#[derive(Debug, Clone)]
+pub struct LoadedMesh {
+    /// The validated mesh.
+    pub mesh: TetMesh,
+    /// Loading details.
+    pub info: MeshInfo,
+}
+
+/// Options for reading and validating meshes.
+#[derive(Debug, Clone, Copy)]
+pub struct LoadOptions {
+    /// Tets whose normalised volume `6 sqrt(2) |V| / l_rms^3` (1 for a regular tet) is below this
+    /// are rejected as degenerate.
+    pub min_quality: f64,
+}
+
+impl Default for LoadOptions {
+    fn default() -> Self {
+        Self { min_quality: 1e-9 }
+    }
+}
+
+/// Parsed but unvalidated mesh data, in file order, shared by the readers.
+#[derive(Debug, Default)]
+pub(crate) struct RawMesh {
+    pub nodes: Vec<[f64; 3]>,
+    pub node_ids: Vec<i64>,
+    /// Tets as indices into `nodes` (range already checked by the reader).
+    pub tets: Vec<[usize; 4]>,
+    /// 1-based line of each tet in the file.
+    pub tet_lines: Vec<usize>,
+    pub skipped_elements: usize,
+}
+
+impl TetMesh {
+    /// Build a mesh from vertices and tets, validating and orienting as the readers do.
+    pub fn new(vertices: Vec<Vector3<f64>>, tets: Vec<[usize; 4]>) -> Result<TetMesh, MeshError> {
+        Self::new_with(vertices, tets, LoadOptions::default()).map(|l| l.mesh)
+    }
+
+    /// As [`TetMesh::new`], returning the load details (dropped vertices, re-oriented tets).
+    pub fn new_with(
+        vertices: Vec<Vector3<f64>>,
+        tets: Vec<[usize; 4]>,
+        opts: LoadOptions,
+    ) -> Result<LoadedMesh, MeshError> {
+        let n = vertices.len();
+        let path = "<memory>";
+        for (i, v) in vertices.iter().enumerate() {
+            if !v.iter().all(|c| c.is_finite()) {
+                return Err(MeshError::file(
+                    path,
+                    MeshErrorKind::NonFinite(format!("vertex {i}: {v:?}")),
+                ));
+            }
+        }
+        for (t, tet) in tets.iter().enumerate() {
+            for &i in tet {
+                if i >= n {
+                    return Err(MeshError::file(
+                        path,
+                        MeshErrorKind::IndexOutOfRange {
+                            tet: t,
+                            index: i as i64,
+                            valid: format!("0..{n}"),
+                        },
+                    ));
+                }
+            }
+        }
+        let raw = RawMesh {
+            nodes: vertices.iter().map(|v| [v.x, v.y, v.z]).collect(),
+            node_ids: (0..n as i64).collect(),
+            tet_lines: Vec::new(),
+            tets,
+            skipped_elements: 0,
+        };
+        Self::from_raw(path, MeshFormat::Memory, raw, opts)
+    }
+
+    /// Validate parsed data: repeated vertices, unused nodes, orientation, degenerate volume.
+    pub(crate) fn from_raw(
+        path: &str,
+        format: MeshFormat,
+        raw: RawMesh,
+        opts: LoadOptions,
+    ) -> Result<LoadedMesh, MeshError> {
+        let err_at = |t: usize, kind: MeshErrorKind| match raw.tet_lines.get(t) {
+            Some(&line) => MeshError::at(path, line, kind),
+            None => MeshError::file(path, kind),
+        };
+        if raw.tets.is_empty() {
+            return Err(MeshError::file(path, MeshErrorKind::NoTets));
+        }
+        for (t, tet) in raw.tets.iter().enumerate() {
+            for a in 0..4 {
+                for b in a + 1..4 {
+                    if tet[a] == tet[b] {
+                        return Err(err_at(
+                            t,
+                            MeshErrorKind::RepeatedVertex {
+                                tet: t,
+                                vertex: raw.node_ids[tet[a]],
+                            },
+                        ));
+                    }
+                }
+            }
+        }
+        // Drop nodes that no tet uses; keep file ids of the rest.
+        const UNUSED: usize = usize::MAX;
+        let mut new_index = vec![UNUSED; raw.nodes.len()];
+        for tet in &raw.tets {
+            for &i in tet {
+                new_index[i] = 0;
+            }
+        }
+        let mut vertices = Vec::new();
+        let mut file_ids = Vec::new();
+        for (i, slot) in new_index.iter_mut().enumerate() {
+            if *slot != UNUSED {
+                *slot = vertices.len();
+                let p = raw.nodes[i];
+                vertices.push(Vector3::new(p[0], p[1], p[2]));
+                file_ids.push(raw.node_ids[i]);
+            }
+        }
+        let dropped_nodes = raw.nodes.len() - vertices.len();
+        let mut tets = Vec::with_capacity(raw.tets.len());
+        let mut reoriented = 0usize;
+        let mut first_reoriented = Vec::new();
+        for (t, tet) in raw.tets.iter().enumerate() {
+            let mut tet = tet.map(|i| new_index[i]);
+            let (volume, quality) = volume_and_quality(&vertices, &tet);
+            if !(quality >= opts.min_quality) {
+                return Err(err_at(
+                    t,
+                    MeshErrorKind::DegenerateTet {
+                        tet: t,
+                        volume,
+                        quality,
+                        threshold: opts.min_quality,
+                    },
+                ));
+            }
+            if volume < 0.0 {
+                tet.swap(1, 2);
+                reoriented += 1;
+                if first_reoriented.len() < 10 {
+                    first_reoriented.push(t);
+                }
+            }
+            tets.push(tet);
+        }
+        Ok(LoadedMesh {
+            mesh: TetMesh { vertices, tets },
+            info: MeshInfo {
+                path: path.to_string(),
+                format,
+                dropped_nodes,
+                reoriented_tets: reoriented,
+                first_reoriented,
+                skipped_elements: raw.skipped_elements,
+                file_ids,
+            },
+        })
+    }
+
+    /// Number of vertices.
+    pub fn num_vertices(&self) -> usize {
+        self.vertices.len()
+    }
+
+    /// Number of tets.
+    pub fn num_tets(&self) -> usize {
+        self.tets.len()
+    }
+
+    /// Rest edge matrix `P = [q1-q0, q2-q0, q3-q0]` of tet `t` (seed Eq. 23).
+    pub fn edge_matrix(&self, t: usize) -> Matrix3<f64> {
+        edge_matrix(&self.vertices, &self.tets[t])
+    }
+
+    /// Signed volume `det P / 6` of tet `t` (positive after loading).
+    pub fn signed_volume(&self, t: usize) -> f64 {
+        self.edge_matrix(t).determinant() / 6.0
+    }
+
+    /// Axis-aligned bounding box (min, max).
+    pub fn bounding_box(&self) -> (Vector3<f64>, Vector3<f64>) {
+        let mut lo = Vector3::repeat(f64::INFINITY);
+        let mut hi = Vector3::repeat(f64::NEG_INFINITY);
+        for v in &self.vertices {
+            lo = lo.inf(v);
+            hi = hi.sup(v);
+        }
+        (lo, hi)
+    }
+
+    /// A copy with every vertex mapped by `f` (scaling, rigid motion, ...). Orientation is kept
+    /// only for maps with positive determinant.
+    pub fn map_vertices(&self, f: impl Fn(&Vector3<f64>) -> Vector3<f64>) -> TetMesh {
+        TetMesh {
+            vertices: self.vertices.iter().map(f).collect(),
+            tets: self.tets.clone(),
+        }
+    }
+
+    /// A copy scaled by `s` about the origin (the paper's scene "Scale").
+    pub fn scaled(&self, s: f64) -> TetMesh {
+        self.map_vertices(|v| v * s)
+    }
+}
+
+pub(crate) fn edge_matrix(vertices: &[Vector3<f64>], tet: &[usize; 4]) -> Matrix3<f64> {
+    let q0 = vertices[tet[0]];
+    Matrix3::from_columns(&[
+        vertices[tet[1]] - q0,
+        vertices[tet[2]] - q0,
+        vertices[tet[3]] - q0,
+    ])
+}
+
+/// Signed volume and normalised volume `6 sqrt(2) |V| / l_rms^3` (1 for a regular tet).
+pub(crate) fn volume_and_quality(vertices: &[Vector3<f64>], tet: &[usize; 4]) -> (f64, f64) {
+    let volume = edge_matrix(vertices, tet).determinant() / 6.0;
+    let mut sum_sq = 0.0;
+    for a in 0..4 {
+        for b in a + 1..4 {
+            sum_sq += (vertices[tet[a]] - vertices[tet[b]]).norm_squared();
+        }
+    }
+    let l_rms = (sum_sq / 6.0).sqrt();
+    let quality = if l_rms > 0.0 {
+        6.0 * std::f64::consts::SQRT_2 * volume.abs() / (l_rms * l_rms * l_rms)
+    } else {
+        0.0
+    };
+    (volume, quality)
+}
+
+/// Read a mesh, choosing the reader by file extension: `.obj`, `.node`/`.ele` (TetGen), `.msh`.
+pub fn load(path: impl AsRef<Path>) -> Result<LoadedMesh, MeshError> {
+    load_with(path, LoadOptions::default())
+}
+
+/// As [`load`], with explicit options.
+pub fn load_with(path: impl AsRef<Path>, opts: LoadOptions) -> Result<LoadedMesh, MeshError> {
+    let path = path.as_ref();
+    let shown = path.display().to_string();
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(|e| e.to_ascii_lowercase())
+        .unwrap_or_default();
+    match ext.as_str() {
+        "obj" => {
+            let text = read_text(path)?;
+            let raw = obj::parse(&shown, &text)?;
+            TetMesh::from_raw(&shown, MeshFormat::Obj, raw, opts)
+        }
+        "node" | "ele" => {
+            let node_path = path.with_extension("node");
+            let ele_path = path.with_extension("ele");
+            let node_text = read_text(&node_path)?;
+            let ele_text = read_text(&ele_path)?;
+            let raw = tetgen::parse(
+                &node_path.display().to_string(),
+                &node_text,
+                &ele_path.display().to_string(),
+                &ele_text,
+            )?;
+            TetMesh::from_raw(&ele_path.display().to_string(), MeshFormat::Tetgen, raw, opts)
+        }
+        "msh" => {
+            let text = read_text(path)?;
+            let (raw, format) = gmsh::parse(&shown, &text)?;
+            TetMesh::from_raw(&shown, format, raw, opts)
+        }
+        _ => Err(MeshError::file(
+            &shown,
+            MeshErrorKind::UnsupportedFormat(format!(
+                "extension '.{ext}' (expected .obj with t lines, TetGen .node/.ele, or Gmsh .msh)"
+            )),
+        )),
+    }
+}
+
+/// Parse mesh text already in memory; `format_hint` is a file name used for the extension and
+/// in messages (TetGen needs two texts and is not supported here).
+pub fn parse_str(name: &str, text: &str) -> Result<LoadedMesh, MeshError> {
+    let lower = name.to_ascii_lowercase();
+    if lower.ends_with(".obj") {
+        let raw = obj::parse(name, text)?;
+        TetMesh::from_raw(name, MeshFormat::Obj, raw, LoadOptions::default())
+    } else if lower.ends_with(".msh") {
+        let (raw, format) = gmsh::parse(name, text)?;
+        TetMesh::from_raw(name, format, raw, LoadOptions::default())
+    } else {
+        Err(MeshError::file(
+            name,
+            MeshErrorKind::UnsupportedFormat("parse_str reads .obj and .msh text".into()),
+        ))
+    }
+}
+
+/// Parse a TetGen pair already in memory.
+pub fn parse_tetgen_str(
+    node_name: &str,
+    node_text: &str,
+    ele_name: &str,
+    ele_text: &str,
+) -> Result<LoadedMesh, MeshError> {
+    let raw = tetgen::parse(node_name, node_text, ele_name, ele_text)?;
+    TetMesh::from_raw(ele_name, MeshFormat::Tetgen, raw, LoadOptions::default())
+}
+
+fn read_text(path: &Path) -> Result<String, MeshError> {
+    let bytes = std::fs::read(path).map_err(|e| {
+        MeshError::file(&path.display().to_string(), MeshErrorKind::Io(e.to_string()))
+    })?;
+    String::from_utf8(bytes).map_err(|e| {
+        MeshError::file(
+            &path.display().to_string(),
+            MeshErrorKind::UnsupportedFormat(format!(
+                "not UTF-8 text (binary files are not supported): {e}"
+            )),
+        )
+    })
+}

@@ -1,0 +1,126 @@
+//! SVG line charts (plotters, no system fonts needed) for report curves.
+
+use std::path::Path;
+
+use plotters::prelude::*;
+
+/// One curve.
+#[derive(Debug, Clone)]
+pub struct Series {
+    /// Legend label.
+    pub label: String,
+    /// Points `(x, y)`; non-positive or non-finite points are skipped on log axes.
+    pub points: Vec<(f64, f64)>,
+}
+
+/// A labelled vertical or horizontal reference line.
+#[derive(Debug, Clone)]
+pub struct RefLine {
+    /// Legend label.
+    pub label: String,
+    /// Position on its axis.
+    pub at: f64,
+}
+
+/// A log-log line chart.
+#[derive(Debug, Clone, Default)]
+pub struct LogLogChart {
+    /// Title.
+    pub title: String,
+    /// x-axis label.
+    pub x_label: String,
+    /// y-axis label.
+    pub y_label: String,
+    /// Curves.
+    pub series: Vec<Series>,
+    /// Vertical reference lines (x positions).
+    pub vlines: Vec<RefLine>,
+    /// Horizontal reference lines (y positions).
+    pub hlines: Vec<RefLine>,
+}
+
+const PALETTE: [RGBColor; 6] = [
+    RGBColor(31, 119, 180),
+    RGBColor(214, 39, 40),
+    RGBColor(44, 160, 44),
+    RGBColor(148, 103, 189),
+    RGBColor(255, 127, 14),
+    RGBColor(127, 127, 127),
+];
+
+fn ok(v: f64) -> bool {
+    v.is_finite() && v > 0.0
+}
+
+/// Render `chart` to an SVG file.
+pub fn write_svg(path: &Path, chart: &LogLogChart) -> std::io::Result<()> {
+    if let Some(dir) = path.parent() {
+        if !dir.as_os_str().is_empty() {
+            std::fs::create_dir_all(dir)?;
+        }
+    }
+    let pts = chart.series.iter().flat_map(|s| s.points.iter()).filter(|(x, y)| ok(*x) && ok(*y));
+    let (mut x0, mut x1, mut y0, mut y1) = (f64::INFINITY, 0.0f64, f64::INFINITY, 0.0f64);
+    for &(x, y) in pts {
+        x0 = x0.min(x);
+        x1 = x1.max(x);
+        y0 = y0.min(y);
+        y1 = y1.max(y);
+    }
+    for h in chart.hlines.iter().filter(|h| ok(h.at)) {
+        y0 = y0.min(h.at);
+        y1 = y1.max(h.at);
+    }
+    if !(x1 > x0 && y1 > 0.0) {
+        return Err(std::io::Error::other(format!("{}: nothing to plot", path.display())));
+    }
+    if y1 <= y0 {
+        y1 = y0 * 10.0;
+    }
+    let render = || -> Result<(), Box<dyn std::error::Error>> {
+        let root = SVGBackend::new(path, (900, 600)).into_drawing_area();
+        root.fill(&WHITE)?;
+        let mut c = ChartBuilder::on(&root)
+            .caption(&chart.title, ("sans-serif", 20))
+            .margin(15)
+            .x_label_area_size(45)
+            .y_label_area_size(70)
+            .build_cartesian_2d((x0..x1).log_scale(), (y0 / 2.0..y1 * 2.0).log_scale())?;
+        c.configure_mesh()
+            .x_desc(&chart.x_label)
+            .y_desc(&chart.y_label)
+            .x_label_formatter(&|v| format!("{v:.0e}"))
+            .y_label_formatter(&|v| format!("{v:.0e}"))
+            .draw()?;
+        for (k, s) in chart.series.iter().enumerate() {
+            let color = PALETTE[k % PALETTE.len()];
+            let p: Vec<(f64, f64)> = s.points.iter().copied().filter(|(x, y)| ok(*x) && ok(*y)).collect();
+            c.draw_series(LineSeries::new(p.clone(), color.stroke_width(2)))?
+                .label(s.label.clone())
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2)));
+            c.draw_series(p.into_iter().map(|q| Circle::new(q, 2, color.filled())))?;
+        }
+        let n = chart.series.len();
+        for (k, h) in chart.hlines.iter().filter(|h| ok(h.at)).enumerate() {
+            let color = PALETTE[(n + k) % PALETTE.len()];
+            c.draw_series(DashedLineSeries::new(vec![(x0, h.at), (x1, h.at)], 6, 4, color.stroke_width(1)))?
+                .label(h.label.clone())
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color));
+        }
+        let n = n + chart.hlines.len();
+        for (k, v) in chart.vlines.iter().filter(|v| ok(v.at) && v.at >= x0 && v.at <= x1).enumerate() {
+            let color = PALETTE[(n + k) % PALETTE.len()];
+            c.draw_series(DashedLineSeries::new(vec![(v.at, y0 / 2.0), (v.at, y1 * 2.0)], 6, 4, color.stroke_width(1)))?
+                .label(v.label.clone())
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color));
+        }
+        c.configure_series_labels()
+            .position(SeriesLabelPosition::UpperLeft)
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK)
+            .draw()?;
+        root.present()?;
+        Ok(())
+    };
+    render().map_err(|e| std::io::Error::other(format!("{}: {e}", path.display())))
+}

@@ -1,0 +1,137 @@
+//! The suite definition read from `verification/suite.json` (unknown keys are rejected).
+
+use std::path::{Path, PathBuf};
+
+use serde::Deserialize;
+
+/// Schema name the suite file must declare.
+pub const SUITE_SCHEMA: &str = "diffsoft.suite/1";
+
+/// The whole suite.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Suite {
+    /// Must be [`SUITE_SCHEMA`].
+    pub schema: String,
+    /// Convergence analysis of real meshes.
+    pub bounds: BoundsSuite,
+    /// Appendix A's `T` dependence on structured boxes of fixed cell size.
+    pub t_scaling: TScalingSuite,
+}
+
+/// Bounds analysis settings and meshes.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BoundsSuite {
+    /// Run the empirical contraction check.
+    pub empirical: bool,
+    /// Time steps per sweep curve.
+    pub sweep_points: usize,
+    /// Meshes to analyse.
+    pub meshes: Vec<SuiteMesh>,
+}
+
+/// One mesh of the suite, with the paper scene's material and time step.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SuiteMesh {
+    /// Short name (file names of the sweep outputs).
+    pub name: String,
+    /// Mesh file, relative to the suite file.
+    pub mesh: PathBuf,
+    /// The paper scene file these parameters come from (relative to the suite file).
+    pub source_scene: Option<PathBuf>,
+    /// Vertex scale ("Scale"; the reference implementation's default is 0.05).
+    pub scale: f64,
+    /// Total mass ("Mass", default 10): lumped by volume, i.e. density = mass / volume.
+    pub total_mass: f64,
+    /// Young's modulus.
+    pub youngs_modulus: f64,
+    /// Poisson ratio.
+    pub poisson_ratio: f64,
+    /// Time step (1 / "Simulation HZ").
+    pub dt: f64,
+    /// Penalty attachments ("Attach Verts", "Attach Stiffness").
+    #[serde(default)]
+    pub attach: Option<SuiteAttach>,
+}
+
+/// Attachments of a suite mesh.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SuiteAttach {
+    /// Attached vertices (0-based file indices).
+    pub vertices: Vec<usize>,
+    /// Spring weight.
+    pub stiffness: f64,
+}
+
+/// Structured boxes with a fixed cell size and a growing number of cells.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TScalingSuite {
+    /// Cell edge length.
+    pub cell_size: f64,
+    /// Density.
+    pub rho: f64,
+    /// Stiffness coefficient.
+    pub mu: f64,
+    /// Cells per axis of each cubic box.
+    pub cells_per_axis: Vec<usize>,
+}
+
+/// Errors reading a suite.
+#[derive(Debug, thiserror::Error)]
+pub enum SuiteError {
+    /// Cannot read the file.
+    #[error("{path}: {source}")]
+    Io {
+        /// Suite path.
+        path: String,
+        /// Cause.
+        source: std::io::Error,
+    },
+    /// Invalid JSON or unknown/missing keys (serde names key, line and column).
+    #[error("{path}: {source}")]
+    Json {
+        /// Suite path.
+        path: String,
+        /// Cause.
+        source: serde_json::Error,
+    },
+    /// A value is meaningless.
+    #[error("{path}: {message}")]
+    Invalid {
+        /// Suite path.
+        path: String,
+        /// What is wrong.
+        message: String,
+    },
+}
+
+impl Suite {
+    /// Read and check a suite file.
+    pub fn load(path: &Path) -> Result<Suite, SuiteError> {
+        let shown = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|source| SuiteError::Io { path: shown.clone(), source })?;
+        let suite: Suite = serde_json::from_str(&text).map_err(|source| SuiteError::Json { path: shown.clone(), source })?;
+        let invalid = |message: String| SuiteError::Invalid { path: shown.clone(), message };
+        if suite.schema != SUITE_SCHEMA {
+            return Err(invalid(format!("schema is '{}', expected '{SUITE_SCHEMA}'", suite.schema)));
+        }
+        for m in &suite.bounds.meshes {
+            for (what, v) in [("scale", m.scale), ("total_mass", m.total_mass), ("youngs_modulus", m.youngs_modulus), ("dt", m.dt)] {
+                if !(v.is_finite() && v > 0.0) {
+                    return Err(invalid(format!("mesh '{}': {what} must be finite and positive, got {v}", m.name)));
+                }
+            }
+            if !(m.poisson_ratio > -1.0 && m.poisson_ratio < 0.5) {
+                return Err(invalid(format!("mesh '{}': poisson_ratio must be in (-1, 0.5), got {}", m.name, m.poisson_ratio)));
+            }
+        }
+        if suite.bounds.sweep_points < 2 {
+            return Err(invalid("bounds.sweep_points must be at least 2".into()));
+        }
+        Ok(suite)
+    }
+}

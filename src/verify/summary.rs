@@ -1,0 +1,160 @@
+//! Human-readable summaries of reports (what the CLI prints).
+
+use std::fmt::Write as _;
+
+use super::{QualityReport, SuiteBoundsReport, SweepReport};
+use crate::analysis::bounds::BoundsReport;
+
+fn opt(v: Option<f64>) -> String {
+    v.map_or("none (every dt)".to_string(), |h| format!("{h:.6e} s"))
+}
+
+fn yes(b: bool) -> &'static str {
+    if b {
+        "yes"
+    } else {
+        "NO"
+    }
+}
+
+/// Summary of a bounds report.
+pub fn bounds_summary(r: &BoundsReport) -> String {
+    let mut s = String::new();
+    let m = &r.mesh;
+    let q = &m.quality;
+    let _ = writeln!(s, "mesh        {} ({} vertices, {} tets, {:?})", r.inputs.mesh_file, m.vertices, m.tets, m.source.format);
+    if m.source.dropped_nodes > 0 || m.source.reoriented_tets > 0 {
+        let _ = writeln!(s, "            dropped {} unused nodes, re-oriented {} inverted tets", m.source.dropped_nodes, m.source.reoriented_tets);
+    }
+    let _ = writeln!(
+        s,
+        "quality     dihedral {:.2}..{:.2} deg, {} tets with an obtuse angle, {} positive off-diagonal entries of L",
+        q.min_dihedral_deg, q.max_dihedral_deg, q.tets_with_obtuse_dihedral, m.l_sign.positive_offdiagonal_entries
+    );
+    let _ = writeln!(
+        s,
+        "inputs      rho {:e}  mu {:e}  dt {:e}  ({:?} eigensolver{})",
+        r.inputs.rho,
+        r.inputs.mu,
+        r.inputs.dt,
+        r.inputs.eigen_method,
+        if r.inputs.attached_vertices > 0 { format!(", {} attached vertices", r.inputs.attached_vertices) } else { String::new() }
+    );
+    let _ = writeln!(
+        s,
+        "Eq. 19      rho(G19) = {:.6e}  h*_19 = {}  converges at dt: {}",
+        r.jacobi.spectral_radius,
+        opt(r.jacobi.critical_dt),
+        yes(r.jacobi.converges)
+    );
+    let _ = writeln!(
+        s,
+        "Eq. 21      rho(G21) = {:.6e}  h*_21 = {}  converges at dt: {}  (rho -> {:.6} as h -> inf)",
+        r.split.spectral_radius,
+        opt(r.split.critical_dt),
+        yes(r.split.converges),
+        r.split.spectral_radius_limit_h_inf.unwrap_or(f64::NAN)
+    );
+    let a = &r.appendix_a;
+    let _ = writeln!(s, "Appendix A  bound on h               value          / h*_19      safe");
+    for (name, b) in [
+        ("Eq. 28 (min over tets)", &a.eq28_min_over_tets),
+        ("Eq. 29 (as printed)", &a.eq29),
+        ("Eq. 24 Gershgorin", &a.gershgorin),
+        ("re-derived sigma_min", &a.rederived_sigma_min),
+        ("re-derived altitude", &a.rederived_altitude),
+    ] {
+        let _ = writeln!(s, "            {name:<24} {:>12.4e} {:<6} {:>10.3e}  {}", b.dt, b.units, b.ratio_to_exact, yes(b.safe));
+    }
+    let b = &r.appendix_b;
+    let _ = writeln!(s, "Appendix B  (21) converges for every h: {}  (lambda_max(D^-1 L) = {:.6}, threshold 2)", yes(b.holds), b.lambda_max_dinv_l);
+    let _ = writeln!(s, "            {}", b.explanation);
+    for e in &r.empirical {
+        let _ = writeln!(
+            s,
+            "empirical   {:?}: observed rate {:.6} vs predicted {:.6} (rel. diff {:.1e}, {} iterations, {:?})",
+            e.scheme, e.observed_rate, e.predicted_spectral_radius, e.relative_difference, e.iterations, e.outcome
+        );
+    }
+    let _ = writeln!(s, "time        assembly {:.1} ms, eigenvalues {:.1} ms, total {:.1} ms", r.timing.assembly_ms, r.timing.eigen_ms, r.timing.total_ms);
+    s
+}
+
+/// Summary of a sweep.
+pub fn sweep_summary(r: &SweepReport) -> String {
+    let mut s = String::new();
+    let _ = writeln!(s, "mesh {}: h*_19 = {:.6e} s, h*_21 = {}", r.inputs.mesh_file, r.critical_dt_plain, opt(r.critical_dt_split));
+    let _ = writeln!(s, "{:>14} {:>14} {:>14}", "dt", "rho(G19)", "rho(G21)");
+    for p in &r.points {
+        let _ = writeln!(s, "{:>14.6e} {:>14.6e} {:>14.6e}", p.dt, p.rho_plain, p.rho_split);
+    }
+    s
+}
+
+/// Summary of a quality report.
+pub fn quality_summary(r: &QualityReport) -> String {
+    let q = &r.quality;
+    let mut s = String::new();
+    let _ = writeln!(s, "mesh        {} ({:?})", r.source.path, r.source.format);
+    let _ = writeln!(s, "counts      {} vertices, {} tets (dropped {} unused nodes, re-oriented {} tets, skipped {} non-tet elements)", q.vertices, q.tets, r.source.dropped_nodes, r.source.reoriented_tets, r.source.skipped_elements);
+    let _ = writeln!(s, "volume      total {:.6e}, min {:.3e}, max {:.3e}, min normalised {:.3e}", q.total_volume, q.min_volume, q.max_volume, q.min_normalized_volume);
+    let _ = writeln!(s, "edges       min {:.3e}, mean {:.3e}, max {:.3e}; min altitude {:.3e}", q.min_edge, q.mean_edge, q.max_edge, q.min_altitude);
+    let _ = writeln!(s, "dihedral    min {:.3} deg, max {:.3} deg, {} tets with an obtuse angle", q.min_dihedral_deg, q.max_dihedral_deg, q.tets_with_obtuse_dihedral);
+    let l = &r.l_sign;
+    let _ = writeln!(
+        s,
+        "L           {} positive off-diagonal entries ({} edges), {} rows not diagonally dominant, M-matrix: {}",
+        l.positive_offdiagonal_entries,
+        l.positive_offdiagonal_edges,
+        l.rows_not_diagonally_dominant,
+        yes(l.is_m_matrix)
+    );
+    s
+}
+
+/// The table printed by `diffsoft verify`.
+pub fn table(r: &SuiteBoundsReport) -> String {
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "\n{:<18} {:>5} {:>6} {:>8} | {:>10} {:>9} {:>4} | {:>10} {:>9} {:>4} | {:>10} {:>5} | {:>6}",
+        "mesh", "verts", "tets", "dt", "h*_19", "rho19", "conv", "h*_21", "rho21", "conv", "Eq.29", "safe", "App.B"
+    );
+    let _ = writeln!(s, "{}", "-".repeat(128));
+    for t in &r.table {
+        let _ = writeln!(
+            s,
+            "{:<18} {:>5} {:>6} {:>8.2e} | {:>10.3e} {:>9.2e} {:>4} | {:>10} {:>9.3e} {:>4} | {:>10.3e} {:>5} | {:>6}",
+            t.mesh,
+            t.vertices,
+            t.tets,
+            t.dt,
+            t.critical_dt_plain,
+            t.rho_plain,
+            yes(t.plain_converges),
+            t.critical_dt_split.map_or("none".to_string(), |h| format!("{h:.3e}")),
+            t.rho_split,
+            yes(t.split_converges),
+            t.eq29,
+            yes(t.eq29_safe),
+            if t.appendix_b_holds { "holds" } else { "FAILS" }
+        );
+    }
+    let p = &r.paper_arithmetic;
+    let _ = writeln!(
+        s,
+        "\nAppendix A arithmetic (T={}, mu={:e}, edge={:e}, rho={}): Eq. 29 gives h < 1/{:.1} (printed 1/1934: reproduced {}); \
+         exact h*_19 is {:.3e} s for a regular tet and {:.3e} s for a {}-tet box of that edge: the printed step is {:.0}x too large.",
+        p.tets, p.mu, p.edge, p.rho, p.eq29_inverse_dt, yes(p.reproduced), p.exact_dt_regular_tet, p.exact_dt_box, p.box_tets, p.printed_over_exact
+    );
+    let ts = &r.t_scaling;
+    let _ = writeln!(
+        s,
+        "Eq. 29's T dependence: at fixed cell size {:e}, h*_19 scales like T^{:.3} (Eq. 29 like T^{:.3}); claim T^-0.5 holds: {}",
+        ts.cell_size,
+        ts.exact_exponent,
+        ts.eq29_exponent,
+        yes(ts.verdicts.first().is_some_and(|v| v.holds))
+    );
+    s
+}
