@@ -15,7 +15,11 @@ use diffsoft::report::write_json;
 use diffsoft::verify;
 
 #[derive(Parser)]
-#[command(name = "diffsoft", version, about = "Differentiable soft multi-body simulation and its verification harness")]
+#[command(
+    name = "diffsoft",
+    version,
+    about = "Differentiable soft multi-body simulation and its verification harness"
+)]
 struct Cli {
     /// Worker threads (default: all cores).
     #[arg(long, global = true)]
@@ -140,7 +144,12 @@ impl MeshArgs {
         if !(self.scale.is_finite() && self.scale > 0.0) {
             bail!("--scale must be finite and positive, got {}", self.scale);
         }
-        let loaded = mesh::load_with(&self.mesh, LoadOptions { min_quality: self.min_tet_quality })?;
+        let loaded = mesh::load_with(
+            &self.mesh,
+            LoadOptions {
+                min_quality: self.min_tet_quality,
+            },
+        )?;
         Ok((loaded.mesh.scaled(self.scale), loaded.info))
     }
 }
@@ -161,7 +170,12 @@ fn main() {
 
 fn run(command: Command) -> Result<()> {
     match command {
-        Command::Bounds { input, dt, empirical, json } => {
+        Command::Bounds {
+            input,
+            dt,
+            empirical,
+            json,
+        } => {
             let (mesh, info) = input.load()?;
             let params = BoundsParams {
                 rho: input.rho,
@@ -178,7 +192,15 @@ fn run(command: Command) -> Result<()> {
                 println!("wrote {}", path.display());
             }
         }
-        Command::Sweep { input, dt_min, dt_max, points, mark_dt, json, svg } => {
+        Command::Sweep {
+            input,
+            dt_min,
+            dt_max,
+            points,
+            mark_dt,
+            json,
+            svg,
+        } => {
             let (mesh, info) = input.load()?;
             let sys = IterationSystem::new(&mesh, input.rho, input.mu, &Attachments::default())?;
             let spectrum = Spectrum::compute(&sys, input.method)?;
@@ -195,7 +217,10 @@ fn run(command: Command) -> Result<()> {
                 println!("wrote {}", path.display());
             }
             if let Some(path) = svg {
-                diffsoft::plot::write_svg(&path, &report.chart(&format!("{}: spectral radius vs time step", info.path)))?;
+                diffsoft::plot::write_svg(
+                    &path,
+                    &report.chart(&format!("{}: spectral radius vs time step", info.path)),
+                )?;
                 println!("wrote {}", path.display());
             }
         }
@@ -208,7 +233,15 @@ fn run(command: Command) -> Result<()> {
                 println!("wrote {}", out.display());
             }
         }
-        Command::Generate { cells, size, split, jitter, seed, out, gmsh_version } => {
+        Command::Generate {
+            cells,
+            size,
+            split,
+            jitter,
+            seed,
+            out,
+            gmsh_version,
+        } => {
             if cells.len() != 3 || size.len() != 3 {
                 bail!("--cells and --size take three comma-separated values, e.g. --cells 4,4,8 --size 1,1,2");
             }
@@ -226,7 +259,12 @@ fn run(command: Command) -> Result<()> {
                 .jitter(jitter, seed);
             let m = spec.build()?;
             write_mesh(&m, &out, &gmsh_version)?;
-            println!("wrote {} ({} vertices, {} tets)", out.display(), m.num_vertices(), m.num_tets());
+            println!(
+                "wrote {} ({} vertices, {} tets)",
+                out.display(),
+                m.num_vertices(),
+                m.num_tets()
+            );
         }
         Command::Verify { suite, out } => {
             verify::run_suite(&suite, &out)?;

@@ -59,7 +59,11 @@ pub fn write_svg(path: &Path, chart: &LogLogChart) -> std::io::Result<()> {
             std::fs::create_dir_all(dir)?;
         }
     }
-    let pts = chart.series.iter().flat_map(|s| s.points.iter()).filter(|(x, y)| ok(*x) && ok(*y));
+    let pts = chart
+        .series
+        .iter()
+        .flat_map(|s| s.points.iter())
+        .filter(|(x, y)| ok(*x) && ok(*y));
     let (mut x0, mut x1, mut y0, mut y1) = (f64::INFINITY, 0.0f64, f64::INFINITY, 0.0f64);
     for &(x, y) in pts {
         x0 = x0.min(x);
@@ -103,16 +107,31 @@ pub fn write_svg(path: &Path, chart: &LogLogChart) -> std::io::Result<()> {
         let n = chart.series.len();
         for (k, h) in chart.hlines.iter().filter(|h| ok(h.at)).enumerate() {
             let color = PALETTE[(n + k) % PALETTE.len()];
-            c.draw_series(DashedLineSeries::new(vec![(x0, h.at), (x1, h.at)], 6, 4, color.stroke_width(1)))?
-                .label(h.label.clone())
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color));
+            c.draw_series(DashedLineSeries::new(
+                vec![(x0, h.at), (x1, h.at)],
+                6,
+                4,
+                color.stroke_width(1),
+            ))?
+            .label(h.label.clone())
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color));
         }
         let n = n + chart.hlines.len();
-        for (k, v) in chart.vlines.iter().filter(|v| ok(v.at) && v.at >= x0 && v.at <= x1).enumerate() {
+        for (k, v) in chart
+            .vlines
+            .iter()
+            .filter(|v| ok(v.at) && v.at >= x0 && v.at <= x1)
+            .enumerate()
+        {
             let color = PALETTE[(n + k) % PALETTE.len()];
-            c.draw_series(DashedLineSeries::new(vec![(v.at, y0 / 2.0), (v.at, y1 * 2.0)], 6, 4, color.stroke_width(1)))?
-                .label(v.label.clone())
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color));
+            c.draw_series(DashedLineSeries::new(
+                vec![(v.at, y0 / 2.0), (v.at, y1 * 2.0)],
+                6,
+                4,
+                color.stroke_width(1),
+            ))?
+            .label(v.label.clone())
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color));
         }
         c.configure_series_labels()
             .position(SeriesLabelPosition::UpperLeft)

@@ -65,7 +65,13 @@ impl Verdict {
     }
 
     /// A verdict with an explicit outcome and a description of the comparison.
-    pub fn new(claim: impl Into<String>, holds: bool, measured: Option<f64>, threshold: Option<f64>, comparison: impl Into<String>) -> Self {
+    pub fn new(
+        claim: impl Into<String>,
+        holds: bool,
+        measured: Option<f64>,
+        threshold: Option<f64>,
+        comparison: impl Into<String>,
+    ) -> Self {
         Self {
             claim: claim.into(),
             holds,

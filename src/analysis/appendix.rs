@@ -156,7 +156,10 @@ fn tet_bounds(fem: &FemOperators, rho: f64, mu: f64) -> Vec<TetBounds> {
             let mut violates_31 = false;
             for i in 0..4 {
                 let aii = g.grads[i].norm_squared();
-                let off: f64 = (0..4).filter(|&j| j != i).map(|j| g.grads[i].dot(&g.grads[j]).abs()).sum();
+                let off: f64 = (0..4)
+                    .filter(|&j| j != i)
+                    .map(|j| g.grads[i].dot(&g.grads[j]).abs())
+                    .sum();
                 violates_31 |= off - aii > 1e-12 * aii;
             }
             TetBounds {
@@ -227,18 +230,28 @@ fn bound(formula: &'static str, units: &'static str, dt: f64, dt_scaled2: f64, e
     }
 }
 
-/// Evaluate Appendix A on a mesh (uniform `rho`, `mu`) at time step `dt`.
+/// A mesh's FEM operators and the iteration system assembled from them.
+#[derive(Debug, Clone, Copy)]
+pub struct Discretized<'a> {
+    /// Per-tet geometry.
+    pub fem: &'a FemOperators,
+    /// `M`, `L`, `D`.
+    pub sys: &'a IterationSystem,
+}
+
+/// Evaluate Appendix A on a mesh (uniform `rho`, `mu`) at time step `dt`; `scaled2` is the same
+/// mesh scaled by 2, used to measure how each bound scales with length.
 pub fn appendix_a(
-    fem: &FemOperators,
-    fem_scaled2: &FemOperators,
-    sys: &IterationSystem,
-    sys_scaled2: &IterationSystem,
+    base: Discretized<'_>,
+    scaled2: Discretized<'_>,
     rho: f64,
     mu: f64,
     spectrum: &Spectrum,
-    includes_attachments: bool,
     dt: f64,
 ) -> AppendixA {
+    let (fem, sys) = (base.fem, base.sys);
+    let (fem_scaled2, sys_scaled2) = (scaled2.fem, scaled2.sys);
+    let includes_attachments = !sys.attachment.is_empty();
     let exact = spectrum.critical_dt_plain();
     let tb = tet_bounds(fem, rho, mu);
     let cf = closed_form(&tb, rho, mu);
@@ -283,7 +296,11 @@ pub fn appendix_a(
     let rho19 = spectrum.rho_plain(dt);
     let mut verdicts = vec![
         Verdict::below("Eq. 19 converges at this dt: rho(G19) < 1", rho19, 1.0),
-        Verdict::at_most("Eq. 29 is sufficient on this mesh: its bound is at most the exact h*_19", eq29.dt, exact),
+        Verdict::at_most(
+            "Eq. 29 is sufficient on this mesh: its bound is at most the exact h*_19",
+            eq29.dt,
+            exact,
+        ),
         Verdict::new(
             "Eq. 28 is sufficient for every tet taken as a one-tet body",
             unsafe_single == 0,
@@ -427,15 +444,21 @@ pub fn paper_arithmetic() -> Result<PaperArithmetic, super::AnalysisError> {
         vec![[0, 1, 2, 3]],
     )
     .expect("a regular tet is a valid mesh");
-    let exact_tet = Spectrum::compute(&IterationSystem::new(&tet, rho, mu, &Default::default())?, super::spectral::EigenMethod::Dense)?
-        .critical_dt_plain();
+    let exact_tet = Spectrum::compute(
+        &IterationSystem::new(&tet, rho, mu, &Default::default())?,
+        super::spectral::EigenMethod::Dense,
+    )?
+    .critical_dt_plain();
     // A Kuhn box of ~1000 tets whose mean tet edge is `edge`: Kuhn edges are c, c sqrt2, c sqrt3
     // with multiplicities 3, 2, 1, so the mean is c (3 + 2 sqrt2 + sqrt3) / 6.
     let c = edge * 6.0 / (3.0 + 2.0 * 2f64.sqrt() + 3f64.sqrt());
     let spec = BoxSpec::new([5, 5, 7], [5.0 * c, 5.0 * c, 7.0 * c]);
     let mesh = spec.build().expect("structured box is valid");
-    let exact_box = Spectrum::compute(&IterationSystem::new(&mesh, rho, mu, &Default::default())?, super::spectral::EigenMethod::Dense)?
-        .critical_dt_plain();
+    let exact_box = Spectrum::compute(
+        &IterationSystem::new(&mesh, rho, mu, &Default::default())?,
+        super::spectral::EigenMethod::Dense,
+    )?
+    .critical_dt_plain();
     Ok(PaperArithmetic {
         tets,
         mu,

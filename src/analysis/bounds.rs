@@ -5,7 +5,7 @@ use std::time::Instant;
 
 use serde::Serialize;
 
-use super::appendix::{self, AppendixA, AppendixB};
+use super::appendix::{self, AppendixA, AppendixB, Discretized};
 use super::empirical::{self, EmpiricalCheck, Scheme};
 use super::spectral::EigenMethod;
 use super::{positive, rho_split, AnalysisError, Attachments, IterationSystem, Spectrum};
@@ -136,10 +136,20 @@ pub fn analyze(mesh: &TetMesh, info: &MeshInfo, params: &BoundsParams) -> Result
     let mu = positive("stiffness mu", params.mu)?;
     let dt = positive("time step dt", params.dt)?;
     let fem = FemOperators::new(mesh)?;
-    let sys = IterationSystem::from_fem(&fem, Coefficient::Uniform(rho), Coefficient::Uniform(mu), &params.attachments)?;
+    let sys = IterationSystem::from_fem(
+        &fem,
+        Coefficient::Uniform(rho),
+        Coefficient::Uniform(mu),
+        &params.attachments,
+    )?;
     let mesh2 = mesh.scaled(2.0);
     let fem2 = FemOperators::new(&mesh2)?;
-    let sys2 = IterationSystem::from_fem(&fem2, Coefficient::Uniform(rho), Coefficient::Uniform(mu), &params.attachments)?;
+    let sys2 = IterationSystem::from_fem(
+        &fem2,
+        Coefficient::Uniform(rho),
+        Coefficient::Uniform(mu),
+        &params.attachments,
+    )?;
     let sign = sign_pattern(&fem.laplacian_csc(Coefficient::Uniform(mu))?);
     let q = quality(mesh);
     let assembly_ms = t0.elapsed().as_secs_f64() * 1e3;
@@ -173,7 +183,14 @@ pub fn analyze(mesh: &TetMesh, info: &MeshInfo, params: &BoundsParams) -> Result
         critical_dt_dirichlet_limit_rows: spectrum.split_critical_eliminated_rows,
     };
     let has_att = !params.attachments.vertices.is_empty();
-    let appendix_a = appendix::appendix_a(&fem, &fem2, &sys, &sys2, rho, mu, &spectrum, has_att, dt);
+    let appendix_a = appendix::appendix_a(
+        Discretized { fem: &fem, sys: &sys },
+        Discretized { fem: &fem2, sys: &sys2 },
+        rho,
+        mu,
+        &spectrum,
+        dt,
+    );
     let appendix_b = appendix::appendix_b(
         &fem,
         &sys,
@@ -200,7 +217,8 @@ pub fn analyze(mesh: &TetMesh, info: &MeshInfo, params: &BoundsParams) -> Result
             attached_vertices: params.attachments.vertices.len(),
             attachment_stiffness: has_att.then_some(params.attachments.stiffness),
             eigen_method: spectrum.method,
-            convention: "per-axis system: M = lumped rho V/4 per tet corner, L = sum_t mu V_t A_t^T A_t (seed Eqs. 22-23) \
+            convention:
+                "per-axis system: M = lumped rho V/4 per tet corner, L = sum_t mu V_t A_t^T A_t (seed Eqs. 22-23) \
                          plus attachment stiffness on the diagonal; D = diag(L)",
         },
         mesh: MeshSection {

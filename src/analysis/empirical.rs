@@ -1,11 +1,17 @@
-//! Run the iterations (19) and (21) themselves, with a fixed random right-hand side `f` and no
-//! contact impulse (`xi = 0`), and measure their contraction rate.
+//! Run the iterations (19) and (21) themselves, with a fixed random right-hand side `f`, no
+//! contact impulse (`xi = 0`) and `v_0 = 0`, and measure their contraction rate.
 //!
-//! The successive differences `d_k = v_{k+1} - v_k` obey `d_{k+1} = G d_k`. `G` is self-adjoint
-//! in the `W` inner product (`W = M` for (19), `W = M + h^2 D` for (21)), so the ratio
-//! `|d_{k+1}|_W / |d_k|_W` is non-decreasing and converges to the spectral radius from below.
-//! The iteration stops at the round-off floor (`|d| < 1e-10 |v|`), on divergence
-//! (`|d| > 1e100 |d_0|`), or at the iteration cap; the last ratio is the observed rate.
+//! The iteration runs in correction form, `v_{k+1} = v_k + d_k`, `d_{k+1} = G d_k`: algebraically
+//! the same iteration (`d_k = v_{k+1} - v_k`), but `d` keeps full relative precision instead of
+//! hitting the round-off floor `eps |v|`. `G` is self-adjoint in the `W` inner product (`W = M`
+//! for (19), `W = M + h^2 D` for (21)), so the ratio `|d_{k+1}|_W / |d_k|_W` is non-decreasing
+//! and converges to the spectral radius from below, at the speed `(|l_2| / |l_1|)^(2k)` of the
+//! two largest eigenvalue magnitudes. When the two are close, a run that stops as soon as `v`
+//! has converged reads the rate too low, so once `v` is converged (`|d| < 1e-17 |v|`) the
+//! correction keeps being propagated, renormalised to avoid underflow (ratios do not change),
+//! until the rate sequence is stable to `1e-14` for 20 steps or the iteration cap is hit; the
+//! same happens after divergence (growth by 100 orders of magnitude). For converged runs the residual of the
+//! implicit-Euler system `(M + h^2 L) v = f` shows that the fixed point is its solution.
 
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -27,11 +33,12 @@ pub enum Scheme {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Outcome {
-    /// Reached the round-off floor.
+    /// The iterate reached the solution to round-off (`|d| < 1e-17 |v|`).
     Converged,
-    /// Grew by 100 orders of magnitude.
+    /// The correction grew by 100 orders of magnitude, or at a rate above 1 that was stable to
+    /// 1e-14 for 20 steps.
     Diverged,
-    /// Hit the iteration cap first.
+    /// Neither within the iteration cap.
     IterationCap,
 }
 
@@ -48,10 +55,17 @@ pub struct EmpiricalCheck {
     pub observed_rate: f64,
     /// `|observed - predicted| / predicted`.
     pub relative_difference: f64,
-    /// Iterations run.
+    /// Iterations run (including the propagation of the correction after convergence).
     pub iterations: usize,
+    /// Iteration at which the iterate converged to round-off (null if it did not).
+    pub converged_at: Option<usize>,
+    /// Whether the rate sequence was stable to 1e-14 for 20 steps when the run stopped.
+    pub rate_stable: bool,
     /// How the run ended.
     pub outcome: Outcome,
+    /// `|f - (M + h^2 L) v| / |f|` at the end (for converged runs: the fixed point is the
+    /// implicit-Euler solution).
+    pub final_relative_residual: f64,
 }
 
 /// Run `scheme` at time step `h` from `v = 0` with a random `f` (seeded) for at most
@@ -76,40 +90,85 @@ pub fn contraction(
             sys.diag.iter().map(|d| h2 * d).collect(),
         ),
     };
-    let norm_w = |x: &[f64]| -> f64 { x.iter().zip(&w).map(|(x, w)| w * x * x).sum::<f64>().sqrt() };
-    let mut v = vec![0.0; n];
-    let mut next = vec![0.0; n];
-    let mut lv = vec![0.0; n];
-    let mut d = vec![0.0; n];
-    let mut prev_norm = f64::NAN;
-    let mut first_norm = f64::NAN;
+    // W-norm, scaled by max |x| so that tiny corrections do not underflow when squared.
+    let norm_w = |x: &[f64]| -> f64 {
+        let s = x.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        if s == 0.0 || !s.is_finite() {
+            return s;
+        }
+        s * x.iter().zip(&w).map(|(x, w)| w * (x / s) * (x / s)).sum::<f64>().sqrt()
+    };
+    // v_1 = W^-1 f = d_0.
+    let mut d: Vec<f64> = f.iter().zip(&w).map(|(f, w)| f / w).collect();
+    let mut v = d.clone();
+    let mut ld = vec![0.0; n];
+    let mut prev = norm_w(&d);
+    // log10 of |d_k| / |d_0|, accumulated across renormalisations.
+    let mut log_growth = 0.0f64;
     let mut rate = f64::NAN;
+    let mut stable = 0usize;
+    let mut converged_at = None;
     let mut outcome = Outcome::IterationCap;
-    let mut iterations = 0;
-    for k in 0..max_iter {
-        sys.l.matvec(&v, &mut lv);
+    let mut iterations = 1;
+    while iterations < max_iter {
+        sys.l.matvec(&d, &mut ld);
         for i in 0..n {
-            next[i] = (f[i] - h2 * lv[i] + dshift[i] * v[i]) / w[i];
-            d[i] = next[i] - v[i];
+            d[i] = (dshift[i] * d[i] - h2 * ld[i]) / w[i];
         }
-        std::mem::swap(&mut v, &mut next);
-        iterations = k + 1;
+        let settled = outcome != Outcome::IterationCap;
+        if !settled {
+            for i in 0..n {
+                v[i] += d[i];
+            }
+        }
+        iterations += 1;
         let dn = norm_w(&d);
-        if k == 0 {
-            first_norm = dn;
+        let new_rate = dn / prev;
+        if !new_rate.is_finite() || new_rate == 0.0 {
+            break;
+        }
+        stable = if (new_rate - rate).abs() <= 1e-14 * new_rate {
+            stable + 1
         } else {
-            rate = dn / prev_norm;
+            0
+        };
+        rate = new_rate;
+        log_growth += rate.log10();
+        if !settled {
+            if log_growth > 100.0 {
+                outcome = Outcome::Diverged;
+            } else if dn < 1e-17 * norm_w(&v) {
+                converged_at = Some(iterations);
+                outcome = Outcome::Converged;
+            } else if stable >= 20 && rate > 1.0 {
+                outcome = Outcome::Diverged;
+            }
         }
-        prev_norm = dn;
-        if !(dn.is_finite()) || dn > 1e100 * first_norm {
-            outcome = Outcome::Diverged;
-            break;
-        }
-        if dn < 1e-10 * norm_w(&v) {
-            outcome = Outcome::Converged;
-            break;
+        if outcome != Outcome::IterationCap {
+            // v no longer changes: renormalise d (ratios do not depend on its scale) and keep
+            // propagating it until the rate is stable.
+            for x in d.iter_mut() {
+                *x /= dn;
+            }
+            prev = 1.0;
+            if stable >= 20 {
+                break;
+            }
+        } else {
+            prev = dn;
         }
     }
+    // Residual of (M + h^2 L) v = f.
+    sys.l.matvec(&v, &mut ld);
+    let fnorm = f.iter().map(|x| x * x).sum::<f64>().sqrt();
+    let res = (0..n)
+        .map(|i| {
+            let r = f[i] - sys.mass[i] * v[i] - h2 * ld[i];
+            r * r
+        })
+        .sum::<f64>()
+        .sqrt()
+        / fnorm;
     EmpiricalCheck {
         scheme,
         dt: h,
@@ -117,6 +176,9 @@ pub fn contraction(
         observed_rate: rate,
         relative_difference: (rate - predicted).abs() / predicted,
         iterations,
+        converged_at,
+        rate_stable: stable >= 20,
         outcome,
+        final_relative_residual: res,
     }
 }

@@ -132,7 +132,12 @@ impl IterationSystem {
             attachment[v] += attachments.stiffness;
         }
         let diag = l.diagonal();
-        Ok(Self { l, mass, diag, attachment })
+        Ok(Self {
+            l,
+            mass,
+            diag,
+            attachment,
+        })
     }
 
     /// Number of vertices (size of the per-axis system).
@@ -248,11 +253,8 @@ impl Spectrum {
             .zip(&split_sys.mass)
             .map(|(d, m)| 2.0 * d / m)
             .fold(0.0, f64::max);
-        let lambda_max_minv_l_minus_2d = spectral::largest_eigenvalue(
-            &split_sys.op_split_critical(),
-            sigma,
-            method.resolve(split_sys.n()),
-        )?;
+        let lambda_max_minv_l_minus_2d =
+            spectral::largest_eigenvalue(&split_sys.op_split_critical(), sigma, method.resolve(split_sys.n()))?;
         let lambda_max_dinv_l = spectral::largest_eigenvalue(&sys.op_dinv_l(), 0.0, method)?;
         Ok(Self {
             lambda_max_minv_l,

@@ -12,9 +12,12 @@
 //! thick-restart Lanczos (Krylov-Schur for symmetric operators, `partial_self_adjoint_eigen`)
 //! for large ones.
 
+use std::borrow::Cow;
+
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::matrix_free::eigen::{partial_self_adjoint_eigen, partial_self_adjoint_eigen_scratch, PartialEigenParams};
 use faer::matrix_free::LinOp;
+use faer::reborrow::ReborrowMut;
 use faer::{Col, Mat, MatMut, MatRef, Par, Side};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -133,9 +136,7 @@ impl ScaledOperator<'_> {
     }
 
     fn check_finite(&self) -> Result<(), SpectralError> {
-        let ok = self.c.is_finite()
-            && self.s.iter().all(|v| v.is_finite())
-            && self.d.iter().all(|v| v.is_finite());
+        let ok = self.c.is_finite() && self.s.iter().all(|v| v.is_finite()) && self.d.iter().all(|v| v.is_finite());
         if ok {
             Ok(())
         } else {
@@ -146,7 +147,7 @@ impl ScaledOperator<'_> {
 
 impl LinOp<f64> for ScaledOperator<'_> {
     fn apply_scratch(&self, _rhs_ncols: usize, _par: Par) -> StackReq {
-        StackReq::EMPTY
+        StackReq::new::<f64>(self.n())
     }
 
     fn nrows(&self) -> usize {
@@ -157,18 +158,25 @@ impl LinOp<f64> for ScaledOperator<'_> {
         self.n()
     }
 
-    fn apply(&self, mut out: MatMut<'_, f64>, rhs: MatRef<'_, f64>, _par: Par, _stack: &mut MemStack) {
+    fn apply(&self, mut out: MatMut<'_, f64>, rhs: MatRef<'_, f64>, _par: Par, stack: &mut MemStack) {
         let n = self.n();
-        let mut x = vec![0.0; n];
-        let mut y = vec![0.0; n];
-        let mut tmp = vec![0.0; n];
+        let (mut tmp, _) = stack.make_with(n, |_| 0.0f64);
         for j in 0..rhs.ncols() {
-            for i in 0..n {
-                x[i] = rhs[(i, j)];
-            }
-            self.apply_to(&x, &mut y, &mut tmp);
-            for i in 0..n {
-                out[(i, j)] = y[i];
+            // The Lanczos solver passes contiguous columns; strided views are copied.
+            let x = rhs.col(j);
+            let xs: Cow<'_, [f64]> = match x.try_as_col_major() {
+                Some(c) => Cow::Borrowed(c.as_slice()),
+                None => Cow::Owned((0..n).map(|i| x[i]).collect()),
+            };
+            let mut y = out.rb_mut().col_mut(j);
+            if let Some(ys) = y.rb_mut().try_as_col_major_mut() {
+                self.apply_to(&xs, ys.as_slice_mut(), &mut tmp);
+            } else {
+                let mut yv = vec![0.0; n];
+                self.apply_to(&xs, &mut yv, &mut tmp);
+                for (i, v) in yv.into_iter().enumerate() {
+                    y[i] = v;
+                }
             }
         }
     }
@@ -257,11 +265,7 @@ pub const KRYLOV_REL_TOL: f64 = 1e-13;
 /// Largest eigenvalue of `op`, given a shift `sigma` such that `op + sigma I` is positive
 /// semidefinite (the Krylov solver returns the largest magnitude, which for a PSD operator is
 /// the largest eigenvalue). Krylov subspaces are shift invariant, so the shift costs nothing.
-pub fn largest_eigenvalue(
-    op: &ScaledOperator<'_>,
-    sigma: f64,
-    method: EigenMethod,
-) -> Result<f64, SpectralError> {
+pub fn largest_eigenvalue(op: &ScaledOperator<'_>, sigma: f64, method: EigenMethod) -> Result<f64, SpectralError> {
     match method.resolve(op.n()) {
         EigenMethod::Krylov => {
             let mut shifted = op.clone();

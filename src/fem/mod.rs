@@ -66,7 +66,7 @@ impl TetGeometry {
     /// Geometry of a tet given its edge matrix; `None` if singular or inverted.
     pub fn from_edge_matrix(p: Matrix3<f64>) -> Option<Self> {
         let volume = p.determinant() / 6.0;
-        if !(volume > 0.0) {
+        if volume.is_nan() || volume <= 0.0 {
             return None;
         }
         let p_inv = p.try_inverse()?;
@@ -82,15 +82,7 @@ impl TetGeometry {
     /// Local stiffness block `V A^T A` (4 x 4, without the material factor): entry
     /// `(i, j) = V <a_i, a_j>`.
     pub fn local_laplacian(&self) -> [[f64; 4]; 4] {
-        let mut k = [[0.0; 4]; 4];
-        for i in 0..4 {
-            for j in i..4 {
-                let v = self.volume * self.grads[i].dot(&self.grads[j]);
-                k[i][j] = v;
-                k[j][i] = v;
-            }
-        }
-        k
+        std::array::from_fn(|i| std::array::from_fn(|j| self.volume * self.grads[i].dot(&self.grads[j])))
     }
 }
 

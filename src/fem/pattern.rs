@@ -97,13 +97,8 @@ impl StiffnessPattern {
 
     /// Wrap values in a faer sparse matrix (copies the pattern).
     pub fn to_faer(&self, values: Vec<f64>) -> SparseColMat<usize, f64> {
-        let symbolic = SymbolicSparseColMat::new_checked(
-            self.n,
-            self.n,
-            self.col_ptr.clone(),
-            None,
-            self.row_idx.clone(),
-        );
+        let symbolic =
+            SymbolicSparseColMat::new_checked(self.n, self.n, self.col_ptr.clone(), None, self.row_idx.clone());
         SparseColMat::new(symbolic, values)
     }
 }

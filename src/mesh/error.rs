@@ -62,9 +62,7 @@ pub enum MeshErrorKind {
         vertex: i64,
     },
     /// A tet has zero or near-zero volume.
-    #[error(
-        "tet {tet}: degenerate (volume {volume:e}; 6*sqrt(2)*|V|/l_rms^3 = {quality:e} is below {threshold:e})"
-    )]
+    #[error("tet {tet}: degenerate (volume {volume:e}; 6*sqrt(2)*|V|/l_rms^3 = {quality:e} is below {threshold:e})")]
     DegenerateTet {
         /// 0-based tet number in file order.
         tet: usize,

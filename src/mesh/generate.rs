@@ -129,9 +129,7 @@ fn box_mesh(spec: &BoxSpec) -> Result<TetMesh, MeshError> {
         for j in 0..ny {
             for i in 0..nx {
                 // Cell corners c[b] with bit 0 = x, bit 1 = y, bit 2 = z.
-                let c: [usize; 8] = std::array::from_fn(|b| {
-                    id(i + (b & 1), j + ((b >> 1) & 1), k + ((b >> 2) & 1))
-                });
+                let c: [usize; 8] = std::array::from_fn(|b| id(i + (b & 1), j + ((b >> 1) & 1), k + ((b >> 2) & 1)));
                 match spec.split {
                     CellSplit::Kuhn6 => {
                         // Paths 0 -> 7 through the cube, one per permutation of the axes.

@@ -213,7 +213,13 @@ fn read_nodes_v41(
     let mut seen = 0usize;
     for b in 0..blocks {
         let (line, content) = cur.expect_line(&format!("{blocks} node blocks (header), found only {b}"))?;
-        let toks = tokens_at_least(path, line, content, 4, "node block header 'entityDim entityTag parametric numNodes'")?;
+        let toks = tokens_at_least(
+            path,
+            line,
+            content,
+            4,
+            "node block header 'entityDim entityTag parametric numNodes'",
+        )?;
         let dim = parse_count(path, line, toks[0])?;
         let parametric = parse_count(path, line, toks[2])?;
         let n = parse_count(path, line, toks[3])?;
@@ -314,14 +320,26 @@ fn read_elements_v41(
     let mut seen = 0usize;
     for b in 0..blocks {
         let (line, content) = cur.expect_line(&format!("{blocks} element blocks (header), found only {b}"))?;
-        let toks = tokens_at_least(path, line, content, 4, "element block header 'entityDim entityTag type numElements'")?;
+        let toks = tokens_at_least(
+            path,
+            line,
+            content,
+            4,
+            "element block header 'entityDim entityTag type numElements'",
+        )?;
         let ty = parse_int(path, line, toks[2])?;
         let n = parse_count(path, line, toks[3])?;
         for k in 0..n {
             let (line, content) = cur.expect_line(&format!("{n} elements in block {b}, found only {k}"))?;
             match tet_nodes(ty) {
                 Some(nn) => {
-                    let toks = tokens_at_least(path, line, content, 1 + nn, "tetrahedron element line 'tag n0 n1 n2 n3'")?;
+                    let toks = tokens_at_least(
+                        path,
+                        line,
+                        content,
+                        1 + nn,
+                        "tetrahedron element line 'tag n0 n1 n2 n3'",
+                    )?;
                     push_tet(path, line, &toks[1..1 + nn], raw, tag_to_index)?;
                 }
                 None => raw.skipped_elements += 1,
@@ -333,7 +351,9 @@ fn read_elements_v41(
         return Err(MeshError::at(
             path,
             header_line,
-            MeshErrorKind::Syntax(format!("$Elements header announces {total} elements, blocks hold {seen}")),
+            MeshErrorKind::Syntax(format!(
+                "$Elements header announces {total} elements, blocks hold {seen}"
+            )),
         ));
     }
     Ok(())

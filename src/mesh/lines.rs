@@ -69,11 +69,7 @@ pub(crate) fn parse_coord(path: &str, line: usize, tok: &str) -> Result<f64, Mes
         )
     })?;
     if !v.is_finite() {
-        return Err(MeshError::at(
-            path,
-            line,
-            MeshErrorKind::NonFinite(tok.to_string()),
-        ));
+        return Err(MeshError::at(path, line, MeshErrorKind::NonFinite(tok.to_string())));
     }
     Ok(v)
 }

@@ -1,7 +1,7 @@
 //! Tetrahedral meshes: the [`TetMesh`] type, readers (OBJ with `t` lines, TetGen `.node`/`.ele`,
 //! Gmsh `.msh` ASCII 2.2 and 4.1), writers, structured generators and quality measures.
 //!
-//! Every reader goes through one validation pass ([`TetMesh::from_raw`]): indices in range, no
+//! Every reader goes through one validation pass (shared with [`TetMesh::new`]): indices in range, no
 //! repeated vertex in a tet, finite coordinates, no zero or near-zero volume. Inverted tets
 //! (negative signed volume) are not errors: they are re-oriented (two vertices swapped) and
 //! counted in [`MeshInfo`]. Vertices that no tet uses are dropped and counted; [`MeshInfo`] keeps
@@ -204,7 +204,7 @@ impl TetMesh {
         for (t, tet) in raw.tets.iter().enumerate() {
             let mut tet = tet.map(|i| new_index[i]);
             let (volume, quality) = volume_and_quality(&vertices, &tet);
-            if !(quality >= opts.min_quality) {
+            if quality.is_nan() || quality < opts.min_quality {
                 return Err(err_at(
                     t,
                     MeshErrorKind::DegenerateTet {
@@ -286,11 +286,7 @@ impl TetMesh {
 
 pub(crate) fn edge_matrix(vertices: &[Vector3<f64>], tet: &[usize; 4]) -> Matrix3<f64> {
     let q0 = vertices[tet[0]];
-    Matrix3::from_columns(&[
-        vertices[tet[1]] - q0,
-        vertices[tet[2]] - q0,
-        vertices[tet[3]] - q0,
-    ])
+    Matrix3::from_columns(&[vertices[tet[1]] - q0, vertices[tet[2]] - q0, vertices[tet[3]] - q0])
 }
 
 /// Signed volume and normalised volume `6 sqrt(2) |V| / l_rms^3` (1 for a regular tet).
@@ -388,15 +384,12 @@ pub fn parse_tetgen_str(
 }
 
 fn read_text(path: &Path) -> Result<String, MeshError> {
-    let bytes = std::fs::read(path).map_err(|e| {
-        MeshError::file(&path.display().to_string(), MeshErrorKind::Io(e.to_string()))
-    })?;
+    let bytes = std::fs::read(path)
+        .map_err(|e| MeshError::file(&path.display().to_string(), MeshErrorKind::Io(e.to_string())))?;
     String::from_utf8(bytes).map_err(|e| {
         MeshError::file(
             &path.display().to_string(),
-            MeshErrorKind::UnsupportedFormat(format!(
-                "not UTF-8 text (binary files are not supported): {e}"
-            )),
+            MeshErrorKind::UnsupportedFormat(format!("not UTF-8 text (binary files are not supported): {e}")),
         )
     })
 }

@@ -144,12 +144,7 @@ mod tests {
     #[test]
     fn trirectangular_corner_has_three_right_angles() {
         let m = TetMesh::new(
-            vec![
-                Vector3::zeros(),
-                Vector3::x(),
-                Vector3::y(),
-                Vector3::z(),
-            ],
+            vec![Vector3::zeros(), Vector3::x(), Vector3::y(), Vector3::z()],
             vec![[0, 1, 2, 3]],
         )
         .unwrap();

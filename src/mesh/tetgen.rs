@@ -7,12 +7,7 @@ use super::error::{MeshError, MeshErrorKind};
 use super::lines::{parse_coord, parse_count, parse_int, tokens_at_least, LineCursor};
 use super::RawMesh;
 
-pub(crate) fn parse(
-    node_path: &str,
-    node_text: &str,
-    ele_path: &str,
-    ele_text: &str,
-) -> Result<RawMesh, MeshError> {
+pub(crate) fn parse(node_path: &str, node_text: &str, ele_path: &str, ele_text: &str) -> Result<RawMesh, MeshError> {
     let mut raw = RawMesh::default();
 
     // .node header: <#points> <dimension (3)> <#attributes> <boundary markers (0 or 1)>
@@ -33,9 +28,7 @@ pub(crate) fn parse(
     }
     let mut first_id = 0i64;
     for p in 0..n_points {
-        let (line, content) = cur.expect_line(&format!(
-            "{n_points} nodes (header), found only {p}"
-        ))?;
+        let (line, content) = cur.expect_line(&format!("{n_points} nodes (header), found only {p}"))?;
         let toks = tokens_at_least(node_path, line, content, 4, "node line '<id> x y z'")?;
         let id = parse_int(node_path, line, toks[0])?;
         if p == 0 {
@@ -43,9 +36,7 @@ pub(crate) fn parse(
                 return Err(MeshError::at(
                     node_path,
                     line,
-                    MeshErrorKind::Syntax(format!(
-                        "first node id is {id}; TetGen numbering starts at 0 or 1"
-                    )),
+                    MeshErrorKind::Syntax(format!("first node id is {id}; TetGen numbering starts at 0 or 1")),
                 ));
             }
             first_id = id;
@@ -80,22 +71,13 @@ pub(crate) fn parse(
         return Err(MeshError::at(
             ele_path,
             line,
-            MeshErrorKind::UnsupportedFormat(format!(
-                "{per_tet} nodes per tetrahedron (expected 4 or 10)"
-            )),
+            MeshErrorKind::UnsupportedFormat(format!("{per_tet} nodes per tetrahedron (expected 4 or 10)")),
         ));
     }
     let n = n_points as i64;
     for t in 0..n_tets {
-        let (line, content) =
-            cur.expect_line(&format!("{n_tets} tets (header), found only {t}"))?;
-        let toks = tokens_at_least(
-            ele_path,
-            line,
-            content,
-            1 + per_tet,
-            "tet line '<id> n0 n1 n2 n3'",
-        )?;
+        let (line, content) = cur.expect_line(&format!("{n_tets} tets (header), found only {t}"))?;
+        let toks = tokens_at_least(ele_path, line, content, 1 + per_tet, "tet line '<id> n0 n1 n2 n3'")?;
         parse_int(ele_path, line, toks[0])?;
         let mut tet = [0usize; 4];
         for k in 0..4 {

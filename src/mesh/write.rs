@@ -8,7 +8,13 @@ use super::TetMesh;
 /// OBJ with `v` and 0-based `t` lines.
 pub fn obj(mesh: &TetMesh) -> String {
     let mut s = String::new();
-    writeln!(s, "# diffsoft tet mesh: {} vertices, {} tets", mesh.num_vertices(), mesh.num_tets()).unwrap();
+    writeln!(
+        s,
+        "# diffsoft tet mesh: {} vertices, {} tets",
+        mesh.num_vertices(),
+        mesh.num_tets()
+    )
+    .unwrap();
     for v in &mesh.vertices {
         writeln!(s, "v {:?} {:?} {:?}", v.x, v.y, v.z).unwrap();
     }
@@ -29,7 +35,16 @@ pub fn tetgen(mesh: &TetMesh, base: usize) -> (String, String) {
     let mut ele = String::new();
     writeln!(ele, "{} 4 0", mesh.num_tets()).unwrap();
     for (i, t) in mesh.tets.iter().enumerate() {
-        writeln!(ele, "{} {} {} {} {}", i + base, t[0] + base, t[1] + base, t[2] + base, t[3] + base).unwrap();
+        writeln!(
+            ele,
+            "{} {} {} {} {}",
+            i + base,
+            t[0] + base,
+            t[1] + base,
+            t[2] + base,
+            t[3] + base
+        )
+        .unwrap();
     }
     (node, ele)
 }
@@ -43,7 +58,16 @@ pub fn gmsh22(mesh: &TetMesh) -> String {
     }
     writeln!(s, "$EndNodes\n$Elements\n{}", mesh.num_tets()).unwrap();
     for (i, t) in mesh.tets.iter().enumerate() {
-        writeln!(s, "{} 4 2 1 1 {} {} {} {}", i + 1, t[0] + 1, t[1] + 1, t[2] + 1, t[3] + 1).unwrap();
+        writeln!(
+            s,
+            "{} 4 2 1 1 {} {} {} {}",
+            i + 1,
+            t[0] + 1,
+            t[1] + 1,
+            t[2] + 1,
+            t[3] + 1
+        )
+        .unwrap();
     }
     s.push_str("$EndElements\n");
     s

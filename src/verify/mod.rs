@@ -18,7 +18,7 @@ use crate::analysis::appendix::{self, PaperArithmetic};
 use crate::analysis::bounds::{self, BoundsParams, BoundsReport};
 use crate::analysis::spectral::{EigenMethod, KRYLOV_MIN_N};
 use crate::analysis::sweep::{self, log_space, SweepPoint};
-use crate::analysis::{Attachments, IterationSystem, Spectrum};
+use crate::analysis::{rho_split, Attachments, IterationSystem, Spectrum};
 use crate::fem::{sign_pattern, Coefficient, FemOperators, SignPattern};
 use crate::mesh::generate::BoxSpec;
 use crate::mesh::quality::{quality, MeshQuality};
@@ -69,7 +69,14 @@ pub struct SweepInputs {
 
 impl SweepReport {
     /// Assemble a sweep report.
-    pub fn new(mesh_file: &str, rho: f64, mu: f64, mark_dt: Option<f64>, spectrum: &Spectrum, points: Vec<SweepPoint>) -> Self {
+    pub fn new(
+        mesh_file: &str,
+        rho: f64,
+        mu: f64,
+        mark_dt: Option<f64>,
+        spectrum: &Spectrum,
+        points: Vec<SweepPoint>,
+    ) -> Self {
         Self {
             header: Header::new(SWEEP_SCHEMA),
             inputs: SweepInputs {
@@ -177,14 +184,16 @@ pub struct SuiteMaterial {
     pub derivation: &'static str,
 }
 
-/// Krylov vs dense agreement on one mesh.
+/// Krylov vs dense agreement on one mesh (relative differences).
 #[derive(Debug, Clone, Serialize)]
 pub struct CrossCheck {
-    /// Relative difference of `lambda_max(M^-1 L)`.
-    pub rel_diff_lambda_minv_l: f64,
-    /// Difference of `lambda_max(M^-1 (L - 2D))` relative to `lambda_max(M^-1 L)`.
-    pub rel_diff_lambda_split_critical: f64,
-    /// Relative difference of `lambda_max(D^-1 L)`.
+    /// `h*_19`.
+    pub rel_diff_critical_dt_plain: f64,
+    /// `h*_21` (null when neither solver finds one; 1 when only one does).
+    pub rel_diff_critical_dt_split: Option<f64>,
+    /// `rho(G21)` at the scene's dt.
+    pub rel_diff_rho_split_at_dt: f64,
+    /// `lambda_max(D^-1 L)`.
     pub rel_diff_lambda_dinv_l: f64,
     /// Dense time (ms).
     pub dense_ms: f64,
@@ -303,15 +312,23 @@ fn map_attach(name: &str, info: &MeshInfo, vertices: &[usize]) -> Result<Vec<usi
     vertices
         .iter()
         .map(|&v| {
-            index
-                .get(&(v as i64))
-                .copied()
-                .ok_or_else(|| anyhow!("suite mesh '{name}': attached vertex {v} is not a vertex of any tet of {}", info.path))
+            index.get(&(v as i64)).copied().ok_or_else(|| {
+                anyhow!(
+                    "suite mesh '{name}': attached vertex {v} is not a vertex of any tet of {}",
+                    info.path
+                )
+            })
         })
         .collect()
 }
 
-fn run_mesh(base: &Path, out: &Path, entry: &SuiteMesh, empirical: bool, sweep_points: usize) -> Result<SuiteMeshResult> {
+fn run_mesh(
+    base: &Path,
+    out: &Path,
+    entry: &SuiteMesh,
+    empirical: bool,
+    sweep_points: usize,
+) -> Result<SuiteMeshResult> {
     let path = base.join(&entry.mesh);
     let loaded = mesh::load(&path)?;
     let scaled = loaded.mesh.scaled(entry.scale);
@@ -336,7 +353,8 @@ fn run_mesh(base: &Path, out: &Path, entry: &SuiteMesh, empirical: bool, sweep_p
         method: EigenMethod::Auto,
         empirical,
     };
-    let report = bounds::analyze(&scaled, &loaded.info, &params).with_context(|| format!("suite mesh '{}'", entry.name))?;
+    let report =
+        bounds::analyze(&scaled, &loaded.info, &params).with_context(|| format!("suite mesh '{}'", entry.name))?;
 
     let sys = IterationSystem::from_fem(&fem, Coefficient::Uniform(rho), Coefficient::Uniform(mu), &attachments)?;
     let t = Instant::now();
@@ -346,9 +364,16 @@ fn run_mesh(base: &Path, out: &Path, entry: &SuiteMesh, empirical: bool, sweep_p
         let t = Instant::now();
         let kry = Spectrum::compute(&sys, EigenMethod::Krylov)?;
         let krylov_ms = t.elapsed().as_secs_f64() * 1e3;
+        let rho_k = rho_split(&sys, entry.dt, EigenMethod::Krylov)?;
+        let rho_d = rho_split(&sys, entry.dt, EigenMethod::Dense)?;
         Some(CrossCheck {
-            rel_diff_lambda_minv_l: rel(kry.lambda_max_minv_l, dense.lambda_max_minv_l),
-            rel_diff_lambda_split_critical: (kry.lambda_max_minv_l_minus_2d - dense.lambda_max_minv_l_minus_2d).abs() / dense.lambda_max_minv_l,
+            rel_diff_critical_dt_plain: rel(kry.critical_dt_plain(), dense.critical_dt_plain()),
+            rel_diff_critical_dt_split: match (kry.critical_dt_split(), dense.critical_dt_split()) {
+                (Some(a), Some(b)) => Some(rel(a, b)),
+                (None, None) => None,
+                _ => Some(1.0),
+            },
+            rel_diff_rho_split_at_dt: rel(rho_k, rho_d),
             rel_diff_lambda_dinv_l: rel(kry.lambda_max_dinv_l, dense.lambda_max_dinv_l),
             dense_ms,
             krylov_ms,
@@ -362,13 +387,20 @@ fn run_mesh(base: &Path, out: &Path, entry: &SuiteMesh, empirical: bool, sweep_p
     let hi = hi.max(entry.dt * 10.0);
     let pts = sweep::sweep(&sys, &dense, &log_space(lo, hi, sweep_points), EigenMethod::Dense)?;
     let sweep_report = SweepReport::new(&loaded.info.path, rho, mu, Some(entry.dt), &dense, pts);
-    let slug: String = entry.name.chars().map(|c| if c.is_ascii_alphanumeric() { c } else { '_' }).collect();
+    let slug: String = entry
+        .name
+        .chars()
+        .map(|c| if c.is_ascii_alphanumeric() { c } else { '_' })
+        .collect();
     let sweep_json = format!("sweeps/{slug}.json");
     let sweep_svg = format!("sweeps/{slug}.svg");
     write_json(out.join(&sweep_json), &sweep_report)?;
     plot::write_svg(
         &out.join(&sweep_svg),
-        &sweep_report.chart(&format!("{}: spectral radius of (19) and (21) vs time step", entry.name)),
+        &sweep_report.chart(&format!(
+            "{}: spectral radius of (19) and (21) vs time step",
+            entry.name
+        )),
     )?;
     Ok(SuiteMeshResult {
         name: entry.name.clone(),
@@ -406,7 +438,12 @@ pub fn t_scaling(cell_size: f64, rho: f64, mu: f64, cells: &[usize]) -> Result<T
         let side = cell_size * k as f64;
         let mesh = BoxSpec::new([k, k, k], [side; 3]).build()?;
         let fem = FemOperators::new(&mesh)?;
-        let sys = IterationSystem::from_fem(&fem, Coefficient::Uniform(rho), Coefficient::Uniform(mu), &Attachments::default())?;
+        let sys = IterationSystem::from_fem(
+            &fem,
+            Coefficient::Uniform(rho),
+            Coefficient::Uniform(mu),
+            &Attachments::default(),
+        )?;
         let spectrum = Spectrum::compute(&sys, EigenMethod::Auto)?;
         let total: f64 = fem.geometry.iter().map(|g| g.p.norm_squared()).sum();
         rows.push(TScalingRow {
@@ -503,6 +540,11 @@ pub fn run_suite(suite_path: &Path, out: &Path) -> Result<SuiteBoundsReport> {
     let path = out.join("bounds.json");
     write_json(&path, &report)?;
     print!("{}", summary::table(&report));
-    println!("wrote {} and {} sweep plots in {:.1} s", path.display(), report.meshes.len(), report.wall_time_s);
+    println!(
+        "wrote {} and {} sweep plots in {:.1} s",
+        path.display(),
+        report.meshes.len(),
+        report.wall_time_s
+    );
     Ok(report)
 }

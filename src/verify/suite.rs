@@ -113,20 +113,43 @@ impl Suite {
     /// Read and check a suite file.
     pub fn load(path: &Path) -> Result<Suite, SuiteError> {
         let shown = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|source| SuiteError::Io { path: shown.clone(), source })?;
-        let suite: Suite = serde_json::from_str(&text).map_err(|source| SuiteError::Json { path: shown.clone(), source })?;
-        let invalid = |message: String| SuiteError::Invalid { path: shown.clone(), message };
+        let text = std::fs::read_to_string(path).map_err(|source| SuiteError::Io {
+            path: shown.clone(),
+            source,
+        })?;
+        let suite: Suite = serde_json::from_str(&text).map_err(|source| SuiteError::Json {
+            path: shown.clone(),
+            source,
+        })?;
+        let invalid = |message: String| SuiteError::Invalid {
+            path: shown.clone(),
+            message,
+        };
         if suite.schema != SUITE_SCHEMA {
-            return Err(invalid(format!("schema is '{}', expected '{SUITE_SCHEMA}'", suite.schema)));
+            return Err(invalid(format!(
+                "schema is '{}', expected '{SUITE_SCHEMA}'",
+                suite.schema
+            )));
         }
         for m in &suite.bounds.meshes {
-            for (what, v) in [("scale", m.scale), ("total_mass", m.total_mass), ("youngs_modulus", m.youngs_modulus), ("dt", m.dt)] {
+            for (what, v) in [
+                ("scale", m.scale),
+                ("total_mass", m.total_mass),
+                ("youngs_modulus", m.youngs_modulus),
+                ("dt", m.dt),
+            ] {
                 if !(v.is_finite() && v > 0.0) {
-                    return Err(invalid(format!("mesh '{}': {what} must be finite and positive, got {v}", m.name)));
+                    return Err(invalid(format!(
+                        "mesh '{}': {what} must be finite and positive, got {v}",
+                        m.name
+                    )));
                 }
             }
             if !(m.poisson_ratio > -1.0 && m.poisson_ratio < 0.5) {
-                return Err(invalid(format!("mesh '{}': poisson_ratio must be in (-1, 0.5), got {}", m.name, m.poisson_ratio)));
+                return Err(invalid(format!(
+                    "mesh '{}': poisson_ratio must be in (-1, 0.5), got {}",
+                    m.name, m.poisson_ratio
+                )));
             }
         }
         if suite.bounds.sweep_points < 2 {

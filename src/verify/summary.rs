@@ -22,9 +22,17 @@ pub fn bounds_summary(r: &BoundsReport) -> String {
     let mut s = String::new();
     let m = &r.mesh;
     let q = &m.quality;
-    let _ = writeln!(s, "mesh        {} ({} vertices, {} tets, {:?})", r.inputs.mesh_file, m.vertices, m.tets, m.source.format);
+    let _ = writeln!(
+        s,
+        "mesh        {} ({} vertices, {} tets, {:?})",
+        r.inputs.mesh_file, m.vertices, m.tets, m.source.format
+    );
     if m.source.dropped_nodes > 0 || m.source.reoriented_tets > 0 {
-        let _ = writeln!(s, "            dropped {} unused nodes, re-oriented {} inverted tets", m.source.dropped_nodes, m.source.reoriented_tets);
+        let _ = writeln!(
+            s,
+            "            dropped {} unused nodes, re-oriented {} inverted tets",
+            m.source.dropped_nodes, m.source.reoriented_tets
+        );
     }
     let _ = writeln!(
         s,
@@ -38,7 +46,11 @@ pub fn bounds_summary(r: &BoundsReport) -> String {
         r.inputs.mu,
         r.inputs.dt,
         r.inputs.eigen_method,
-        if r.inputs.attached_vertices > 0 { format!(", {} attached vertices", r.inputs.attached_vertices) } else { String::new() }
+        if r.inputs.attached_vertices > 0 {
+            format!(", {} attached vertices", r.inputs.attached_vertices)
+        } else {
+            String::new()
+        }
     );
     let _ = writeln!(
         s,
@@ -56,7 +68,10 @@ pub fn bounds_summary(r: &BoundsReport) -> String {
         r.split.spectral_radius_limit_h_inf.unwrap_or(f64::NAN)
     );
     let a = &r.appendix_a;
-    let _ = writeln!(s, "Appendix A  bound on h               value          / h*_19      safe");
+    let _ = writeln!(
+        s,
+        "Appendix A  bound on h               value          / h*_19      safe"
+    );
     for (name, b) in [
         ("Eq. 28 (min over tets)", &a.eq28_min_over_tets),
         ("Eq. 29 (as printed)", &a.eq29),
@@ -64,10 +79,22 @@ pub fn bounds_summary(r: &BoundsReport) -> String {
         ("re-derived sigma_min", &a.rederived_sigma_min),
         ("re-derived altitude", &a.rederived_altitude),
     ] {
-        let _ = writeln!(s, "            {name:<24} {:>12.4e} {:<6} {:>10.3e}  {}", b.dt, b.units, b.ratio_to_exact, yes(b.safe));
+        let _ = writeln!(
+            s,
+            "            {name:<24} {:>12.4e} {:<6} {:>10.3e}  {}",
+            b.dt,
+            b.units,
+            b.ratio_to_exact,
+            yes(b.safe)
+        );
     }
     let b = &r.appendix_b;
-    let _ = writeln!(s, "Appendix B  (21) converges for every h: {}  (lambda_max(D^-1 L) = {:.6}, threshold 2)", yes(b.holds), b.lambda_max_dinv_l);
+    let _ = writeln!(
+        s,
+        "Appendix B  (21) converges for every h: {}  (lambda_max(D^-1 L) = {:.6}, threshold 2)",
+        yes(b.holds),
+        b.lambda_max_dinv_l
+    );
     let _ = writeln!(s, "            {}", b.explanation);
     for e in &r.empirical {
         let _ = writeln!(
@@ -76,14 +103,24 @@ pub fn bounds_summary(r: &BoundsReport) -> String {
             e.scheme, e.observed_rate, e.predicted_spectral_radius, e.relative_difference, e.iterations, e.outcome
         );
     }
-    let _ = writeln!(s, "time        assembly {:.1} ms, eigenvalues {:.1} ms, total {:.1} ms", r.timing.assembly_ms, r.timing.eigen_ms, r.timing.total_ms);
+    let _ = writeln!(
+        s,
+        "time        assembly {:.1} ms, eigenvalues {:.1} ms, total {:.1} ms",
+        r.timing.assembly_ms, r.timing.eigen_ms, r.timing.total_ms
+    );
     s
 }
 
 /// Summary of a sweep.
 pub fn sweep_summary(r: &SweepReport) -> String {
     let mut s = String::new();
-    let _ = writeln!(s, "mesh {}: h*_19 = {:.6e} s, h*_21 = {}", r.inputs.mesh_file, r.critical_dt_plain, opt(r.critical_dt_split));
+    let _ = writeln!(
+        s,
+        "mesh {}: h*_19 = {:.6e} s, h*_21 = {}",
+        r.inputs.mesh_file,
+        r.critical_dt_plain,
+        opt(r.critical_dt_split)
+    );
     let _ = writeln!(s, "{:>14} {:>14} {:>14}", "dt", "rho(G19)", "rho(G21)");
     for p in &r.points {
         let _ = writeln!(s, "{:>14.6e} {:>14.6e} {:>14.6e}", p.dt, p.rho_plain, p.rho_split);
@@ -96,10 +133,26 @@ pub fn quality_summary(r: &QualityReport) -> String {
     let q = &r.quality;
     let mut s = String::new();
     let _ = writeln!(s, "mesh        {} ({:?})", r.source.path, r.source.format);
-    let _ = writeln!(s, "counts      {} vertices, {} tets (dropped {} unused nodes, re-oriented {} tets, skipped {} non-tet elements)", q.vertices, q.tets, r.source.dropped_nodes, r.source.reoriented_tets, r.source.skipped_elements);
-    let _ = writeln!(s, "volume      total {:.6e}, min {:.3e}, max {:.3e}, min normalised {:.3e}", q.total_volume, q.min_volume, q.max_volume, q.min_normalized_volume);
-    let _ = writeln!(s, "edges       min {:.3e}, mean {:.3e}, max {:.3e}; min altitude {:.3e}", q.min_edge, q.mean_edge, q.max_edge, q.min_altitude);
-    let _ = writeln!(s, "dihedral    min {:.3} deg, max {:.3} deg, {} tets with an obtuse angle", q.min_dihedral_deg, q.max_dihedral_deg, q.tets_with_obtuse_dihedral);
+    let _ = writeln!(
+        s,
+        "counts      {} vertices, {} tets (dropped {} unused nodes, re-oriented {} tets, skipped {} non-tet elements)",
+        q.vertices, q.tets, r.source.dropped_nodes, r.source.reoriented_tets, r.source.skipped_elements
+    );
+    let _ = writeln!(
+        s,
+        "volume      total {:.6e}, min {:.3e}, max {:.3e}, min normalised {:.3e}",
+        q.total_volume, q.min_volume, q.max_volume, q.min_normalized_volume
+    );
+    let _ = writeln!(
+        s,
+        "edges       min {:.3e}, mean {:.3e}, max {:.3e}; min altitude {:.3e}",
+        q.min_edge, q.mean_edge, q.max_edge, q.min_altitude
+    );
+    let _ = writeln!(
+        s,
+        "dihedral    min {:.3} deg, max {:.3} deg, {} tets with an obtuse angle",
+        q.min_dihedral_deg, q.max_dihedral_deg, q.tets_with_obtuse_dihedral
+    );
     let l = &r.l_sign;
     let _ = writeln!(
         s,
