@@ -485,6 +485,29 @@ pub fn t_scaling(cell_size: f64, rho: f64, mu: f64, cells: &[usize]) -> Result<T
     })
 }
 
+/// Eq. 29 and the exact critical step against the number of tets at fixed element size.
+pub fn t_scaling_chart(ts: &TScaling) -> LogLogChart {
+    let series = |label: &str, f: fn(&TScalingRow) -> f64| Series {
+        label: label.to_string(),
+        points: ts.rows.iter().map(|r| (r.tets as f64, f(r))).collect(),
+    };
+    LogLogChart {
+        title: format!(
+            "Appendix A: critical step vs number of tets T (cell size {:.2e} m)",
+            ts.cell_size
+        ),
+        x_label: "tets T".into(),
+        y_label: "time step bound (s, or s/m^2 for Eq. 29)".into(),
+        series: vec![
+            series("exact h*_19", |r| r.exact_dt),
+            series("Eq. 29 as printed (claims T^-1/2)", |r| r.eq29_dt),
+            series("Eq. 24 Gershgorin (sufficient)", |r| r.gershgorin_dt),
+        ],
+        vlines: Vec::new(),
+        hlines: Vec::new(),
+    }
+}
+
 /// Run the suite at `suite_path` and write reports into `out`.
 pub fn run_suite(suite_path: &Path, out: &Path) -> Result<SuiteBoundsReport> {
     let t0 = Instant::now();
@@ -539,9 +562,10 @@ pub fn run_suite(suite_path: &Path, out: &Path) -> Result<SuiteBoundsReport> {
     };
     let path = out.join("bounds.json");
     write_json(&path, &report)?;
+    plot::write_svg(&out.join("t_scaling.svg"), &t_scaling_chart(&report.t_scaling))?;
     print!("{}", summary::table(&report));
     println!(
-        "wrote {} and {} sweep plots in {:.1} s",
+        "wrote {}, t_scaling.svg and {} sweep plots in {:.1} s",
         path.display(),
         report.meshes.len(),
         report.wall_time_s
