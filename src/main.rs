@@ -186,11 +186,7 @@ fn run(command: Command) -> Result<()> {
                 empirical,
             };
             let report = bounds::analyze(&mesh, &info, &params)?;
-            print!("{}", verify::bounds_summary(&report));
-            if let Some(path) = json {
-                write_json(&path, &report)?;
-                println!("wrote {}", path.display());
-            }
+            emit(&verify::bounds_summary(&report), &report, json.as_deref())?;
         }
         Command::Sweep {
             input,
@@ -211,11 +207,7 @@ fn run(command: Command) -> Result<()> {
             }
             let pts = sweep::sweep(&sys, &spectrum, &log_space(lo, hi, points), spectrum.method)?;
             let report = verify::SweepReport::new(&info.path, input.rho, input.mu, mark_dt, &spectrum, pts);
-            print!("{}", verify::sweep_summary(&report));
-            if let Some(path) = json {
-                write_json(&path, &report)?;
-                println!("wrote {}", path.display());
-            }
+            emit(&verify::sweep_summary(&report), &report, json.as_deref())?;
             if let Some(path) = svg {
                 diffsoft::plot::write_svg(
                     &path,
@@ -227,11 +219,7 @@ fn run(command: Command) -> Result<()> {
         Command::Quality { mesh: path, json } => {
             let loaded = mesh::load(&path)?;
             let report = verify::QualityReport::new(&loaded)?;
-            print!("{}", verify::quality_summary(&report));
-            if let Some(out) = json {
-                write_json(&out, &report)?;
-                println!("wrote {}", out.display());
-            }
+            emit(&verify::quality_summary(&report), &report, json.as_deref())?;
         }
         Command::Generate {
             cells,
@@ -269,6 +257,16 @@ fn run(command: Command) -> Result<()> {
         Command::Verify { suite, out } => {
             verify::run_suite(&suite, &out)?;
         }
+    }
+    Ok(())
+}
+
+/// Print a report's summary and write its JSON if asked.
+fn emit<T: serde::Serialize>(summary: &str, report: &T, json: Option<&Path>) -> Result<()> {
+    print!("{summary}");
+    if let Some(path) = json {
+        write_json(path, report)?;
+        println!("wrote {}", path.display());
     }
     Ok(())
 }

@@ -15,24 +15,7 @@ use proptest::prelude::*;
 use proptest::test_runner::FileFailurePersistence;
 
 fn jittered() -> impl Strategy<Value = TetMesh> {
-    (
-        1usize..4,
-        1usize..4,
-        1usize..4,
-        0.2f64..5.0,
-        0.2f64..5.0,
-        0.2f64..5.0,
-        0.05f64..0.25,
-        any::<u64>(),
-        any::<bool>(),
-    )
-        .prop_map(|(a, b, c, x, y, z, jit, seed, kuhn)| {
-            BoxSpec::new([a, b, c], [x, y, z])
-                .split(if kuhn { CellSplit::Kuhn6 } else { CellSplit::Five })
-                .jitter(jit, seed)
-                .build()
-                .unwrap()
-        })
+    common::jittered_boxes(0.2..5.0, 0.05..0.25)
 }
 
 /// Kuhn boxes of any aspect ratio: every tet is an orthoscheme, so L is an M-matrix.

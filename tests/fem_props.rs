@@ -4,7 +4,7 @@
 mod common;
 
 use diffsoft::fem::{Coefficient, FemOperators, SymCsc};
-use diffsoft::mesh::generate::{BoxSpec, CellSplit};
+use diffsoft::mesh::generate::BoxSpec;
 use diffsoft::mesh::TetMesh;
 use nalgebra::{Rotation3, Vector3};
 use proptest::prelude::*;
@@ -12,24 +12,7 @@ use proptest::test_runner::FileFailurePersistence;
 
 /// Random jittered boxes, either split.
 fn meshes() -> impl Strategy<Value = TetMesh> {
-    (
-        1usize..4,
-        1usize..4,
-        1usize..4,
-        0.1f64..10.0,
-        0.1f64..10.0,
-        0.1f64..10.0,
-        0.0f64..0.25,
-        any::<u64>(),
-        any::<bool>(),
-    )
-        .prop_map(|(a, b, c, x, y, z, jit, seed, kuhn)| {
-            BoxSpec::new([a, b, c], [x, y, z])
-                .split(if kuhn { CellSplit::Kuhn6 } else { CellSplit::Five })
-                .jitter(jit, seed)
-                .build()
-                .expect("jitter below 0.25 keeps tets valid")
-        })
+    common::jittered_boxes(0.1..10.0, 0.0..0.25)
 }
 
 fn dense(l: &SymCsc) -> Vec<Vec<f64>> {
