@@ -24,8 +24,13 @@
 #![warn(missing_docs)]
 
 pub mod analysis;
+pub mod constraint;
+pub mod contact;
 pub mod fem;
 pub mod mesh;
+pub mod output;
 pub mod plot;
 pub mod report;
+pub mod scene;
+pub mod solver;
 pub mod verify;

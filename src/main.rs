@@ -100,6 +100,36 @@ enum Command {
         #[arg(long, default_value = "4.1")]
         gmsh_version: String,
     },
+    /// Simulate a scene (diffsoft or paper format), writing VTK frames and a JSON run log.
+    Simulate {
+        /// Scene file (.json, diffsoft.scene/1 or a paper scene).
+        scene: PathBuf,
+        /// Steps to take.
+        #[arg(long, default_value_t = 100)]
+        steps: usize,
+        /// Output directory for frames and the run log.
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Write a frame every this many steps (0: no frames).
+        #[arg(long, default_value_t = 1)]
+        every: usize,
+        /// Override the global solver.
+        #[arg(long, value_enum)]
+        solver: Option<diffsoft::solver::SolverKind>,
+        /// Override the certification policy.
+        #[arg(long, value_enum)]
+        certify: Option<diffsoft::solver::CertifyPolicy>,
+        /// Override the time step (s).
+        #[arg(long)]
+        dt: Option<f64>,
+        /// Override the local-global iteration cap.
+        #[arg(long)]
+        max_iterations: Option<usize>,
+        /// Paper scenes: simulate the bodies without features not supported yet (skeletons,
+        /// actuators, cloth) instead of failing.
+        #[arg(long)]
+        passive: bool,
+    },
     /// The main job: run the verification suite and write reports/.
     Verify {
         /// Suite definition.
@@ -254,11 +284,137 @@ fn run(command: Command) -> Result<()> {
                 m.num_tets()
             );
         }
+        Command::Simulate {
+            scene,
+            steps,
+            out,
+            every,
+            solver,
+            certify,
+            dt,
+            max_iterations,
+            passive,
+        } => {
+            let mut sc = diffsoft::scene::load(&scene, diffsoft::scene::LoadOptions { passive })?;
+            if let Some(s) = solver {
+                sc.settings.solver = s;
+            }
+            if let Some(c) = certify {
+                sc.settings.certify = c;
+            }
+            if let Some(h) = dt {
+                sc.settings.dt = h;
+            }
+            if let Some(m) = max_iterations {
+                sc.settings.max_iterations = m;
+            }
+            simulate(sc, steps, out.as_deref(), every)?;
+        }
         Command::Verify { suite, out } => {
             verify::run_suite(&suite, &out)?;
         }
     }
     Ok(())
+}
+
+/// Run a scene, printing a summary and writing frames and the run log.
+fn simulate(sc: diffsoft::scene::Scene, steps: usize, out: Option<&Path>, every: usize) -> Result<()> {
+    use diffsoft::output::{FrameWriter, RunLog, RunSummary, RUN_SCHEMA};
+    use diffsoft::report::Header;
+    use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+    let model_size = (sc.model.n(), sc.model.tets.len());
+    let bodies = sc.model.bodies.clone();
+    println!(
+        "scene       {} ({:?}): {} vertices, {} tets, {} bodies",
+        sc.path.display(),
+        sc.format,
+        model_size.0,
+        model_size.1,
+        bodies.len()
+    );
+    for n in &sc.notes {
+        println!("note        {n}");
+    }
+    let mut sim = diffsoft::solver::Simulator::new(sc.model, sc.settings.clone())?;
+    println!("solver      {}", sim.certificate().message);
+    let mut frames = match out {
+        Some(dir) if every > 0 => Some(FrameWriter::new(dir, sim.model())?),
+        _ => None,
+    };
+    let mut frame_files = Vec::new();
+    if let Some(f) = frames.as_mut() {
+        let p = f.write(0.0, &sim.state().q, &sim.state().v)?;
+        frame_files.push(p.file_name().unwrap_or_default().to_string_lossy().into_owned());
+    }
+    let bar = ProgressBar::new(steps as u64);
+    if steps < 50 || !std::io::IsTerminal::is_terminal(&std::io::stderr()) {
+        bar.set_draw_target(ProgressDrawTarget::hidden());
+    }
+    bar.set_style(
+        ProgressStyle::with_template("{bar:40} {pos}/{len} steps {elapsed_precise} eta {eta} {msg}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    let mut stats = Vec::with_capacity(steps);
+    let mut error = None;
+    for k in 0..steps {
+        match sim.step() {
+            Ok(s) => {
+                bar.set_message(format!("{} it", s.iterations));
+                stats.push(s);
+            }
+            Err(e) => {
+                error = Some(format!("step {}: {e}", k + 1));
+                break;
+            }
+        }
+        bar.inc(1);
+        if let Some(f) = frames.as_mut() {
+            if (k + 1) % every == 0 {
+                let p = f.write(sim.state().time, &sim.state().q, &sim.state().v)?;
+                frame_files.push(p.file_name().unwrap_or_default().to_string_lossy().into_owned());
+            }
+        }
+    }
+    bar.finish_and_clear();
+    let summary = RunSummary::of(&stats);
+    println!(
+        "ran         {} steps ({:.4} s simulated) in {:.3} s: median {:.3} ms/step, {:.2} iterations/step, {} of {} converged, max penetration {:.3e} m, max contacts {}",
+        summary.steps,
+        summary.simulated_time,
+        summary.wall_time_s,
+        summary.median_ms_per_step,
+        summary.mean_iterations,
+        summary.converged_steps,
+        summary.steps,
+        summary.max_penetration,
+        summary.max_contacts
+    );
+    if let Some(dir) = out {
+        let log = RunLog {
+            header: Header::new(RUN_SCHEMA),
+            scene: sc.path.display().to_string(),
+            notes: sc.notes.clone(),
+            bodies,
+            size: model_size,
+            settings: sim.settings().clone(),
+            certificate: sim.certificate().clone(),
+            summary,
+            steps: stats,
+            frames: frame_files,
+            error: error.clone(),
+        };
+        let path = dir.join("run.json");
+        write_json(&path, &log)?;
+        println!(
+            "wrote       {} and {} frames (frames.pvd)",
+            path.display(),
+            log.frames.len()
+        );
+    }
+    match error {
+        Some(e) => bail!(e),
+        None => Ok(()),
+    }
 }
 
 /// Print a report's summary and write its JSON if asked.

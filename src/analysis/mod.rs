@@ -140,6 +140,21 @@ impl IterationSystem {
         })
     }
 
+    /// A system from an already assembled per-axis `L` (attachments included) and lumped mass;
+    /// `attachment` is the spring weight per vertex (empty if none).
+    pub fn from_parts(l: SymCsc, mass: Vec<f64>, attachment: Vec<f64>) -> Result<Self, AnalysisError> {
+        for &m in &mass {
+            positive("lumped mass", m)?;
+        }
+        let diag = l.diagonal();
+        Ok(Self {
+            l,
+            mass,
+            diag,
+            attachment,
+        })
+    }
+
     /// Number of vertices (size of the per-axis system).
     pub fn n(&self) -> usize {
         self.mass.len()
@@ -289,6 +304,29 @@ impl Spectrum {
     /// `lim_{h -> inf} rho(G21) = max(1, lambda_max(D^-1 L) - 1)`.
     pub fn rho_split_limit(&self) -> f64 {
         (self.lambda_max_dinv_l - 1.0).max(1.0)
+    }
+}
+
+/// Smallest and largest eigenvalue of `G21` at time step `h` (the largest is always below 1;
+/// the smallest is below -1 exactly when (21) diverges). They give the optimal relaxation
+/// `gamma = 2 / (2 - mu_min - mu_max)` of the split iteration, whose relaxed spectral radius
+/// `(mu_max - mu_min) / (2 - mu_min - mu_max)` is below 1 for every `h`.
+pub fn split_extremes(sys: &IterationSystem, h: f64, method: EigenMethod) -> Result<(f64, f64), AnalysisError> {
+    positive("time step", h)?;
+    let op = sys.op_g21(h);
+    match method.resolve(op.n()) {
+        EigenMethod::Krylov => {
+            let (first, _) = spectral::krylov_largest_magnitude(&op, spectral::KRYLOV_REL_TOL)?;
+            // The other end is the largest-magnitude eigenvalue of op - first I.
+            let mut shifted = op.clone();
+            for d in &mut shifted.d {
+                *d -= first;
+            }
+            let (second, _) = spectral::krylov_largest_magnitude(&shifted, spectral::KRYLOV_REL_TOL)?;
+            let other = second + first;
+            Ok((first.min(other), first.max(other)))
+        }
+        _ => Ok(spectral::dense_extremes(&op)?),
     }
 }
 

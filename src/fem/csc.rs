@@ -51,6 +51,25 @@ impl SymCsc {
         }
     }
 
+    /// `y = A x` for three right-hand sides stored as 3-vectors (the per-axis matrix applied
+    /// to x, y and z at once); parallel for large `n`.
+    pub fn matvec3(&self, x: &[nalgebra::Vector3<f64>], y: &mut [nalgebra::Vector3<f64>]) {
+        let row = |j: usize| -> nalgebra::Vector3<f64> {
+            let mut s = nalgebra::Vector3::zeros();
+            for k in self.col_ptr[j]..self.col_ptr[j + 1] {
+                s += self.values[k] * x[self.row_idx[k]];
+            }
+            s
+        };
+        if self.n >= 8_000 {
+            y.par_iter_mut().enumerate().for_each(|(j, yj)| *yj = row(j));
+        } else {
+            for (j, yj) in y.iter_mut().enumerate() {
+                *yj = row(j);
+            }
+        }
+    }
+
     /// The principal submatrix of the rows/columns with `keep[i]`, and the kept indices.
     pub fn principal_submatrix(&self, keep: &[bool]) -> (SymCsc, Vec<usize>) {
         let mut new_index = vec![usize::MAX; self.n];

@@ -15,6 +15,7 @@ mod gmsh;
 mod lines;
 mod obj;
 pub mod quality;
+pub mod surface;
 mod tetgen;
 pub mod write;
 

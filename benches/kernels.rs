@@ -1,0 +1,58 @@
+//! Per-tet kernels of the local step: 3x3 SVD (fast cold, fast warm-started, nalgebra) and the
+//! volume projection.
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use diffsoft::constraint::svd::{svd3, svd3_nalgebra, svd3_warm};
+use diffsoft::constraint::volume::nearest_product;
+use nalgebra::{Matrix3, Rotation3, Vector3};
+use std::hint::black_box;
+
+fn matrices(n: usize) -> Vec<Matrix3<f64>> {
+    let mut seed = 3u64;
+    let mut rnd = move || {
+        seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+    };
+    (0..n)
+        .map(|_| {
+            // Physical deformation gradients: a rotation times a moderate stretch.
+            let r = Rotation3::from_scaled_axis(Vector3::new(rnd(), rnd(), rnd()) * 3.0);
+            r.matrix() * (Matrix3::identity() + 0.2 * Matrix3::from_fn(|_, _| rnd()))
+        })
+        .collect()
+}
+
+fn kernels(c: &mut Criterion) {
+    let fs = matrices(1024);
+    let warm: Vec<Matrix3<f64>> = fs
+        .iter()
+        .map(|f| svd3(&(f * (Matrix3::identity() + Matrix3::repeat(1e-3)))).v)
+        .collect();
+    let mut g = c.benchmark_group("kernels_per_1024_tets");
+    g.bench_function("svd3_fast_cold", |b| {
+        b.iter(|| fs.iter().map(|f| svd3(black_box(f)).sigma[0]).sum::<f64>())
+    });
+    g.bench_function("svd3_fast_warm", |b| {
+        b.iter(|| {
+            fs.iter()
+                .zip(&warm)
+                .map(|(f, v)| svd3_warm(black_box(f), v).sigma[0])
+                .sum::<f64>()
+        })
+    });
+    g.bench_function("svd3_nalgebra", |b| {
+        b.iter(|| fs.iter().map(|f| svd3_nalgebra(black_box(f)).sigma[0]).sum::<f64>())
+    });
+    let sig: Vec<Vector3<f64>> = fs.iter().map(|f| svd3(f).sigma).collect();
+    g.bench_function("volume_projection", |b| {
+        b.iter(|| {
+            sig.iter()
+                .map(|s| nearest_product(black_box(s), 1.0).unwrap()[0])
+                .sum::<f64>()
+        })
+    });
+    g.finish();
+}
+
+criterion_group!(benches, kernels);
+criterion_main!(benches);

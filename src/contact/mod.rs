@@ -1,0 +1,242 @@
+//! Frictional contact with static obstacles (METHOD.md section 4, after Ly et al. 2020).
+//!
+//! A [`Contact`] linearises one vertex's non-penetration constraint as a half-space
+//! `n . (x - c) >= 0` around the closest obstacle point `c` (offset by the obstacle's thickness)
+//! and remembers the vertex's position at the start of the step (its anchor: sticking means no
+//! tangential displacement during the step). [`project`] is the per-vertex Coulomb cone
+//! projection used inside every global solver: given the vertex's free update `x_hat` and its
+//! diagonal weight `w` (the vertex moves as `x = x_hat + lambda / w` under a contact impulse
+//! `lambda`), it returns the impulse that
+//!
+//! * is zero when `x_hat` already separates;
+//! * otherwise has a normal part `lambda_N >= 0` that puts the vertex on the plane, and a
+//!   tangential part that sticks (`x_T = anchor_T`) when `|lambda_T| <= mu lambda_N`, or slides
+//!   on the cone boundary against the slip direction (maximal dissipation) otherwise.
+
+mod trimesh;
+
+pub use trimesh::TriMeshObstacle;
+
+use nalgebra::Vector3;
+use serde::Serialize;
+
+use crate::solver::SolverError;
+
+/// Obstacle geometry.
+#[derive(Debug, Clone)]
+pub enum Shape {
+    /// Half-space `n . (x - point) >= 0` (the ground).
+    Plane {
+        /// A point on the plane.
+        point: Vector3<f64>,
+        /// Unit normal pointing into the free side.
+        normal: Vector3<f64>,
+    },
+    /// A static triangle mesh (closed or open; contacts keep the side the vertex came from).
+    TriMesh(TriMeshObstacle),
+}
+
+/// A static obstacle with its friction coefficient.
+#[derive(Debug, Clone)]
+pub struct Obstacle {
+    /// Name for reports.
+    pub name: String,
+    /// Geometry.
+    pub shape: Shape,
+    /// Coulomb friction coefficient `mu_f >= 0`.
+    pub friction: f64,
+    /// Collision thickness: vertices are kept this far from the surface.
+    pub thickness: f64,
+}
+
+impl Obstacle {
+    /// A ground plane through `point` with normal `normal` (normalised here).
+    pub fn plane(name: &str, point: Vector3<f64>, normal: Vector3<f64>, friction: f64) -> Self {
+        Self {
+            name: name.to_string(),
+            shape: Shape::Plane {
+                point,
+                normal: normal.normalize(),
+            },
+            friction,
+            thickness: 0.0,
+        }
+    }
+
+    /// Check the parameters.
+    pub fn validate(&self) -> Result<(), SolverError> {
+        let bad = |m: String| Err(SolverError::Input(format!("obstacle '{}': {m}", self.name)));
+        if !(self.friction.is_finite() && self.friction >= 0.0) {
+            return bad(format!("friction must be finite and >= 0, got {}", self.friction));
+        }
+        if !(self.thickness.is_finite() && self.thickness >= 0.0) {
+            return bad(format!("thickness must be finite and >= 0, got {}", self.thickness));
+        }
+        if let Shape::Plane { point, normal } = &self.shape {
+            if !point.iter().chain(normal.iter()).all(|v| v.is_finite()) || (normal.norm() - 1.0).abs() > 1e-9 {
+                return bad("plane point and normal must be finite, normal of unit length".into());
+            }
+        }
+        Ok(())
+    }
+
+    /// Signed distance of `x` to the surface minus the thickness, with the contact normal and
+    /// surface point, seen from the side of `from` (where the vertex was at the start of the
+    /// step). `None` when `x` is farther than `margin` and the segment `from -> x` does not
+    /// cross the surface.
+    pub fn query(
+        &self,
+        from: &Vector3<f64>,
+        x: &Vector3<f64>,
+        margin: f64,
+    ) -> Option<(f64, Vector3<f64>, Vector3<f64>)> {
+        match &self.shape {
+            Shape::Plane { point, normal } => {
+                let d = normal.dot(&(x - point)) - self.thickness;
+                (d < margin).then(|| (d, *normal, point + normal * self.thickness))
+            }
+            Shape::TriMesh(m) => m
+                .query(from, x, margin + self.thickness)
+                .map(|(d, n, c)| (d - self.thickness, n, c + n * self.thickness)),
+        }
+    }
+}
+
+/// One vertex in (possible) contact with one obstacle during one step.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Contact {
+    /// Vertex (global numbering).
+    pub vertex: usize,
+    /// Obstacle index.
+    pub obstacle: usize,
+    /// Unit normal of the half-space.
+    pub normal: Vector3<f64>,
+    /// A point of the (thickness-offset) plane.
+    pub point: Vector3<f64>,
+    /// The vertex's position at the start of the step.
+    pub anchor: Vector3<f64>,
+    /// Friction coefficient.
+    pub friction: f64,
+}
+
+/// The state a contact ended in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ContactState {
+    /// No impulse (moving away).
+    Separate,
+    /// Inside the friction cone.
+    Stick,
+    /// On the cone boundary.
+    Slide,
+}
+
+/// Coulomb cone projection: the impulse `lambda` such that `x = x_hat + lambda / w` obeys the
+/// contact (see the module docs).
+#[inline]
+pub fn project(x_hat: &Vector3<f64>, w: f64, c: &Contact) -> (Vector3<f64>, ContactState) {
+    let gap = c.normal.dot(&(x_hat - c.point));
+    if gap >= 0.0 {
+        return (Vector3::zeros(), ContactState::Separate);
+    }
+    let lambda_n = -w * gap;
+    let rel = x_hat - c.anchor;
+    let tangential = rel - c.normal * c.normal.dot(&rel);
+    let stick = -w * tangential;
+    let stick_norm = stick.norm();
+    if stick_norm <= c.friction * lambda_n {
+        (c.normal * lambda_n + stick, ContactState::Stick)
+    } else {
+        (
+            c.normal * lambda_n + stick * (c.friction * lambda_n / stick_norm),
+            ContactState::Slide,
+        )
+    }
+}
+
+/// Candidate contacts for a step: every free vertex whose start position `q` or predicted
+/// position `pred` is within `margin` of an obstacle, or whose path crosses one.
+pub fn detect(
+    obstacles: &[Obstacle],
+    fixed: &[bool],
+    q: &[Vector3<f64>],
+    pred: &[Vector3<f64>],
+    margin: f64,
+    out: &mut Vec<Contact>,
+) {
+    out.clear();
+    for (i, (a, b)) in q.iter().zip(pred).enumerate() {
+        if fixed[i] {
+            continue;
+        }
+        let m = margin.max((b - a).norm());
+        for (k, o) in obstacles.iter().enumerate() {
+            if let Some((_, normal, point)) = o.query(a, b, m) {
+                out.push(Contact {
+                    vertex: i,
+                    obstacle: k,
+                    normal,
+                    point,
+                    anchor: *a,
+                    friction: o.friction,
+                });
+                break;
+            }
+        }
+    }
+}
+
+/// Deepest penetration (`<= 0` means none) over all vertices, and the vertex where it occurs.
+pub fn max_penetration(obstacles: &[Obstacle], q_start: &[Vector3<f64>], q: &[Vector3<f64>]) -> (f64, Option<usize>) {
+    let mut worst = (0.0, None);
+    for (i, (a, x)) in q_start.iter().zip(q).enumerate() {
+        for o in obstacles {
+            if let Some((d, _, _)) = o.query(a, x, 0.0) {
+                if -d > worst.0 {
+                    worst = (-d, Some(i));
+                }
+            }
+        }
+    }
+    worst
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn ground(mu: f64) -> Contact {
+        Contact {
+            vertex: 0,
+            obstacle: 0,
+            normal: Vector3::y(),
+            point: Vector3::zeros(),
+            anchor: Vector3::new(0.0, 0.1, 0.0),
+            friction: mu,
+        }
+    }
+
+    #[test]
+    fn separating_vertex_gets_no_impulse() {
+        let (l, s) = project(&Vector3::new(1.0, 0.05, 0.0), 3.0, &ground(0.5));
+        assert_eq!((l, s), (Vector3::zeros(), ContactState::Separate));
+    }
+
+    #[test]
+    fn sticks_inside_the_cone_and_slides_outside() {
+        let w = 2.0;
+        // Penetrates by 0.1 and drifts 0.02 sideways: |lambda_T| = 0.04 <= 0.5 * 0.2.
+        let x_hat = Vector3::new(0.02, -0.1, 0.0);
+        let (l, s) = project(&x_hat, w, &ground(0.5));
+        assert_eq!(s, ContactState::Stick);
+        let x = x_hat + l / w;
+        assert!((x - Vector3::new(0.0, 0.0, 0.0)).norm() < 1e-15, "{x}");
+        // Drifts 1.0 sideways: slides, with |lambda_T| = mu lambda_N against the drift.
+        let x_hat = Vector3::new(1.0, -0.1, 0.0);
+        let (l, s) = project(&x_hat, w, &ground(0.5));
+        assert_eq!(s, ContactState::Slide);
+        assert!((l.x + 0.5 * l.y).abs() < 1e-15 && l.y > 0.0);
+        let x = x_hat + l / w;
+        assert!(x.y.abs() < 1e-15 && x.x > 0.0 && x.x < 1.0);
+    }
+}

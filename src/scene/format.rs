@@ -1,0 +1,235 @@
+//! The diffsoft scene format (`schema: "diffsoft.scene/1"`): JSON, every key checked (unknown
+//! keys are errors that name the key, line and column). A scene names only what it needs: a body
+//! without pins has no `fixed`, a scene without obstacles runs no collision code.
+//!
+//! ```json
+//! {
+//!   "schema": "diffsoft.scene/1",
+//!   "time_step": 0.005,
+//!   "gravity": [0, -9.81, 0],
+//!   "bodies": [{
+//!     "name": "beam", "mesh": "beam.msh",
+//!     "material": { "youngs_modulus": 1e6, "poisson_ratio": 0.3 },
+//!     "density": 1000,
+//!     "fixed": { "box": { "min": [-1, -1, -1], "max": [0.001, 1, 1] } }
+//!   }],
+//!   "obstacles": [{ "plane": { "point": [0, -1, 0], "normal": [0, 1, 0] }, "friction": 0.5 }],
+//!   "solver": { "solver": "split", "certify": "fallback", "max_iterations": 30 }
+//! }
+//! ```
+
+use std::path::PathBuf;
+
+use serde::Deserialize;
+
+use crate::solver::{CertifyPolicy, Settings, SolverKind};
+
+/// Schema name of the scene format.
+pub const SCENE_SCHEMA: &str = "diffsoft.scene/1";
+
+/// A scene file.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SceneFile {
+    /// Must be [`SCENE_SCHEMA`].
+    pub schema: String,
+    /// Time step (s).
+    pub time_step: f64,
+    /// Gravitational acceleration (m/s^2).
+    #[serde(default)]
+    pub gravity: [f64; 3],
+    /// Bodies.
+    pub bodies: Vec<BodyFile>,
+    /// Static obstacles.
+    #[serde(default)]
+    pub obstacles: Vec<ObstacleFile>,
+    /// Solver settings (the time step is `time_step`).
+    #[serde(default)]
+    pub solver: SolverFile,
+}
+
+/// Solver settings of a scene; every field is optional (defaults of [`Settings`]).
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SolverFile {
+    /// Global solver: `direct`, `plain`, `split`, `chebyshev`.
+    pub solver: Option<SolverKind>,
+    /// Certification: `off`, `refuse`, `fallback`.
+    pub certify: Option<CertifyPolicy>,
+    /// Local-global iteration cap.
+    pub max_iterations: Option<usize>,
+    /// Relative RMS change tolerance.
+    pub tolerance: Option<f64>,
+    /// Inner iteration tolerance (relative to the length scale).
+    pub inner_tolerance: Option<f64>,
+    /// Inner iteration cap.
+    pub inner_max_iterations: Option<usize>,
+    /// Velocity damping factor per step.
+    pub damping: Option<f64>,
+    /// Contact margin (fraction of the length scale).
+    pub contact_margin: Option<f64>,
+    /// Contact rounds per step.
+    pub contact_rounds: Option<usize>,
+}
+
+impl SolverFile {
+    /// Settings with these overrides and time step `dt`.
+    pub fn settings(&self, dt: f64) -> Settings {
+        let d = Settings::default();
+        Settings {
+            dt,
+            solver: self.solver.unwrap_or(d.solver),
+            certify: self.certify.unwrap_or(d.certify),
+            max_iterations: self.max_iterations.unwrap_or(d.max_iterations),
+            tolerance: self.tolerance.unwrap_or(d.tolerance),
+            inner_tolerance: self.inner_tolerance.unwrap_or(d.inner_tolerance),
+            inner_max_iterations: self.inner_max_iterations.unwrap_or(d.inner_max_iterations),
+            damping: self.damping.unwrap_or(d.damping),
+            contact_margin: self.contact_margin.unwrap_or(d.contact_margin),
+            contact_rounds: self.contact_rounds.unwrap_or(d.contact_rounds),
+            eigen_method: d.eigen_method,
+        }
+    }
+}
+
+/// One soft body.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BodyFile {
+    /// Name.
+    pub name: String,
+    /// Tet mesh file, relative to the scene file.
+    pub mesh: PathBuf,
+    /// Scale applied to the mesh about the origin.
+    #[serde(default = "one")]
+    pub scale: f64,
+    /// Translation applied after scaling.
+    #[serde(default)]
+    pub translate: [f64; 3],
+    /// Rotation applied after scaling, before translating: axis-angle vector (radians).
+    #[serde(default)]
+    pub rotate: [f64; 3],
+    /// Material.
+    pub material: MaterialFile,
+    /// Density (kg/m^3); give this or `total_mass`.
+    #[serde(default)]
+    pub density: Option<f64>,
+    /// Total mass (kg), lumped by volume.
+    #[serde(default)]
+    pub total_mass: Option<f64>,
+    /// Whether gravity acts on the body.
+    #[serde(default = "yes")]
+    pub gravity: bool,
+    /// Initial velocity (m/s).
+    #[serde(default)]
+    pub initial_velocity: [f64; 3],
+    /// Constraints beyond the corotated one.
+    #[serde(default)]
+    pub constraints: ConstraintsFile,
+    /// Vertices held at their rest position (Dirichlet).
+    #[serde(default)]
+    pub fixed: Option<VertexSelector>,
+    /// Penalty attachments to the rest position.
+    #[serde(default)]
+    pub attachments: Vec<AttachmentFile>,
+}
+
+/// Material parameters.
+#[derive(Debug, Clone, Copy, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MaterialFile {
+    /// Young's modulus (Pa).
+    pub youngs_modulus: f64,
+    /// Poisson ratio.
+    pub poisson_ratio: f64,
+}
+
+/// Which constraints a body uses (the corotated one always).
+#[derive(Debug, Clone, Copy, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ConstraintsFile {
+    /// The volume constraint with weight `nu E/(1+nu) V`.
+    #[serde(default = "yes")]
+    pub volume: bool,
+}
+
+impl Default for ConstraintsFile {
+    fn default() -> Self {
+        Self { volume: true }
+    }
+}
+
+/// A set of vertices: explicit indices (the mesh file's numbering) or those inside a box (in
+/// scene coordinates, after scale/rotate/translate).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields, rename_all = "snake_case")]
+pub enum VertexSelector {
+    /// Vertex ids as in the mesh file.
+    Indices(Vec<usize>),
+    /// Vertices inside an axis-aligned box.
+    Box {
+        /// Minimum corner.
+        min: [f64; 3],
+        /// Maximum corner.
+        max: [f64; 3],
+    },
+}
+
+/// Penalty attachments.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AttachmentFile {
+    /// Attached vertices.
+    pub vertices: VertexSelector,
+    /// Spring weight (N/m).
+    pub stiffness: f64,
+}
+
+/// A static obstacle.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ObstacleFile {
+    /// Name.
+    #[serde(default)]
+    pub name: Option<String>,
+    /// A plane (half-space).
+    #[serde(default)]
+    pub plane: Option<PlaneFile>,
+    /// A triangle mesh (OBJ `v`/`f`).
+    #[serde(default)]
+    pub mesh: Option<ObstacleMeshFile>,
+    /// Coulomb friction coefficient.
+    pub friction: f64,
+    /// Collision thickness (m).
+    #[serde(default)]
+    pub thickness: f64,
+}
+
+/// A plane through `point` with outward `normal`.
+#[derive(Debug, Clone, Copy, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PlaneFile {
+    /// A point on the plane.
+    pub point: [f64; 3],
+    /// Normal pointing to the free side.
+    pub normal: [f64; 3],
+}
+
+/// A triangle-mesh obstacle.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ObstacleMeshFile {
+    /// OBJ file, relative to the scene file.
+    pub file: PathBuf,
+    /// Scale about the origin.
+    #[serde(default = "one")]
+    pub scale: f64,
+}
+
+fn one() -> f64 {
+    1.0
+}
+
+fn yes() -> bool {
+    true
+}

@@ -1,0 +1,294 @@
+//! Scenes: the JSON description of what to simulate, turned into a [`Model`] and [`Settings`].
+//!
+//! Two formats are read by [`load`]:
+//!
+//! * the diffsoft format ([`format`], `schema: "diffsoft.scene/1"`), strict: unknown keys are
+//!   errors;
+//! * the paper's own scene files ([`paper`]: "Simulation HZ", "Meshes", "Youngs Modulus",
+//!   "Attach Verts", "Obstacles", ...), with the reference implementation's defaults; every key
+//!   is either used, known and ignored (reported in the scene's notes), or an error.
+//!
+//! A scene builds only what it names: no obstacles, no collision code.
+
+pub mod format;
+pub mod json;
+pub mod paper;
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+use nalgebra::{Rotation3, Vector3};
+use serde::Serialize;
+
+use crate::contact::{Obstacle, Shape, TriMeshObstacle};
+use crate::mesh::{self, MeshInfo, TetMesh};
+use crate::solver::{BodySpec, MassSpec, Material, Model, ModelBuilder, Settings, SolverError};
+use format::{SceneFile, VertexSelector, SCENE_SCHEMA};
+
+/// Errors reading a scene; each names the scene file.
+#[derive(Debug, thiserror::Error)]
+pub enum SceneError {
+    /// Cannot read the file.
+    #[error("{path}: {message}")]
+    Io {
+        /// Scene path.
+        path: String,
+        /// What failed.
+        message: String,
+    },
+    /// Invalid JSON or unknown / missing keys (with line and column).
+    #[error("{path}: {message}")]
+    Syntax {
+        /// Scene path.
+        path: String,
+        /// What is wrong.
+        message: String,
+    },
+    /// A value is meaningless or refers to something missing.
+    #[error("{path}: {message}")]
+    Invalid {
+        /// Scene path.
+        path: String,
+        /// What is wrong.
+        message: String,
+    },
+    /// The scene uses a feature this version cannot simulate.
+    #[error("{path}: unsupported: {message}")]
+    Unsupported {
+        /// Scene path.
+        path: String,
+        /// What is unsupported.
+        message: String,
+    },
+    /// A mesh referenced by the scene is invalid.
+    #[error("{0}")]
+    Mesh(#[from] mesh::MeshError),
+    /// The assembled model is invalid.
+    #[error("{path}: {source}")]
+    Model {
+        /// Scene path.
+        path: String,
+        /// Cause.
+        source: SolverError,
+    },
+}
+
+/// Which format a scene came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SceneFormat {
+    /// `diffsoft.scene/1`.
+    Diffsoft,
+    /// The paper's reference implementation.
+    Paper,
+}
+
+/// A scene ready to simulate.
+#[derive(Debug, Clone)]
+pub struct Scene {
+    /// Scene file.
+    pub path: PathBuf,
+    /// Format.
+    pub format: SceneFormat,
+    /// The assembled model.
+    pub model: Model,
+    /// Solver settings.
+    pub settings: Settings,
+    /// The meshes read (one per body).
+    pub meshes: Vec<MeshInfo>,
+    /// What the importer did with keys it does not simulate, defaults it applied, etc.
+    pub notes: Vec<String>,
+}
+
+/// Options for reading scenes.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct LoadOptions {
+    /// Paper scenes: drop features this version cannot simulate (skeletons, actuators, cloth)
+    /// with a note instead of an error.
+    pub passive: bool,
+}
+
+/// Read a scene file of either format.
+pub fn load(path: impl AsRef<Path>, opts: LoadOptions) -> Result<Scene, SceneError> {
+    let path = path.as_ref();
+    let shown = path.display().to_string();
+    let text = std::fs::read_to_string(path).map_err(|e| SceneError::Io {
+        path: shown.clone(),
+        message: e.to_string(),
+    })?;
+    let value: serde_json::Value = json::parse_lenient(&text).map_err(|e| SceneError::Syntax {
+        path: shown.clone(),
+        message: e.to_string(),
+    })?;
+    let is_diffsoft = value
+        .get("schema")
+        .and_then(|s| s.as_str())
+        .is_some_and(|s| s.starts_with("diffsoft.scene"));
+    if is_diffsoft {
+        // Strict: parse the text itself so errors carry line and column.
+        let file: SceneFile = serde_json::from_str(&text).map_err(|e| SceneError::Syntax {
+            path: shown.clone(),
+            message: e.to_string(),
+        })?;
+        from_diffsoft(path, file)
+    } else if value.get("Meshes").is_some() || value.get("Parameters").is_some() {
+        paper::import(path, &value, opts)
+    } else {
+        Err(SceneError::Syntax {
+            path: shown,
+            message: format!("not a scene: expected \"schema\": \"{SCENE_SCHEMA}\" or a paper scene with \"Meshes\""),
+        })
+    }
+}
+
+/// Resolve vertex ids of the mesh file to mesh vertices.
+fn select(
+    scene: &str,
+    body: &str,
+    sel: &VertexSelector,
+    mesh: &TetMesh,
+    info: &MeshInfo,
+) -> Result<Vec<usize>, SceneError> {
+    match sel {
+        VertexSelector::Indices(ids) => {
+            let map: HashMap<i64, usize> = info.file_ids.iter().enumerate().map(|(i, &id)| (id, i)).collect();
+            ids.iter()
+                .map(|&id| {
+                    map.get(&(id as i64)).copied().ok_or_else(|| SceneError::Invalid {
+                        path: scene.to_string(),
+                        message: format!("body '{body}': vertex {id} is not a vertex of any tet of {}", info.path),
+                    })
+                })
+                .collect()
+        }
+        VertexSelector::Box { min, max } => {
+            let v: Vec<usize> = (0..mesh.num_vertices())
+                .filter(|&i| (0..3).all(|k| mesh.vertices[i][k] >= min[k] && mesh.vertices[i][k] <= max[k]))
+                .collect();
+            if v.is_empty() {
+                return Err(SceneError::Invalid {
+                    path: scene.to_string(),
+                    message: format!("body '{body}': the box {min:?}..{max:?} contains no vertex"),
+                });
+            }
+            Ok(v)
+        }
+    }
+}
+
+fn finite3(scene: &str, what: &str, v: &[f64; 3]) -> Result<Vector3<f64>, SceneError> {
+    if v.iter().all(|x| x.is_finite()) {
+        Ok(Vector3::from(*v))
+    } else {
+        Err(SceneError::Invalid {
+            path: scene.to_string(),
+            message: format!("{what} must be finite, got {v:?}"),
+        })
+    }
+}
+
+fn from_diffsoft(path: &Path, file: SceneFile) -> Result<Scene, SceneError> {
+    let scene = path.display().to_string();
+    let dir = path.parent().unwrap_or(Path::new("."));
+    let invalid = |message: String| SceneError::Invalid {
+        path: scene.clone(),
+        message,
+    };
+    if file.schema != SCENE_SCHEMA {
+        return Err(invalid(format!(
+            "schema is '{}', this version reads '{SCENE_SCHEMA}'",
+            file.schema
+        )));
+    }
+    let mut builder = ModelBuilder::new().gravity(finite3(&scene, "gravity", &file.gravity)?);
+    let mut meshes = Vec::new();
+    for b in &file.bodies {
+        let loaded = mesh::load(dir.join(&b.mesh))?;
+        if !(b.scale.is_finite() && b.scale > 0.0) {
+            return Err(invalid(format!(
+                "body '{}': scale must be finite and positive, got {}",
+                b.name, b.scale
+            )));
+        }
+        let rot = Rotation3::from_scaled_axis(finite3(&scene, "rotate", &b.rotate)?);
+        let t = finite3(&scene, "translate", &b.translate)?;
+        let m = loaded.mesh.map_vertices(|v| rot * (v * b.scale) + t);
+        let mass = match (b.density, b.total_mass) {
+            (Some(d), None) => MassSpec::Density(d),
+            (None, Some(m)) => MassSpec::Total(m),
+            _ => {
+                return Err(invalid(format!(
+                    "body '{}': give exactly one of density and total_mass",
+                    b.name
+                )))
+            }
+        };
+        let mut spec = BodySpec::new(
+            &b.name,
+            m.clone(),
+            Material {
+                youngs_modulus: b.material.youngs_modulus,
+                poisson_ratio: b.material.poisson_ratio,
+            },
+            mass,
+        );
+        spec.gravity = b.gravity;
+        spec.initial_velocity = finite3(&scene, "initial_velocity", &b.initial_velocity)?;
+        spec.volume_constraint = b.constraints.volume;
+        if let Some(sel) = &b.fixed {
+            spec.fixed = select(&scene, &b.name, sel, &m, &loaded.info)?;
+        }
+        for a in &b.attachments {
+            for v in select(&scene, &b.name, &a.vertices, &m, &loaded.info)? {
+                spec.attachments.push((v, a.stiffness));
+            }
+        }
+        builder = builder.body(spec);
+        meshes.push(loaded.info);
+    }
+    for (k, o) in file.obstacles.iter().enumerate() {
+        let name = o.name.clone().unwrap_or_else(|| format!("obstacle {k}"));
+        let shape = match (&o.plane, &o.mesh) {
+            (Some(p), None) => {
+                let n = finite3(&scene, "plane normal", &p.normal)?;
+                if n.norm() == 0.0 {
+                    return Err(invalid(format!("obstacle '{name}': plane normal must be non-zero")));
+                }
+                Shape::Plane {
+                    point: finite3(&scene, "plane point", &p.point)?,
+                    normal: n.normalize(),
+                }
+            }
+            (None, Some(m)) => {
+                let s = mesh::surface::load_obj(dir.join(&m.file))?.scaled(m.scale);
+                Shape::TriMesh(
+                    TriMeshObstacle::new(s.vertices, s.triangles)
+                        .map_err(|e| invalid(format!("obstacle '{name}': {e}")))?,
+                )
+            }
+            _ => {
+                return Err(invalid(format!(
+                    "obstacle '{name}': give exactly one of plane and mesh"
+                )))
+            }
+        };
+        builder = builder.obstacle(Obstacle {
+            name,
+            shape,
+            friction: o.friction,
+            thickness: o.thickness,
+        });
+    }
+    let model = builder.build().map_err(|source| SceneError::Model {
+        path: scene.clone(),
+        source,
+    })?;
+    Ok(Scene {
+        path: path.to_path_buf(),
+        format: SceneFormat::Diffsoft,
+        model,
+        settings: file.solver.settings(file.time_step),
+        meshes,
+        notes: Vec::new(),
+    })
+}

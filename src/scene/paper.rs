@@ -1,0 +1,364 @@
+//! Importer for the paper's scene files (`verification/paper/*/*.json`), with the reference
+//! implementation's defaults (checked against its source, see the README):
+//!
+//! * time step `1 / "Simulation HZ"` (default 200), iteration cap `"Max Iteration"` (30), velocity
+//!   damping `"Damping coefficient"` (0.9999), and its stopping rule `|dq|_2 / (3N) < 5e-7`
+//!   expressed as this solver's relative RMS tolerance;
+//! * per mesh: `"Scale"` (default 0.05) about the origin, `"Mass"` (default 10) lumped by
+//!   volume, `"Youngs Modulus"` (2e5), `"Poisson Ratio"` (0.4), `"Enable Gravity"` (1); the file
+//!   is looked up relative to the data folder (the scene's parent) and then to the scene's own
+//!   folder;
+//! * `"Attach Verts"` with `"Attach Stiffness"`: springs to the rest position, or Dirichlet
+//!   vertices when the stiffness is at least 1e12 (the bridges' 1e20 is a Dirichlet condition
+//!   imposed by penalty);
+//! * `"Gravity"` `[x, y, z]` unless `"Is underwater"`; `"Obstacles"` as static triangle meshes
+//!   with the top-level friction coefficient, when `"Handle collision"` is set.
+//!
+//! Every other key is either known and ignored (listed in the scene's notes with the reason) or
+//! an error naming it. Skeletons, actuators and cloth are errors unless `passive` is set.
+
+use std::path::{Path, PathBuf};
+
+use nalgebra::Vector3;
+use serde_json::Value;
+
+use super::{LoadOptions, Scene, SceneError, SceneFormat};
+use crate::contact::{Obstacle, Shape, TriMeshObstacle};
+use crate::mesh;
+use crate::solver::{BodySpec, MassSpec, Material, ModelBuilder, Settings};
+
+/// Attach stiffness at or above which attachments become Dirichlet vertices.
+pub const DIRICHLET_STIFFNESS: f64 = 1e12;
+
+const TOP_KEYS: &[&str] = &["Parameters", "Friction coefficients", "Meshes", "Obstacles", "Clothes"];
+const PARAM_USED: &[&str] = &[
+    "Simulation HZ",
+    "Gravity",
+    "Is underwater",
+    "Handle collision",
+    "Max Iteration",
+    "Damping coefficient",
+];
+const PARAM_IGNORED: &[(&str, &str)] = &[
+    ("Self-collision", "self-collision is not simulated"),
+    ("Self-collision tolerance", "self-collision is not simulated"),
+    ("Air damping", "air drag is not simulated"),
+    ("Frame number", "not read by the reference implementation"),
+    ("LocalGlobal", "not read by the reference implementation"),
+    ("Signal", "not read by the reference implementation"),
+    ("Type", "not read by the reference implementation"),
+    ("Steps per frame", "not read by the reference implementation"),
+    ("GravityY", "not read by the reference implementation (use \"Gravity\")"),
+    (
+        "World Alpha",
+        "contact relaxation of the reference's self-collision loop",
+    ),
+    ("World Friction", "friction of the reference's self-collision loop"),
+    ("Is skeleton actuated", "skeletons are not simulated yet"),
+];
+const MESH_USED: &[&str] = &[
+    "Obj filename",
+    "Scale",
+    "Mass",
+    "Youngs Modulus",
+    "Poisson Ratio",
+    "Attach Verts",
+    "Attach Stiffness",
+    "Enable Gravity",
+    "Is Mass Same",
+];
+const MESH_IGNORED: &[(&str, &str)] = &[
+    (
+        "Friction coefficients",
+        "the reference implementation ignores per-mesh friction",
+    ),
+    ("Actuator type", "selects the reference's action interface"),
+    ("Center Index", "used by the reference's controllers only"),
+    ("End Effector Index", "used by the reference's controllers only"),
+    ("Local Contour Index", "used by the reference's controllers only"),
+    ("Type", "always \"Soft Articulated\""),
+    (
+        "Muscle Stiffness",
+        "actuator stiffness: no actuators in this scene or not simulated yet",
+    ),
+    ("Material Identifier", "not used by the solver"),
+    ("Attach y", "not read by the reference implementation"),
+];
+const MESH_UNSUPPORTED: &[(&str, &str)] = &[
+    ("Bones", "embedded skeletons"),
+    ("Volume Verts", "pneumatic actuators"),
+    ("Muscle filename", "muscle actuators"),
+    ("Sampling filename", "muscle actuators"),
+];
+const OBSTACLE_KEYS: &[&str] = &["Obj filename", "Scale", "Collision tolerance"];
+
+struct Ctx<'a> {
+    path: &'a Path,
+    notes: Vec<String>,
+    passive: bool,
+}
+
+impl Ctx<'_> {
+    fn shown(&self) -> String {
+        self.path.display().to_string()
+    }
+    fn invalid(&self, message: String) -> SceneError {
+        SceneError::Invalid {
+            path: self.shown(),
+            message,
+        }
+    }
+    fn unsupported(&mut self, what: &str, feature: &str) -> Result<(), SceneError> {
+        if self.passive {
+            self.notes
+                .push(format!("{what}: {feature} not simulated yet; ignored (--passive)"));
+            Ok(())
+        } else {
+            Err(SceneError::Unsupported {
+                path: self.shown(),
+                message: format!(
+                    "{what} ({feature}) cannot be simulated yet; run with --passive to simulate the bodies without it"
+                ),
+            })
+        }
+    }
+    fn check_keys(
+        &mut self,
+        where_: &str,
+        obj: &Value,
+        used: &[&str],
+        ignored: &[(&str, &str)],
+        unsupported: &[(&str, &str)],
+    ) -> Result<(), SceneError> {
+        let map = obj
+            .as_object()
+            .ok_or_else(|| self.invalid(format!("{where_} must be a JSON object")))?;
+        for (k, v) in map {
+            if used.contains(&k.as_str()) {
+                continue;
+            }
+            if let Some((_, why)) = ignored.iter().find(|(name, _)| name == k) {
+                self.notes.push(format!("{where_}: \"{k}\" ignored ({why})"));
+            } else if let Some((_, feature)) = unsupported.iter().find(|(name, _)| name == k) {
+                let empty = v.as_array().is_some_and(|a| a.is_empty());
+                if !empty {
+                    self.unsupported(&format!("{where_}: \"{k}\""), feature)?;
+                }
+            } else {
+                return Err(self.invalid(format!("{where_}: unknown key \"{k}\"")));
+            }
+        }
+        Ok(())
+    }
+    fn number(&self, obj: &Value, key: &str, default: f64, where_: &str) -> Result<f64, SceneError> {
+        match obj.get(key) {
+            None => Ok(default),
+            Some(v) => v
+                .as_f64()
+                .ok_or_else(|| self.invalid(format!("{where_}: \"{key}\" must be a number, got {v}"))),
+        }
+    }
+    fn resolve(&self, file: &str) -> Result<PathBuf, SceneError> {
+        let dir = self.path.parent().unwrap_or(Path::new("."));
+        let candidates = [dir.parent().unwrap_or(dir).join(file), dir.join(file)];
+        candidates.iter().find(|p| p.exists()).cloned().ok_or_else(|| {
+            self.invalid(format!(
+                "cannot find \"{file}\" (looked in {} and {})",
+                candidates[0].display(),
+                candidates[1].display()
+            ))
+        })
+    }
+}
+
+/// Import a parsed paper scene.
+pub fn import(path: &Path, value: &Value, opts: LoadOptions) -> Result<Scene, SceneError> {
+    let mut cx = Ctx {
+        path,
+        notes: Vec::new(),
+        passive: opts.passive,
+    };
+    let top = value
+        .as_object()
+        .ok_or_else(|| cx.invalid("the scene must be a JSON object".into()))?;
+    for k in top.keys() {
+        if !TOP_KEYS.contains(&k.as_str()) {
+            return Err(cx.invalid(format!("unknown top-level key \"{k}\"")));
+        }
+    }
+    if top
+        .get("Clothes")
+        .and_then(|c| c.as_array())
+        .is_some_and(|a| !a.is_empty())
+    {
+        cx.unsupported("\"Clothes\"", "cloth bodies")?;
+    }
+    let empty = Value::Object(Default::default());
+    let params = value
+        .get("Parameters")
+        .and_then(|p| p.as_array())
+        .and_then(|a| a.first())
+        .unwrap_or(&empty);
+    cx.check_keys("Parameters[0]", params, PARAM_USED, PARAM_IGNORED, &[])?;
+    let hz = cx.number(params, "Simulation HZ", 200.0, "Parameters[0]")?;
+    if !(hz.is_finite() && hz > 0.0) {
+        return Err(cx.invalid(format!("\"Simulation HZ\" must be positive, got {hz}")));
+    }
+    let underwater = cx.number(params, "Is underwater", 0.0, "Parameters[0]")? != 0.0;
+    let gravity = match params.get("Gravity") {
+        None => Vector3::zeros(),
+        Some(g) => {
+            let a = g
+                .as_array()
+                .filter(|a| a.len() == 3)
+                .ok_or_else(|| cx.invalid(format!("\"Gravity\" must be [x, y, z], got {g}")))?;
+            let c: Vec<f64> = a.iter().filter_map(|x| x.as_f64()).collect();
+            if c.len() != 3 {
+                return Err(cx.invalid(format!("\"Gravity\" must hold three numbers, got {g}")));
+            }
+            Vector3::new(c[0], c[1], c[2])
+        }
+    };
+    if underwater {
+        cx.notes
+            .push("\"Is underwater\": water drag is not simulated; gravity is off as in the reference".into());
+    }
+    let collisions = params
+        .get("Handle collision")
+        .and_then(|v| v.as_bool())
+        .unwrap_or(false);
+    let friction = value
+        .get("Friction coefficients")
+        .and_then(|f| f.get(0))
+        .and_then(|f| f.get(0))
+        .and_then(|f| f.as_f64())
+        .unwrap_or(0.1);
+    let mut builder = ModelBuilder::new().gravity(if underwater { Vector3::zeros() } else { gravity });
+    let meshes_json = value
+        .get("Meshes")
+        .and_then(|m| m.as_array())
+        .ok_or_else(|| cx.invalid("\"Meshes\" must be a list".into()))?;
+    let mut meshes = Vec::new();
+    for (k, mj) in meshes_json.iter().enumerate() {
+        let w = format!("Meshes[{k}]");
+        cx.check_keys(&w, mj, MESH_USED, MESH_IGNORED, MESH_UNSUPPORTED)?;
+        let file = mj
+            .get("Obj filename")
+            .and_then(|f| f.as_str())
+            .ok_or_else(|| cx.invalid(format!("{w}: \"Obj filename\" is required")))?;
+        let loaded = mesh::load(cx.resolve(file)?)?;
+        let scale = cx.number(mj, "Scale", 0.05, &w)?;
+        if !(scale.is_finite() && scale > 0.0) {
+            return Err(cx.invalid(format!("{w}: \"Scale\" must be positive, got {scale}")));
+        }
+        if mj.get("Scale").is_none() {
+            cx.notes
+                .push(format!("{w}: no \"Scale\": the reference's default 0.05 applied"));
+        }
+        if mj.get("Is Mass Same").and_then(|v| v.as_bool()) == Some(false) {
+            return Err(cx.invalid(format!(
+                "{w}: \"Is Mass Same\": false (uniform vertex masses) is not supported"
+            )));
+        }
+        let total = cx.number(mj, "Mass", 10.0, &w)?;
+        let material = Material {
+            youngs_modulus: cx.number(mj, "Youngs Modulus", 2e5, &w)?,
+            poisson_ratio: cx.number(mj, "Poisson Ratio", 0.4, &w)?,
+        };
+        let m = loaded.mesh.scaled(scale);
+        let name = Path::new(file)
+            .file_stem()
+            .and_then(|s| s.to_str())
+            .unwrap_or("body")
+            .to_string();
+        let mut spec = BodySpec::new(&name, m, material, MassSpec::Total(total));
+        spec.gravity = cx.number(mj, "Enable Gravity", 1.0, &w)? != 0.0;
+        if let Some(av) = mj.get("Attach Verts") {
+            let ids: Vec<usize> = av
+                .as_array()
+                .and_then(|a| {
+                    a.iter()
+                        .map(|x| x.as_u64().map(|u| u as usize))
+                        .collect::<Option<Vec<_>>>()
+                })
+                .ok_or_else(|| cx.invalid(format!("{w}: \"Attach Verts\" must be a list of vertex indices")))?;
+            let stiffness = mj
+                .get("Attach Stiffness")
+                .and_then(|s| s.as_f64())
+                .ok_or_else(|| cx.invalid(format!("{w}: \"Attach Verts\" needs \"Attach Stiffness\"")))?;
+            let verts = super::select(
+                &cx.shown(),
+                &name,
+                &super::format::VertexSelector::Indices(ids),
+                &loaded.mesh,
+                &loaded.info,
+            )?;
+            if stiffness >= DIRICHLET_STIFFNESS {
+                cx.notes.push(format!(
+                    "{w}: {} attached vertices with stiffness {stiffness:e} >= {DIRICHLET_STIFFNESS:e} imposed exactly (Dirichlet)",
+                    verts.len()
+                ));
+                spec.fixed = verts;
+            } else {
+                spec.attachments = verts.into_iter().map(|v| (v, stiffness)).collect();
+            }
+        }
+        builder = builder.body(spec);
+        meshes.push(loaded.info);
+    }
+    if let Some(obs) = value.get("Obstacles").and_then(|o| o.as_array()) {
+        for (k, oj) in obs.iter().enumerate() {
+            let w = format!("Obstacles[{k}]");
+            cx.check_keys(&w, oj, OBSTACLE_KEYS, &[], &[])?;
+            if !collisions {
+                cx.notes.push(format!(
+                    "{w}: \"Handle collision\" is off: obstacle ignored, as in the reference"
+                ));
+                continue;
+            }
+            let file = oj
+                .get("Obj filename")
+                .and_then(|f| f.as_str())
+                .ok_or_else(|| cx.invalid(format!("{w}: \"Obj filename\" is required")))?;
+            let s = mesh::surface::load_obj(cx.resolve(file)?)?;
+            cx.notes.push(format!(
+                "{w}: triangle mesh {file} at scale 1 and thickness 1e-4 as in the reference (its \"Scale\" and \"Collision tolerance\" are not read there); friction {friction} from \"Friction coefficients\" (the reference hard-codes 1)"
+            ));
+            let shape = Shape::TriMesh(
+                TriMeshObstacle::new(s.vertices, s.triangles).map_err(|e| cx.invalid(format!("{w}: {e}")))?,
+            );
+            builder = builder.obstacle(Obstacle {
+                name: file.to_string(),
+                shape,
+                friction,
+                thickness: 1e-4,
+            });
+        }
+    }
+    let model = builder.build().map_err(|source| SceneError::Model {
+        path: cx.shown(),
+        source,
+    })?;
+    // Reference stop rule |dq|_2 / (3N) < 5e-7 as a relative RMS change: |dq|_2 / sqrt(N) / L.
+    let n = model.n() as f64;
+    let tolerance = 5e-7 * 3.0 * n / n.sqrt() / model.length_scale;
+    let settings = Settings {
+        dt: 1.0 / hz,
+        max_iterations: cx.number(params, "Max Iteration", 30.0, "Parameters[0]")? as usize,
+        damping: cx.number(params, "Damping coefficient", 0.9999, "Parameters[0]")?,
+        tolerance,
+        ..Settings::default()
+    };
+    cx.notes.push(format!(
+        "stopping rule of the reference (|dq|_2 / 3N < 5e-7) as relative RMS tolerance {tolerance:.3e}; damping {}; at most {} iterations",
+        settings.damping, settings.max_iterations
+    ));
+    Ok(Scene {
+        path: path.to_path_buf(),
+        format: SceneFormat::Paper,
+        model,
+        settings,
+        meshes,
+        notes: cx.notes,
+    })
+}

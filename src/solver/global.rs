@@ -1,0 +1,301 @@
+//! The global step of projective dynamics (METHOD.md Eq. 5): solve
+//! `(M/h^2 + L) q = M s_n / h^2 + J p` on the free vertices, for x, y and z at once (the axes
+//! share the per-axis matrix). Every solver implements [`GlobalSolver`]:
+//!
+//! * [`Direct`](super::direct::Direct): sparse Cholesky, factored once and reused;
+//! * [`Stationary`]: the paper's iterations in position form, plain (Eq. 19, `W = M/h^2`) or
+//!   split (Eq. 21, `W = M/h^2 + D`), optionally relaxed (`x += gamma (x_hat - x)`) and
+//!   Chebyshev-accelerated (Wang 2015).
+//!
+//! With contacts, the Coulomb cone projection of [`crate::contact::project`] acts on each
+//! contact vertex's update inside the iteration (for [`Stationary`], as in the paper) or inside a
+//! projected Gauss-Seidel on the contact-space (Delassus) operator (for `Direct`).
+
+use nalgebra::Vector3;
+use serde::Serialize;
+
+use super::model::Model;
+use super::SolverError;
+use crate::contact::{project, Contact};
+use crate::fem::SymCsc;
+
+/// Which global solver.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, serde::Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "snake_case")]
+pub enum SolverKind {
+    /// Sparse Cholesky of `M/h^2 + L`, factored once.
+    Direct,
+    /// Eq. 19: `M/h^2 x' = b - L x`.
+    Plain,
+    /// Eq. 21: `(M/h^2 + D) x' = b - (L - D) x`.
+    Split,
+    /// Eq. 21, relaxed and Chebyshev-accelerated with parameters from the spectral analysis.
+    Chebyshev,
+}
+
+/// The global system restricted to the free (non-Dirichlet) vertices.
+#[derive(Debug, Clone)]
+pub struct GlobalSystem {
+    /// Time step.
+    pub h: f64,
+    /// Free vertex -> global vertex.
+    pub free: Vec<usize>,
+    /// Global vertex -> free index (`usize::MAX` for fixed vertices).
+    pub index: Vec<usize>,
+    /// `L` on the free vertices (with attachment springs).
+    pub l: SymCsc,
+    /// Lumped mass of the free vertices.
+    pub mass: Vec<f64>,
+    /// `diag(L)` on the free vertices.
+    pub l_diag: Vec<f64>,
+    /// Attachment weight per free vertex (empty without attachments).
+    pub attachment: Vec<f64>,
+    /// `-L_fd x_d`: the constant pull of the fixed vertices on the free ones.
+    pub coupling: Vec<Vector3<f64>>,
+}
+
+impl GlobalSystem {
+    /// Assemble for time step `h`.
+    pub fn new(model: &Model, h: f64) -> Result<Self, SolverError> {
+        if !(h.is_finite() && h > 0.0) {
+            return Err(SolverError::Input(format!(
+                "time step must be finite and positive, got {h}"
+            )));
+        }
+        let n = model.n();
+        let full = model.fem.pattern.to_sym_csc(model.stiffness_values());
+        let keep: Vec<bool> = model.fixed.iter().map(|f| !f).collect();
+        let (l, free) = full.principal_submatrix(&keep);
+        let mut index = vec![usize::MAX; n];
+        for (k, &v) in free.iter().enumerate() {
+            index[v] = k;
+        }
+        let mut coupling = vec![Vector3::zeros(); free.len()];
+        if model.fixed.iter().any(|&f| f) {
+            for (k, &j) in free.iter().enumerate() {
+                for (i, v) in full.column(j) {
+                    if model.fixed[i] {
+                        coupling[k] -= v * model.rest[i];
+                    }
+                }
+            }
+        }
+        let mut attachment = Vec::new();
+        if !model.attachments.is_empty() {
+            attachment = vec![0.0; free.len()];
+            for a in &model.attachments {
+                if index[a.vertex] != usize::MAX {
+                    attachment[index[a.vertex]] += a.weight;
+                }
+            }
+        }
+        Ok(Self {
+            h,
+            l_diag: l.diagonal(),
+            mass: free.iter().map(|&v| model.mass[v]).collect(),
+            free,
+            index,
+            l,
+            attachment,
+            coupling,
+        })
+    }
+
+    /// Number of free vertices.
+    pub fn n(&self) -> usize {
+        self.free.len()
+    }
+
+    /// `y = (M/h^2 + L) x`.
+    pub fn apply(&self, x: &[Vector3<f64>], y: &mut [Vector3<f64>]) {
+        self.l.matvec3(x, y);
+        let ih2 = 1.0 / (self.h * self.h);
+        for ((y, x), m) in y.iter_mut().zip(x).zip(&self.mass) {
+            *y += x * (m * ih2);
+        }
+    }
+}
+
+/// A contact in the free numbering.
+#[derive(Debug, Clone, Copy)]
+pub struct FreeContact {
+    /// Free index of the vertex.
+    pub index: usize,
+    /// The contact.
+    pub contact: Contact,
+}
+
+/// What one global solve did.
+#[derive(Debug, Clone, Copy, Default, Serialize)]
+pub struct GlobalStats {
+    /// Inner iterations (0 for a direct solve without contacts).
+    pub iterations: usize,
+    /// Largest update of the last inner iteration (m), or 0 for a direct solve.
+    pub last_update: f64,
+    /// Contact iterations (projected Gauss-Seidel sweeps for `Direct`).
+    pub contact_iterations: usize,
+    /// Whether the inner iteration met its tolerance before its cap.
+    pub converged: bool,
+}
+
+/// Solves the global step.
+pub trait GlobalSolver: Send {
+    /// Which solver this is.
+    fn kind(&self) -> SolverKind;
+
+    /// Solve `(M/h^2 + L) x = b` on the free vertices with the given contacts; `x` holds an
+    /// initial guess on entry and the solution on exit.
+    fn solve(
+        &mut self,
+        sys: &GlobalSystem,
+        b: &[Vector3<f64>],
+        x: &mut [Vector3<f64>],
+        contacts: &[FreeContact],
+    ) -> Result<GlobalStats, SolverError>;
+}
+
+/// Tolerances of the inner iterations.
+#[derive(Debug, Clone, Copy)]
+pub struct InnerControl {
+    /// Stop when the largest update is below this (m).
+    pub tolerance: f64,
+    /// Iteration cap.
+    pub max_iterations: usize,
+}
+
+/// The paper's stationary iterations in position form.
+#[derive(Debug, Clone)]
+pub struct Stationary {
+    kind: SolverKind,
+    /// Left-hand-side diagonal `W`.
+    w: Vec<f64>,
+    /// The part of `L` moved to the left (`D` for split, 0 for plain).
+    shift: Vec<f64>,
+    /// Relaxation `gamma` without contacts.
+    relaxation: f64,
+    /// Relaxation with contacts (kept <= 1 so projected iterates stay feasible).
+    contact_relaxation: f64,
+    /// Spectral radius of the relaxed iteration, for Chebyshev.
+    chebyshev_rho: Option<f64>,
+    control: InnerControl,
+    lx: Vec<Vector3<f64>>,
+    x_hat: Vec<Vector3<f64>>,
+    x_prev: Vec<Vector3<f64>>,
+}
+
+impl Stationary {
+    /// Plain (Eq. 19) or split (Eq. 21) with relaxation `gamma` (1 is the paper's), a contact
+    /// relaxation, and Chebyshev acceleration when `chebyshev_rho` is given.
+    pub fn new(
+        sys: &GlobalSystem,
+        kind: SolverKind,
+        relaxation: f64,
+        contact_relaxation: f64,
+        chebyshev_rho: Option<f64>,
+        control: InnerControl,
+    ) -> Self {
+        let ih2 = 1.0 / (sys.h * sys.h);
+        let plain = kind == SolverKind::Plain;
+        let w = sys
+            .mass
+            .iter()
+            .zip(&sys.l_diag)
+            .map(|(m, d)| m * ih2 + if plain { 0.0 } else { *d })
+            .collect();
+        let shift = if plain { vec![0.0; sys.n()] } else { sys.l_diag.clone() };
+        let n = sys.n();
+        Self {
+            kind,
+            w,
+            shift,
+            relaxation,
+            contact_relaxation,
+            chebyshev_rho,
+            control,
+            lx: vec![Vector3::zeros(); n],
+            x_hat: vec![Vector3::zeros(); n],
+            x_prev: vec![Vector3::zeros(); n],
+        }
+    }
+}
+
+impl GlobalSolver for Stationary {
+    fn kind(&self) -> SolverKind {
+        self.kind
+    }
+
+    fn solve(
+        &mut self,
+        sys: &GlobalSystem,
+        b: &[Vector3<f64>],
+        x: &mut [Vector3<f64>],
+        contacts: &[FreeContact],
+    ) -> Result<GlobalStats, SolverError> {
+        let n = sys.n();
+        let with_contacts = !contacts.is_empty();
+        let gamma = if with_contacts {
+            self.contact_relaxation
+        } else {
+            self.relaxation
+        };
+        let rho = if with_contacts { None } else { self.chebyshev_rho };
+        self.x_prev.copy_from_slice(x);
+        let mut omega = 1.0;
+        let mut stats = GlobalStats::default();
+        let mut first_update = f64::NAN;
+        for k in 0..self.control.max_iterations {
+            sys.l.matvec3(x, &mut self.lx);
+            for i in 0..n {
+                self.x_hat[i] = (b[i] - self.lx[i] + x[i] * self.shift[i]) / self.w[i];
+            }
+            for c in contacts {
+                let i = c.index;
+                let (lambda, _) = project(&self.x_hat[i], self.w[i], &c.contact);
+                self.x_hat[i] += lambda / self.w[i];
+            }
+            // Chebyshev weights (Wang 2015): omega_1 = 1, omega_2 = 2/(2 - rho^2),
+            // omega_{k+1} = 4/(4 - rho^2 omega_k).
+            if let Some(r) = rho {
+                let r2 = r * r;
+                omega = match k {
+                    0 => 1.0,
+                    1 => 2.0 / (2.0 - r2),
+                    _ => 4.0 / (4.0 - r2 * omega),
+                };
+            }
+            let mut update = 0.0f64;
+            for ((xi, xh), xp) in x.iter_mut().zip(&self.x_hat).zip(self.x_prev.iter_mut()) {
+                let relaxed = *xi + (xh - *xi) * gamma;
+                let next = if rho.is_some() {
+                    *xp + (relaxed - *xp) * omega
+                } else {
+                    relaxed
+                };
+                update = update.max((xh - *xi).amax());
+                *xp = *xi;
+                *xi = next;
+            }
+            stats.iterations = k + 1;
+            stats.last_update = update;
+            if k == 0 {
+                first_update = update;
+            }
+            if !update.is_finite() || update > 1e12 * first_update.max(self.control.tolerance) {
+                return Err(SolverError::Diverged(format!(
+                    "{:?} global iteration diverged after {} iterations (update grew from {first_update:.3e} to {update:.3e}); \
+                     its spectral radius at this time step is >= 1 (run with certification to check)",
+                    self.kind,
+                    k + 1
+                )));
+            }
+            if update <= self.control.tolerance {
+                stats.converged = true;
+                break;
+            }
+        }
+        if with_contacts {
+            stats.contact_iterations = stats.iterations;
+        }
+        Ok(stats)
+    }
+}

@@ -1,0 +1,529 @@
+//! Projective dynamics with implicit Euler (METHOD.md Eqs. 2-5).
+//!
+//! One step from `(q_n, v_n)`:
+//!
+//! 1. inertial target `s_n = q_n + h v_n + h^2 a_ext` (Eq. 2);
+//! 2. local-global iterations from `q = s_n`: project every constraint (local, Eq. 3, in
+//!    parallel), then solve `(M/h^2 + L) q = M s_n / h^2 + J p` (global, Eq. 5) with the chosen
+//!    [`GlobalSolver`]; stop when the RMS change of `q` is below `tolerance x length scale` or
+//!    at the iteration cap;
+//! 3. with obstacles: candidate contacts come from the start and predicted positions; each
+//!    global solve projects contact vertices on their Coulomb cones; after the iterations, any
+//!    new penetration adds contacts and the iterations resume (a bounded number of rounds);
+//! 4. `v_{n+1} = damping (q_{n+1} - q_n) / h`.
+//!
+//! The system matrix depends only on `h` and the weights, so it is built and (for the direct
+//! solver) factored once, and certified once (see [`certify`]). Every buffer is allocated in
+//! [`Simulator::new`]. Non-finite values, exploding energy and divergent iterations end the run
+//! with a [`SolverError`] that says what happened.
+
+pub mod certify;
+pub mod direct;
+pub mod global;
+pub mod local;
+pub mod model;
+
+use std::time::Instant;
+
+use nalgebra::Vector3;
+use serde::Serialize;
+
+pub use certify::{Certificate, CertifyPolicy};
+pub use global::{GlobalSolver, GlobalStats, GlobalSystem, SolverKind};
+pub use model::{Body, BodySpec, MassSpec, Material, Model, ModelBuilder};
+
+use crate::analysis::spectral::EigenMethod;
+use crate::constraint::ProjectionError;
+use crate::contact::{self, Contact};
+use global::{FreeContact, InnerControl, Stationary};
+use local::LocalStep;
+
+/// Errors of the solver: bad input, a time step the certification rejects, divergence.
+#[derive(Debug, Clone, thiserror::Error)]
+pub enum SolverError {
+    /// Physically meaningless or inconsistent input.
+    #[error("invalid input: {0}")]
+    Input(String),
+    /// The chosen iteration diverges at this time step (certified check).
+    #[error("time step rejected by certification: {0}")]
+    Uncertified(String),
+    /// The eigenvalue computation behind certification failed.
+    #[error("certification failed: {0}")]
+    Certification(String),
+    /// The sparse factorization failed.
+    #[error("factorization failed: {0}")]
+    Factorization(String),
+    /// A constraint projection failed.
+    #[error("tet {tet}: {source}")]
+    Projection {
+        /// Tet index.
+        tet: usize,
+        /// Cause.
+        source: ProjectionError,
+    },
+    /// A NaN or infinity appeared.
+    #[error("non-finite value: {0}")]
+    NonFinite(String),
+    /// The simulation or an iteration diverged.
+    #[error("diverged: {0}")]
+    Diverged(String),
+}
+
+/// Solver settings.
+#[derive(Debug, Clone, Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Settings {
+    /// Time step (s).
+    pub dt: f64,
+    /// Global solver.
+    pub solver: SolverKind,
+    /// Certification policy for iterative solvers.
+    pub certify: CertifyPolicy,
+    /// Local-global iteration cap per step.
+    pub max_iterations: usize,
+    /// Stop when the RMS change of the positions is below `tolerance x length scale`.
+    pub tolerance: f64,
+    /// Inner iterations stop when no coordinate moves more than this `x length scale`.
+    pub inner_tolerance: f64,
+    /// Inner iteration cap (iterative global solvers, contact sweeps).
+    pub inner_max_iterations: usize,
+    /// Velocity damping factor per step (1 = none; the paper uses 0.9999).
+    pub damping: f64,
+    /// Contact detection margin, as a fraction of the length scale.
+    pub contact_margin: f64,
+    /// Largest number of detect-and-resolve rounds per step.
+    pub contact_rounds: usize,
+    /// Eigensolver for certification.
+    pub eigen_method: EigenMethod,
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Self {
+            dt: 0.01,
+            solver: SolverKind::Split,
+            certify: CertifyPolicy::Fallback,
+            max_iterations: 30,
+            tolerance: 1e-6,
+            inner_tolerance: 1e-10,
+            inner_max_iterations: 2000,
+            damping: 1.0,
+            contact_margin: 1e-3,
+            contact_rounds: 4,
+            eigen_method: EigenMethod::Auto,
+        }
+    }
+}
+
+impl Settings {
+    fn validate(&self) -> Result<(), SolverError> {
+        let bad = |m: String| Err(SolverError::Input(m));
+        if !(self.dt.is_finite() && self.dt > 0.0) {
+            return bad(format!("time step must be finite and positive, got {}", self.dt));
+        }
+        if self.max_iterations == 0 || self.inner_max_iterations == 0 {
+            return bad("iteration caps must be at least 1".into());
+        }
+        for (name, v) in [
+            ("tolerance", self.tolerance),
+            ("inner_tolerance", self.inner_tolerance),
+            ("contact_margin", self.contact_margin),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return bad(format!("{name} must be finite and >= 0, got {v}"));
+            }
+        }
+        if !(self.damping.is_finite() && self.damping > 0.0 && self.damping <= 1.0) {
+            return bad(format!("damping must be in (0, 1], got {}", self.damping));
+        }
+        Ok(())
+    }
+}
+
+/// Positions and velocities of all vertices.
+#[derive(Debug, Clone)]
+pub struct State {
+    /// Positions.
+    pub q: Vec<Vector3<f64>>,
+    /// Velocities.
+    pub v: Vec<Vector3<f64>>,
+    /// Simulated time.
+    pub time: f64,
+    /// Steps taken.
+    pub step: usize,
+}
+
+/// What one step did.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct StepStats {
+    /// Step number (1-based).
+    pub step: usize,
+    /// Time after the step.
+    pub time: f64,
+    /// Local-global iterations.
+    pub iterations: usize,
+    /// Whether the tolerance was met before the cap.
+    pub converged: bool,
+    /// Last RMS position change relative to the length scale.
+    pub relative_change: f64,
+    /// Inner iterations of the global solver, summed over the step.
+    pub global_iterations: usize,
+    /// Contacts in the final round.
+    pub contacts: usize,
+    /// Contact rounds.
+    pub contact_rounds: usize,
+    /// Contact iterations (sweeps), summed over the step.
+    pub contact_iterations: usize,
+    /// Deepest penetration after the step (m; 0 without obstacles).
+    pub max_penetration: f64,
+    /// Kinetic energy after the step (J).
+    pub kinetic_energy: f64,
+    /// Constraint energy at the last local step (J).
+    pub elastic_energy: f64,
+    /// Potential energy of the external accelerations, `-sum m a . q` (J).
+    pub potential_energy: f64,
+    /// Wall time (ms).
+    pub wall_ms: f64,
+}
+
+impl StepStats {
+    /// Kinetic + elastic + potential energy.
+    pub fn total_energy(&self) -> f64 {
+        self.kinetic_energy + self.elastic_energy + self.potential_energy
+    }
+}
+
+/// Buffers reused every step.
+#[derive(Debug, Clone)]
+struct Work {
+    q_start: Vec<Vector3<f64>>,
+    s: Vec<Vector3<f64>>,
+    full: Vec<Vector3<f64>>,
+    gathered: Vec<Vector3<f64>>,
+    base: Vec<Vector3<f64>>,
+    rhs: Vec<Vector3<f64>>,
+    x: Vec<Vector3<f64>>,
+    x_prev: Vec<Vector3<f64>>,
+    contacts: Vec<Contact>,
+    free_contacts: Vec<FreeContact>,
+}
+
+/// A running simulation.
+pub struct Simulator {
+    model: Model,
+    settings: Settings,
+    state: State,
+    system: GlobalSystem,
+    solver: Box<dyn GlobalSolver>,
+    certificate: Certificate,
+    local: LocalStep,
+    work: Work,
+    energy_scale: f64,
+}
+
+impl std::fmt::Debug for Simulator {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Simulator")
+            .field("vertices", &self.model.n())
+            .field("tets", &self.model.tets.len())
+            .field("solver", &self.solver.kind())
+            .field("step", &self.state.step)
+            .finish()
+    }
+}
+
+fn build_solver(
+    model: &Model,
+    settings: &Settings,
+    system: &GlobalSystem,
+) -> Result<(Box<dyn GlobalSolver>, Certificate), SolverError> {
+    let cert = certify::certify(system, settings.solver, settings.certify, settings.eigen_method)?;
+    let control = InnerControl {
+        tolerance: settings.inner_tolerance * model.length_scale,
+        max_iterations: settings.inner_max_iterations,
+    };
+    let solver: Box<dyn GlobalSolver> = match cert.used {
+        SolverKind::Direct => Box::new(direct::Direct::new(system, control)?),
+        kind => Box::new(Stationary::new(
+            system,
+            if kind == SolverKind::Chebyshev {
+                SolverKind::Split
+            } else {
+                kind
+            },
+            cert.relaxation,
+            cert.contact_relaxation,
+            cert.chebyshev_rho,
+            control,
+        )),
+    };
+    Ok((solver, cert))
+}
+
+impl Simulator {
+    /// Set up a simulation from the model's initial state (rest positions, initial velocities).
+    pub fn new(model: Model, settings: Settings) -> Result<Self, SolverError> {
+        settings.validate()?;
+        let system = GlobalSystem::new(&model, settings.dt)?;
+        let (solver, certificate) = build_solver(&model, &settings, &system)?;
+        let n = model.n();
+        let nf = system.n();
+        let state = State {
+            q: model.rest.clone(),
+            v: model.initial_velocity.clone(),
+            time: 0.0,
+            step: 0,
+        };
+        let g = model.accel.iter().map(|a| a.norm()).fold(0.0, f64::max);
+        let total_mass: f64 = model.mass.iter().sum();
+        let v0 = state.v.iter().map(|v| v.norm()).fold(0.0, f64::max);
+        let e_scale = total_mass * (g * model.length_scale + v0 * v0) + model.w_rot.iter().sum::<f64>() * 1e-6;
+        Ok(Self {
+            local: LocalStep::new(model.tets.len()),
+            work: Work {
+                q_start: vec![Vector3::zeros(); n],
+                s: vec![Vector3::zeros(); n],
+                full: vec![Vector3::zeros(); n],
+                gathered: vec![Vector3::zeros(); n],
+                base: vec![Vector3::zeros(); nf],
+                rhs: vec![Vector3::zeros(); nf],
+                x: vec![Vector3::zeros(); nf],
+                x_prev: vec![Vector3::zeros(); nf],
+                contacts: Vec::new(),
+                free_contacts: Vec::new(),
+            },
+            energy_scale: e_scale.max(f64::MIN_POSITIVE),
+            model,
+            settings,
+            state,
+            system,
+            solver,
+            certificate,
+        })
+    }
+
+    /// The model.
+    pub fn model(&self) -> &Model {
+        &self.model
+    }
+
+    /// The settings.
+    pub fn settings(&self) -> &Settings {
+        &self.settings
+    }
+
+    /// The current state.
+    pub fn state(&self) -> &State {
+        &self.state
+    }
+
+    /// Replace the state (positions and velocities must have the model's vertex count).
+    pub fn set_state(&mut self, q: Vec<Vector3<f64>>, v: Vec<Vector3<f64>>) -> Result<(), SolverError> {
+        if q.len() != self.model.n() || v.len() != self.model.n() {
+            return Err(SolverError::Input(format!(
+                "state has {} positions and {} velocities, the model {} vertices",
+                q.len(),
+                v.len(),
+                self.model.n()
+            )));
+        }
+        if !q.iter().chain(&v).all(|x| x.iter().all(|c| c.is_finite())) {
+            return Err(SolverError::Input("state has non-finite entries".into()));
+        }
+        self.state.q = q;
+        self.state.v = v;
+        Ok(())
+    }
+
+    /// The certification outcome (which solver runs and why).
+    pub fn certificate(&self) -> &Certificate {
+        &self.certificate
+    }
+
+    /// Change the time step: rebuilds, re-certifies and refactors the global system.
+    pub fn set_dt(&mut self, dt: f64) -> Result<(), SolverError> {
+        let mut s = self.settings.clone();
+        s.dt = dt;
+        s.validate()?;
+        let system = GlobalSystem::new(&self.model, dt)?;
+        let (solver, cert) = build_solver(&self.model, &s, &system)?;
+        self.settings = s;
+        self.system = system;
+        self.solver = solver;
+        self.certificate = cert;
+        Ok(())
+    }
+
+    /// Advance one time step.
+    pub fn step(&mut self) -> Result<StepStats, SolverError> {
+        let t0 = Instant::now();
+        let h = self.settings.dt;
+        let (model, sys, w, st) = (&self.model, &self.system, &mut self.work, &mut self.state);
+        let ih2 = 1.0 / (h * h);
+        for i in 0..model.n() {
+            w.q_start[i] = st.q[i];
+            w.s[i] = if model.fixed[i] {
+                model.rest[i]
+            } else {
+                st.q[i] + st.v[i] * h + model.accel[i] * (h * h)
+            };
+        }
+        // Right-hand side parts that do not change during the step.
+        for (k, &v) in sys.free.iter().enumerate() {
+            w.base[k] = w.s[v] * (model.mass[v] * ih2) + sys.coupling[k];
+            w.x[k] = w.s[v];
+        }
+        for a in &model.attachments {
+            let k = sys.index[a.vertex];
+            if k != usize::MAX {
+                w.base[k] += a.target * a.weight;
+            }
+        }
+        w.full.copy_from_slice(&w.s);
+        let margin = self.settings.contact_margin * model.length_scale;
+        w.contacts.clear();
+        w.free_contacts.clear();
+        if !model.obstacles.is_empty() {
+            contact::detect(
+                &model.obstacles,
+                &model.fixed,
+                &w.q_start,
+                &w.s,
+                margin,
+                &mut w.contacts,
+            );
+            w.free_contacts.extend(w.contacts.iter().map(|c| FreeContact {
+                index: sys.index[c.vertex],
+                contact: *c,
+            }));
+        }
+        let tol = self.settings.tolerance * model.length_scale;
+        let mut stats = StepStats {
+            step: st.step + 1,
+            time: st.time + h,
+            iterations: 0,
+            converged: false,
+            relative_change: f64::NAN,
+            global_iterations: 0,
+            contacts: 0,
+            contact_rounds: 0,
+            contact_iterations: 0,
+            max_penetration: 0.0,
+            kinetic_energy: 0.0,
+            elastic_energy: 0.0,
+            potential_energy: 0.0,
+            wall_ms: 0.0,
+        };
+        let nf = sys.n();
+        let rms = (nf.max(1) as f64).sqrt();
+        for round in 0..self.settings.contact_rounds.max(1) {
+            stats.contact_rounds = round + 1;
+            stats.converged = false;
+            for _ in 0..self.settings.max_iterations {
+                for (k, &v) in sys.free.iter().enumerate() {
+                    w.full[v] = w.x[k];
+                }
+                stats.elastic_energy = self.local.project(model, &w.full)?;
+                self.local.gather(model, &mut w.gathered);
+                for (k, &v) in sys.free.iter().enumerate() {
+                    w.rhs[k] = w.base[k] + w.gathered[v];
+                }
+                w.x_prev.copy_from_slice(&w.x);
+                let g = self.solver.solve(sys, &w.rhs, &mut w.x, &w.free_contacts)?;
+                stats.iterations += 1;
+                stats.global_iterations += g.iterations;
+                stats.contact_iterations += g.contact_iterations;
+                let mut sq = 0.0;
+                for k in 0..nf {
+                    sq += (w.x[k] - w.x_prev[k]).norm_squared();
+                }
+                let change = sq.sqrt() / rms;
+                if !change.is_finite() {
+                    return Err(SolverError::NonFinite(format!(
+                        "step {}: positions became non-finite in local-global iteration {}",
+                        stats.step, stats.iterations
+                    )));
+                }
+                stats.relative_change = change / model.length_scale;
+                if change <= tol {
+                    stats.converged = true;
+                    break;
+                }
+            }
+            if model.obstacles.is_empty() {
+                break;
+            }
+            // New penetrations: add them as contacts and resume.
+            for (k, &v) in sys.free.iter().enumerate() {
+                w.full[v] = w.x[k];
+            }
+            let before = w.contacts.len();
+            let in_contact: std::collections::HashSet<usize> = w.contacts.iter().map(|c| c.vertex).collect();
+            for (i, (a, x)) in w.q_start.iter().zip(&w.full).enumerate() {
+                if model.fixed[i] || in_contact.contains(&i) {
+                    continue;
+                }
+                for (oi, o) in model.obstacles.iter().enumerate() {
+                    if let Some((d, normal, point)) = o.query(a, x, 0.0) {
+                        if d < 0.0 {
+                            let c = Contact {
+                                vertex: i,
+                                obstacle: oi,
+                                normal,
+                                point,
+                                anchor: *a,
+                                friction: o.friction,
+                            };
+                            w.contacts.push(c);
+                            w.free_contacts.push(FreeContact {
+                                index: sys.index[i],
+                                contact: c,
+                            });
+                            break;
+                        }
+                    }
+                }
+            }
+            if w.contacts.len() == before {
+                break;
+            }
+        }
+        stats.contacts = w.contacts.len();
+        for (k, &v) in sys.free.iter().enumerate() {
+            w.full[v] = w.x[k];
+        }
+        if !model.obstacles.is_empty() {
+            stats.max_penetration = contact::max_penetration(&model.obstacles, &w.q_start, &w.full).0;
+        }
+        // Velocities, energies, divergence checks.
+        let damping = self.settings.damping;
+        let mut kinetic = 0.0;
+        let mut potential = 0.0;
+        for i in 0..model.n() {
+            let q = w.full[i];
+            let v = (q - w.q_start[i]) * (damping / h);
+            st.q[i] = q;
+            st.v[i] = v;
+            kinetic += 0.5 * model.mass[i] * v.norm_squared();
+            potential -= model.mass[i] * model.accel[i].dot(&q);
+        }
+        st.time += h;
+        st.step += 1;
+        stats.kinetic_energy = kinetic;
+        stats.potential_energy = potential;
+        stats.wall_ms = t0.elapsed().as_secs_f64() * 1e3;
+        if !(kinetic.is_finite() && stats.elastic_energy.is_finite()) {
+            return Err(SolverError::NonFinite(format!(
+                "step {}: energy is not finite",
+                stats.step
+            )));
+        }
+        if kinetic > 1e8 * self.energy_scale {
+            return Err(SolverError::Diverged(format!(
+                "step {}: kinetic energy {kinetic:.3e} J exceeds 1e8 x the scene's energy scale {:.3e} J",
+                stats.step, self.energy_scale
+            )));
+        }
+        Ok(stats)
+    }
+}

@@ -1,0 +1,382 @@
+//! The static data of a simulation: bodies (tet meshes with material and mass), constraint
+//! weights, attachments, Dirichlet vertices, external accelerations and obstacles. Built once by
+//! [`ModelBuilder`]; the [`Simulator`](super::Simulator) never changes it.
+
+use std::ops::Range;
+
+use nalgebra::Vector3;
+use serde::Serialize;
+
+use super::SolverError;
+use crate::constraint::attachment::Attachment;
+use crate::contact::Obstacle;
+use crate::fem::{Coefficient, FemOperators};
+use crate::mesh::TetMesh;
+
+/// Elastic material of a body.
+///
+/// Weights follow the paper's reference implementation (METHOD.md section 2): per tet, a
+/// corotated constraint with weight `E/(1+nu) V` and a volume constraint with weight
+/// `nu E/(1+nu) V`, both on the deformation gradient. For small strains this is linear
+/// elasticity with shear modulus `mu = E/(2(1+nu))` and an extra volumetric stiffness; with
+/// `nu = 0` it is exactly linear elasticity with Young's modulus `E` and `lambda = 0`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Material {
+    /// Young's modulus (Pa).
+    pub youngs_modulus: f64,
+    /// Poisson ratio, in `[0, 0.5)`.
+    pub poisson_ratio: f64,
+}
+
+impl Material {
+    /// Check the parameters are physically meaningful.
+    pub fn validate(&self, body: &str) -> Result<(), SolverError> {
+        if !(self.youngs_modulus.is_finite() && self.youngs_modulus > 0.0) {
+            return Err(SolverError::Input(format!(
+                "body '{body}': Young's modulus must be finite and positive, got {}",
+                self.youngs_modulus
+            )));
+        }
+        if !(0.0..0.5).contains(&self.poisson_ratio) {
+            return Err(SolverError::Input(format!(
+                "body '{body}': Poisson ratio must be in [0, 0.5), got {}",
+                self.poisson_ratio
+            )));
+        }
+        Ok(())
+    }
+
+    /// Corotated weight per unit volume, `E / (1 + nu)`.
+    pub fn rotation_stiffness(&self) -> f64 {
+        self.youngs_modulus / (1.0 + self.poisson_ratio)
+    }
+
+    /// Volume weight per unit volume, `nu E / (1 + nu)`.
+    pub fn volume_stiffness(&self) -> f64 {
+        self.poisson_ratio * self.youngs_modulus / (1.0 + self.poisson_ratio)
+    }
+}
+
+/// How a body's mass is given.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum MassSpec {
+    /// Density (kg/m^3), lumped `rho V / 4` per tet corner.
+    Density(f64),
+    /// Total mass (kg), lumped by volume (the paper's "Mass").
+    Total(f64),
+}
+
+/// One body as given to the builder.
+#[derive(Debug, Clone)]
+pub struct BodySpec {
+    /// Name (reports, output files).
+    pub name: String,
+    /// The mesh in simulation coordinates (already scaled / placed).
+    pub mesh: TetMesh,
+    /// Material.
+    pub material: Material,
+    /// Mass.
+    pub mass: MassSpec,
+    /// Whether gravity acts on the body.
+    pub gravity: bool,
+    /// Initial velocity of every vertex.
+    pub initial_velocity: Vector3<f64>,
+    /// Vertices held fixed at their rest position (Dirichlet), body numbering.
+    pub fixed: Vec<usize>,
+    /// Penalty attachments to the rest position: (vertex, weight), body numbering.
+    pub attachments: Vec<(usize, f64)>,
+    /// Enable the volume constraint (weight `nu E/(1+nu) V`).
+    pub volume_constraint: bool,
+}
+
+impl BodySpec {
+    /// A body with gravity, zero initial velocity, no pins and the volume constraint on.
+    pub fn new(name: &str, mesh: TetMesh, material: Material, mass: MassSpec) -> Self {
+        Self {
+            name: name.to_string(),
+            mesh,
+            material,
+            mass,
+            gravity: true,
+            initial_velocity: Vector3::zeros(),
+            fixed: Vec::new(),
+            attachments: Vec::new(),
+            volume_constraint: true,
+        }
+    }
+}
+
+/// Where a body lives in the assembled system.
+#[derive(Debug, Clone, Serialize)]
+pub struct Body {
+    /// Name.
+    pub name: String,
+    /// Its vertices in the global numbering.
+    pub vertices: Range<usize>,
+    /// Its tets in the global numbering.
+    pub tets: Range<usize>,
+    /// Material.
+    pub material: Material,
+    /// Total mass.
+    pub mass: f64,
+}
+
+/// For each vertex, the tets that contain it and its local index there (CSR).
+#[derive(Debug, Clone)]
+pub struct VertexTets {
+    /// Offsets, length `n + 1`.
+    pub offsets: Vec<usize>,
+    /// `(tet, local corner)` pairs.
+    pub entries: Vec<(u32, u8)>,
+}
+
+impl VertexTets {
+    fn new(n: usize, tets: &[[usize; 4]]) -> Self {
+        let mut count = vec![0usize; n + 1];
+        for t in tets {
+            for &v in t {
+                count[v + 1] += 1;
+            }
+        }
+        for i in 0..n {
+            count[i + 1] += count[i];
+        }
+        let mut fill = count.clone();
+        let mut entries = vec![(0u32, 0u8); count[n]];
+        for (ti, t) in tets.iter().enumerate() {
+            for (a, &v) in t.iter().enumerate() {
+                entries[fill[v]] = (ti as u32, a as u8);
+                fill[v] += 1;
+            }
+        }
+        Self {
+            offsets: count,
+            entries,
+        }
+    }
+
+    /// The `(tet, corner)` pairs of vertex `v`.
+    pub fn of(&self, v: usize) -> &[(u32, u8)] {
+        &self.entries[self.offsets[v]..self.offsets[v + 1]]
+    }
+}
+
+/// Everything a simulation needs that does not change while it runs.
+#[derive(Debug, Clone)]
+pub struct Model {
+    /// Rest positions of all vertices.
+    pub rest: Vec<Vector3<f64>>,
+    /// Initial velocities.
+    pub initial_velocity: Vec<Vector3<f64>>,
+    /// All tets (global vertex numbering).
+    pub tets: Vec<[usize; 4]>,
+    /// Per-tet geometry and the pattern of `L`.
+    pub fem: FemOperators,
+    /// Corotated weight per tet (`E/(1+nu) V`).
+    pub w_rot: Vec<f64>,
+    /// Volume weight per tet (`nu E/(1+nu) V`, 0 when disabled).
+    pub w_vol: Vec<f64>,
+    /// Lumped mass per vertex.
+    pub mass: Vec<f64>,
+    /// External acceleration per vertex (gravity where enabled).
+    pub accel: Vec<Vector3<f64>>,
+    /// Penalty attachments.
+    pub attachments: Vec<Attachment>,
+    /// Dirichlet vertices (held at their rest position).
+    pub fixed: Vec<bool>,
+    /// Obstacles (empty: no collision code runs).
+    pub obstacles: Vec<Obstacle>,
+    /// Bodies.
+    pub bodies: Vec<Body>,
+    /// Vertex-to-tet adjacency for the right-hand-side gather.
+    pub vertex_tets: VertexTets,
+    /// Characteristic length: the diagonal of the rest bounding box.
+    pub length_scale: f64,
+}
+
+impl Model {
+    /// Number of vertices.
+    pub fn n(&self) -> usize {
+        self.rest.len()
+    }
+
+    /// `L = sum_t (w_rot + w_vol) A_t^T A_t + attachments` (per axis), values in the pattern.
+    pub fn stiffness_values(&self) -> Vec<f64> {
+        let k: Vec<f64> = (0..self.tets.len())
+            .map(|t| (self.w_rot[t] + self.w_vol[t]) / self.fem.geometry[t].volume)
+            .collect();
+        let mut values = self
+            .fem
+            .laplacian_values(Coefficient::PerTet(&k))
+            .expect("weights validated");
+        for a in &self.attachments {
+            values[self.fem.pattern.diag_slot[a.vertex]] += a.weight;
+        }
+        values
+    }
+}
+
+/// Builds a [`Model`] from bodies, obstacles and gravity.
+#[derive(Debug, Clone, Default)]
+pub struct ModelBuilder {
+    bodies: Vec<BodySpec>,
+    obstacles: Vec<Obstacle>,
+    gravity: Vector3<f64>,
+}
+
+impl ModelBuilder {
+    /// An empty model with no gravity.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Gravitational acceleration (m/s^2), applied to bodies with `gravity` enabled.
+    pub fn gravity(mut self, g: Vector3<f64>) -> Self {
+        self.gravity = g;
+        self
+    }
+
+    /// Add a body.
+    pub fn body(mut self, b: BodySpec) -> Self {
+        self.bodies.push(b);
+        self
+    }
+
+    /// Add an obstacle.
+    pub fn obstacle(mut self, o: Obstacle) -> Self {
+        self.obstacles.push(o);
+        self
+    }
+
+    /// Validate and assemble.
+    pub fn build(self) -> Result<Model, SolverError> {
+        if self.bodies.is_empty() {
+            return Err(SolverError::Input("the scene has no bodies".into()));
+        }
+        if !self.gravity.iter().all(|g| g.is_finite()) {
+            return Err(SolverError::Input(format!(
+                "gravity must be finite, got {:?}",
+                self.gravity
+            )));
+        }
+        let mut rest = Vec::new();
+        let mut tets = Vec::new();
+        let mut w_rot = Vec::new();
+        let mut w_vol = Vec::new();
+        let mut bodies = Vec::new();
+        let mut initial_velocity = Vec::new();
+        let mut accel = Vec::new();
+        let mut fixed = Vec::new();
+        let mut attachments = Vec::new();
+        let mut mass = Vec::new();
+        for b in &self.bodies {
+            b.material.validate(&b.name)?;
+            if !b.initial_velocity.iter().all(|v| v.is_finite()) {
+                return Err(SolverError::Input(format!(
+                    "body '{}': initial velocity must be finite",
+                    b.name
+                )));
+            }
+            let v0 = rest.len();
+            let t0 = tets.len();
+            let nb = b.mesh.num_vertices();
+            let fem = FemOperators::new(&b.mesh).map_err(|e| SolverError::Input(format!("body '{}': {e}", b.name)))?;
+            let total_volume = fem.total_volume();
+            let rho = match b.mass {
+                MassSpec::Density(rho) => rho,
+                MassSpec::Total(m) => m / total_volume,
+            };
+            if !(rho.is_finite() && rho > 0.0) {
+                return Err(SolverError::Input(format!(
+                    "body '{}': density and total mass must be finite and positive (density {rho})",
+                    b.name
+                )));
+            }
+            let m = fem.lumped_mass(Coefficient::Uniform(rho)).expect("density validated");
+            let body_mass: f64 = m.iter().sum();
+            mass.extend(m);
+            for g in &fem.geometry {
+                w_rot.push(b.material.rotation_stiffness() * g.volume);
+                w_vol.push(if b.volume_constraint {
+                    b.material.volume_stiffness() * g.volume
+                } else {
+                    0.0
+                });
+            }
+            rest.extend(b.mesh.vertices.iter().copied());
+            tets.extend(b.mesh.tets.iter().map(|t| t.map(|i| i + v0)));
+            initial_velocity.extend(std::iter::repeat_n(b.initial_velocity, nb));
+            accel.extend(std::iter::repeat_n(
+                if b.gravity { self.gravity } else { Vector3::zeros() },
+                nb,
+            ));
+            let mut is_fixed = vec![false; nb];
+            for &v in &b.fixed {
+                if v >= nb {
+                    return Err(SolverError::Input(format!(
+                        "body '{}': fixed vertex {v} out of range ({nb} vertices)",
+                        b.name
+                    )));
+                }
+                is_fixed[v] = true;
+            }
+            fixed.extend(is_fixed);
+            for &(v, w) in &b.attachments {
+                if v >= nb {
+                    return Err(SolverError::Input(format!(
+                        "body '{}': attached vertex {v} out of range ({nb} vertices)",
+                        b.name
+                    )));
+                }
+                if !(w.is_finite() && w > 0.0) {
+                    return Err(SolverError::Input(format!(
+                        "body '{}': attachment stiffness must be finite and positive, got {w}",
+                        b.name
+                    )));
+                }
+                attachments.push(Attachment {
+                    vertex: v + v0,
+                    target: b.mesh.vertices[v],
+                    weight: w,
+                });
+            }
+            bodies.push(Body {
+                name: b.name.clone(),
+                vertices: v0..v0 + nb,
+                tets: t0..t0 + b.mesh.num_tets(),
+                material: b.material,
+                mass: body_mass,
+            });
+        }
+        if fixed.iter().all(|&f| f) {
+            return Err(SolverError::Input("every vertex is fixed: nothing to simulate".into()));
+        }
+        for o in &self.obstacles {
+            o.validate()?;
+        }
+        let all = TetMesh {
+            vertices: rest.clone(),
+            tets: tets.clone(),
+        };
+        let fem = FemOperators::new(&all).map_err(|e| SolverError::Input(e.to_string()))?;
+        let (lo, hi) = all.bounding_box();
+        let vertex_tets = VertexTets::new(rest.len(), &tets);
+        Ok(Model {
+            rest,
+            initial_velocity,
+            tets,
+            fem,
+            w_rot,
+            w_vol,
+            mass,
+            accel,
+            attachments,
+            fixed,
+            obstacles: self.obstacles,
+            bodies,
+            vertex_tets,
+            length_scale: (hi - lo).norm().max(f64::MIN_POSITIVE),
+        })
+    }
+}
