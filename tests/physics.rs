@@ -1,10 +1,11 @@
-//! Physics checks of the forward solver against closed forms (issue: forward solver).
+//! Physics checks of the forward solver against closed forms (the studies live in
+//! `diffsoft::verify::physics`, shared with the main job's `reports/physics.json`).
 
 mod common;
 
-use diffsoft::contact::Obstacle;
 use diffsoft::mesh::generate::BoxSpec;
 use diffsoft::solver::{BodySpec, CertifyPolicy, MassSpec, Material, ModelBuilder, Settings, Simulator, SolverKind};
+use diffsoft::verify::physics;
 use nalgebra::{Rotation3, Vector3};
 
 fn cube(n: usize, size: f64) -> diffsoft::mesh::TetMesh {
@@ -23,45 +24,19 @@ fn settings(dt: f64, solver: SolverKind) -> Settings {
     }
 }
 
-/// Implicit Euler of a rigid translation is exact: x_N = x_0 + N h v_0 + h^2 g N (N+1) / 2.
-#[test]
-fn free_fall_matches_implicit_euler_exactly() {
-    let g = Vector3::new(0.3, -9.81, 0.1);
-    let v0 = Vector3::new(1.0, 2.0, -0.5);
-    for solver in [SolverKind::Direct, SolverKind::Split, SolverKind::Chebyshev] {
-        let mut body = BodySpec::new(
-            "cube",
-            cube(3, 0.5),
-            Material {
-                youngs_modulus: 1e5,
-                poisson_ratio: 0.3,
-            },
-            MassSpec::Density(1000.0),
-        );
-        body.initial_velocity = v0;
-        let model = ModelBuilder::new().gravity(g).body(body).build().unwrap();
-        let rest = model.rest.clone();
-        let h = 0.01;
-        let mut sim = Simulator::new(model, settings(h, solver)).unwrap();
-        let n = 50;
-        for _ in 0..n {
-            sim.step().unwrap();
-        }
-        let nf = n as f64;
-        let shift = v0 * (nf * h) + g * (h * h * nf * (nf + 1.0) / 2.0);
-        let mut worst = 0.0f64;
-        for (q, x0) in sim.state().q.iter().zip(&rest) {
-            let expect = x0 + shift;
-            worst = worst.max((q - expect).norm() / expect.norm().max(shift.norm()));
-        }
-        assert!(worst < 1e-10, "{solver:?}: free fall relative error {worst:e}");
-    }
-}
-
 fn material(e: f64, nu: f64) -> Material {
     Material {
         youngs_modulus: e,
         poisson_ratio: nu,
+    }
+}
+
+/// Implicit Euler of a rigid translation is exact: x_N = x_0 + N h v_0 + h^2 g N (N+1) / 2.
+#[test]
+fn free_fall_matches_implicit_euler_exactly() {
+    for solver in [SolverKind::Direct, SolverKind::Split, SolverKind::Chebyshev] {
+        let err = physics::free_fall(solver, 50).unwrap();
+        assert!(err < 1e-10, "{solver:?}: free fall relative error {err:e}");
     }
 }
 
@@ -128,94 +103,42 @@ fn rigid_motion_of_the_rest_shape_produces_no_elastic_force() {
     }
 }
 
-/// A block on a plane inclined by `angle` sticks when tan(angle) < mu_f and otherwise slides
-/// with a = g (sin - mu cos): implicit Euler gives exactly d_N = a h^2 N (N + 1) / 2 for a
-/// rigid slide. Returns (down-slope displacement of the centroid, Coulomb's prediction,
-/// largest tangential displacement and final tangential speed of a vertex that touches the
-/// plane).
-fn incline(angle_deg: f64, mu: f64) -> (f64, f64, f64, f64) {
-    let th = angle_deg.to_radians();
-    let g = 9.81;
-    let normal = Vector3::new(-th.sin(), th.cos(), 0.0);
-    let down_slope = Vector3::new(-th.cos(), -th.sin(), 0.0);
-    let size = 0.2;
-    let mesh = BoxSpec::new([2, 2, 2], [size; 3])
-        .origin([-size / 2.0, 0.0, -size / 2.0])
-        .build()
-        .unwrap();
-    let rot = Rotation3::from_axis_angle(&Vector3::z_axis(), th);
-    let mesh = mesh.map_vertices(|v| rot * v);
-    let mut body = BodySpec::new("block", mesh, material(1e7, 0.3), MassSpec::Density(1000.0));
-    body.volume_constraint = true;
-    let model = ModelBuilder::new()
-        .gravity(Vector3::new(0.0, -g, 0.0))
-        .body(body)
-        .obstacle(Obstacle::plane("incline", Vector3::zeros(), normal, mu))
-        .build()
-        .unwrap();
-    let h = 0.002;
-    let steps = 150;
-    let c0: Vector3<f64> = model.rest.iter().sum::<Vector3<f64>>() / model.n() as f64;
-    let bottom: Vec<usize> = (0..model.n())
-        .filter(|&i| normal.dot(&model.rest[i]).abs() < 1e-12)
-        .collect();
-    assert_eq!(bottom.len(), 9);
-    let start: Vec<Vector3<f64>> = bottom.iter().map(|&i| model.rest[i]).collect();
-    let mut sim = Simulator::new(model, settings(h, SolverKind::Direct)).unwrap();
-    let mut pen = 0.0f64;
-    for _ in 0..steps {
-        pen = pen.max(sim.step().unwrap().max_penetration);
-    }
-    let c1: Vector3<f64> = sim.state().q.iter().sum::<Vector3<f64>>() / sim.state().q.len() as f64;
-    let d = (c1 - c0).dot(&down_slope);
-    let a = g * (th.sin() - mu * th.cos());
-    let n = steps as f64;
-    let expect = if a > 0.0 { a * h * h * n * (n + 1.0) / 2.0 } else { 0.0 };
-    assert!(pen < 1e-9, "penetration {pen}");
-    let slip = bottom
-        .iter()
-        .zip(&start)
-        .map(|(&i, x0)| {
-            let u = sim.state().q[i] - x0;
-            (u - normal * normal.dot(&u)).norm()
-        })
-        .fold(0.0, f64::max);
-    let speed = bottom
-        .iter()
-        .map(|&i| {
-            let v = sim.state().v[i];
-            (v - normal * normal.dot(&v)).norm()
-        })
-        .fold(0.0, f64::max);
-    (d, expect, slip, speed)
-}
-
 #[test]
 fn block_on_incline_sticks_below_the_friction_angle() {
     for (angle, mu) in [(20.0, 0.5), (30.0, 0.7), (10.0, 0.2)] {
-        let (d, _, slip, speed) = incline(angle, mu);
+        let r = physics::incline(angle, mu).unwrap();
+        assert!(r.should_stick);
         // Stuck: the contact vertices are at rest on the plane. They may shift by the Poisson
         // spreading of the bottom face while the block settles (~1e-5 m here), and the
         // centroid by the block's elastic shear; a sliding block would move ~1e-2 m.
-        assert!(
-            speed < 1e-6,
-            "angle {angle}, mu {mu}: contact vertices still slide at {speed} m/s"
-        );
-        assert!(
-            slip < 1e-4 && d.abs() < 1e-4,
-            "angle {angle}, mu {mu}: slip {slip} m, centroid {d} m"
-        );
+        assert!(r.contact_speed < 1e-6, "{r:?}");
+        assert!(r.contact_slip < 1e-4 && r.centroid_displacement.abs() < 1e-4, "{r:?}");
+        assert!(r.max_penetration < 1e-9, "{r:?}");
     }
 }
 
 #[test]
 fn block_on_incline_slides_above_the_friction_angle() {
     for (angle, mu) in [(35.0, 0.5), (40.0, 0.2), (30.0, 0.0)] {
-        let (d, expect, slip, speed) = incline(angle, mu);
-        assert!(expect > 0.0 && slip > 0.5 * expect && speed > 0.1);
-        assert!(
-            (d / expect - 1.0).abs() < 0.02,
-            "angle {angle}, mu {mu}: slid {d} m, Coulomb predicts {expect} m"
-        );
+        let r = physics::incline(angle, mu).unwrap();
+        assert!(!r.should_stick && r.contact_speed > 0.1, "{r:?}");
+        let ratio = r.centroid_displacement / r.predicted_displacement;
+        assert!((ratio - 1.0).abs() < 0.02, "slid {ratio} x Coulomb's prediction: {r:?}");
+        assert!(r.max_penetration < 1e-9, "{r:?}");
     }
+}
+
+/// The static tip deflection of a clamped beam approaches Euler-Bernoulli as the mesh is
+/// refined (linear tets lock in bending, so they converge from below). The main job runs finer
+/// levels into reports/physics.json.
+#[test]
+fn cantilever_approaches_euler_bernoulli() {
+    let rows = physics::cantilever(&[1, 2]).unwrap();
+    assert!(rows.iter().all(|r| r.converged));
+    assert!(rows[1].relative_error < rows[0].relative_error, "{rows:?}");
+    assert!(
+        rows.iter()
+            .all(|r| r.tip_deflection > 0.0 && r.tip_deflection < r.euler_bernoulli),
+        "{rows:?}"
+    );
 }

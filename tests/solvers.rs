@@ -4,100 +4,26 @@
 mod common;
 
 use common::root;
-use diffsoft::contact::Obstacle;
 use diffsoft::mesh::{self, generate::BoxSpec};
 use diffsoft::scene::{self, LoadOptions};
 use diffsoft::solver::{
-    BodySpec, CertifyPolicy, MassSpec, Material, Model, ModelBuilder, Settings, Simulator, SolverError, SolverKind,
+    BodySpec, CertifyPolicy, MassSpec, Material, ModelBuilder, Settings, Simulator, SolverError, SolverKind,
 };
+use diffsoft::verify::physics;
 use nalgebra::Vector3;
-
-fn settings(dt: f64, solver: SolverKind, certify: CertifyPolicy) -> Settings {
-    Settings {
-        dt,
-        solver,
-        certify,
-        tolerance: 1e-12,
-        inner_tolerance: 1e-14,
-        max_iterations: 200,
-        inner_max_iterations: 20_000,
-        ..Settings::default()
-    }
-}
-
-/// A Kuhn-split (M-matrix) beam pinned at one end under gravity, optionally above the ground.
-fn beam_model(ground: bool) -> Model {
-    let mesh = BoxSpec::new([8, 2, 2], [1.0, 0.2, 0.2])
-        .origin([0.0, 0.0, -0.1])
-        .build()
-        .unwrap();
-    let mut body = BodySpec::new(
-        "beam",
-        mesh.clone(),
-        Material {
-            youngs_modulus: 2e5,
-            poisson_ratio: 0.3,
-        },
-        MassSpec::Density(500.0),
-    );
-    body.fixed = (0..mesh.num_vertices())
-        .filter(|&i| mesh.vertices[i].x < 1e-9)
-        .collect();
-    let mut b = ModelBuilder::new().gravity(Vector3::new(0.0, -9.81, 0.0)).body(body);
-    if ground {
-        b = b.obstacle(Obstacle::plane(
-            "ground",
-            Vector3::new(0.0, -0.005, 0.0),
-            Vector3::y(),
-            0.4,
-        ));
-    }
-    b.build().unwrap()
-}
-
-fn run(model: Model, s: Settings, steps: usize) -> (Vec<Vector3<f64>>, SolverKind, f64, usize) {
-    let mut sim = Simulator::new(model, s).unwrap();
-    let mut pen = 0.0f64;
-    let mut contacts = 0;
-    for _ in 0..steps {
-        let st = sim.step().unwrap();
-        pen = pen.max(st.max_penetration);
-        contacts = contacts.max(st.contacts);
-    }
-    (sim.state().q.clone(), sim.certificate().used, pen, contacts)
-}
-
-fn max_diff(a: &[Vector3<f64>], b: &[Vector3<f64>]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| (x - y).norm()).fold(0.0, f64::max)
-}
 
 #[test]
 fn direct_split_chebyshev_and_certified_reach_the_same_state() {
-    for ground in [false, true] {
-        // rho(G19) = 0.45 here (1.81 at 2 ms, where certification refuses the plain iteration).
-        let dt = 1e-3;
-        let (reference, _, _, contacts) = run(
-            beam_model(ground),
-            settings(dt, SolverKind::Direct, CertifyPolicy::Off),
-            60,
+    let rows = physics::solver_agreement().unwrap();
+    assert_eq!(rows.len(), 8);
+    for r in &rows {
+        assert_eq!(r.used, r.solver, "{r:?}: converges on this M-matrix mesh at 1 ms");
+        assert!(r.max_difference < 1e-8, "{r:?}");
+        assert_eq!(
+            r.contacts > 0,
+            r.ground,
+            "{r:?}: the tip touches the ground exactly when there is one"
         );
-        assert_eq!(contacts > 0, ground, "the beam's tip reaches the ground");
-        for (kind, policy) in [
-            (SolverKind::Split, CertifyPolicy::Off),
-            (SolverKind::Split, CertifyPolicy::Fallback),
-            (SolverKind::Chebyshev, CertifyPolicy::Refuse),
-            (SolverKind::Plain, CertifyPolicy::Refuse),
-        ] {
-            let s = settings(dt, kind, policy);
-            let (q, used, pen, _) = run(beam_model(ground), s, 60);
-            assert_eq!(used, kind, "{kind:?} converges on this M-matrix mesh at dt {dt}");
-            let d = max_diff(&q, &reference);
-            assert!(
-                d < 1e-8,
-                "ground {ground}: {kind:?}/{policy:?} differs from direct by {d:e} m"
-            );
-            assert!(pen < 1e-9, "penetration {pen}");
-        }
     }
 }
 
@@ -153,46 +79,33 @@ fn ball_dropped_on_the_ground_never_penetrates() {
     let ball = mesh::load(root().join("verification/paper/droneman/ball_tet.obj"))
         .unwrap()
         .mesh;
-    let mut body = BodySpec::new(
-        "ball",
-        ball,
-        Material {
-            youngs_modulus: 2e4,
-            poisson_ratio: 0.4,
-        },
-        MassSpec::Total(1.0),
-    );
-    body.initial_velocity = Vector3::new(0.5, -3.0, 0.0);
-    let model = ModelBuilder::new()
-        .gravity(Vector3::new(0.0, -9.81, 0.0))
-        .body(body)
-        .obstacle(Obstacle::plane("ground", Vector3::zeros(), Vector3::y(), 0.3))
-        .build()
-        .unwrap();
     for solver in [SolverKind::Direct, SolverKind::Chebyshev] {
-        let s = Settings {
-            dt: 0.005,
-            solver,
-            ..Settings::default()
-        };
-        let mut sim = Simulator::new(model.clone(), s).unwrap();
-        let mut worst = 0.0f64;
-        let mut touched = false;
-        for _ in 0..200 {
-            let st = sim.step().unwrap();
-            worst = worst.max(st.max_penetration);
-            touched |= st.contacts > 0;
-            let lowest = sim.state().q.iter().map(|q| q.y).fold(f64::INFINITY, f64::min);
-            assert!(lowest > -1e-9, "{solver:?}: vertex below the ground at y = {lowest}");
-        }
-        assert!(touched, "the ball reached the ground");
-        assert!(worst <= 1e-9, "{solver:?}: max penetration {worst}");
+        let (pen, lowest, contacts) = physics::ball_drop(ball.clone(), solver).unwrap();
+        assert!(contacts > 0, "the ball reached the ground");
+        assert!(
+            pen <= 1e-9 && lowest > -1e-9,
+            "{solver:?}: penetration {pen}, lowest vertex {lowest}"
+        );
     }
 }
 
 #[test]
 fn bad_settings_and_states_are_errors() {
-    let model = beam_model(false);
+    let mesh = BoxSpec::new([4, 2, 2], [1.0, 0.2, 0.2]).build().unwrap();
+    let body = BodySpec::new(
+        "beam",
+        mesh,
+        Material {
+            youngs_modulus: 2e5,
+            poisson_ratio: 0.3,
+        },
+        MassSpec::Density(500.0),
+    );
+    let model = ModelBuilder::new()
+        .gravity(Vector3::new(0.0, -9.81, 0.0))
+        .body(body)
+        .build()
+        .unwrap();
     for dt in [0.0, -1.0, f64::NAN, f64::INFINITY] {
         let e = Simulator::new(
             model.clone(),

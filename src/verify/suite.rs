@@ -17,6 +17,28 @@ pub struct Suite {
     pub bounds: BoundsSuite,
     /// Appendix A's `T` dependence on structured boxes of fixed cell size.
     pub t_scaling: TScalingSuite,
+    /// Physics checks of the forward solver.
+    pub physics: PhysicsSuite,
+}
+
+/// Physics checks of the forward solver.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PhysicsSuite {
+    /// Refinement levels of the cantilever study (cells across the section).
+    pub cantilever_levels: Vec<usize>,
+    /// Scenes to run, relative to the suite file.
+    pub scenes: Vec<SuiteScene>,
+}
+
+/// A scene run by the suite.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SuiteScene {
+    /// Scene file, relative to the suite file.
+    pub scene: PathBuf,
+    /// Steps.
+    pub steps: usize,
 }
 
 /// Bounds analysis settings and meshes.

@@ -2,7 +2,7 @@
 
 use std::fmt::Write as _;
 
-use super::{QualityReport, SuiteBoundsReport, SweepReport};
+use super::{PhysicsReport, QualityReport, SuiteBoundsReport, SweepReport};
 use crate::analysis::bounds::BoundsReport;
 
 fn opt(v: Option<f64>) -> String {
@@ -209,5 +209,30 @@ pub fn table(r: &SuiteBoundsReport) -> String {
         ts.eq29_exponent,
         yes(ts.verdicts.first().is_some_and(|v| v.holds))
     );
+    s
+}
+
+/// The physics summary printed by `diffsoft verify`.
+pub fn physics_table(r: &PhysicsReport) -> String {
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "\ncantilever  {:>6} {:>12} {:>12} {:>9} {:>7}",
+        "tets", "w (m)", "w_EB (m)", "error", "its"
+    );
+    for c in &r.cantilever {
+        let _ = writeln!(
+            s,
+            "            {:>6} {:>12.5e} {:>12.5e} {:>8.2}% {:>7}",
+            c.tets,
+            c.tip_deflection,
+            c.euler_bernoulli,
+            100.0 * c.relative_error,
+            c.iterations
+        );
+    }
+    for v in &r.verdicts {
+        let _ = writeln!(s, "  [{}] {}", if v.holds { "holds" } else { "FAILS" }, v.claim);
+    }
     s
 }

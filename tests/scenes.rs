@@ -1,0 +1,238 @@
+//! Scene files: the strict diffsoft format, the paper importer, and `diffsoft simulate`.
+
+mod common;
+
+use std::process::Command;
+
+use common::{root, tmp_dir, write};
+use diffsoft::scene::{self, LoadOptions, SceneError, SceneFormat};
+use diffsoft::solver::SolverKind;
+use serde_json::Value;
+
+fn paper(name: &str) -> std::path::PathBuf {
+    root().join("verification/paper").join(name)
+}
+
+#[test]
+fn paper_scenes_import_with_the_reference_defaults() {
+    let s = scene::load(paper("bridgesus/bridgesus.json"), LoadOptions::default()).unwrap();
+    assert_eq!(s.format, SceneFormat::Paper);
+    assert_eq!((s.model.n(), s.model.tets.len()), (212, 668));
+    assert!((s.settings.dt - 0.005).abs() < 1e-15);
+    assert!((s.settings.damping - 0.9999).abs() < 1e-15);
+    assert_eq!(
+        s.model.fixed.iter().filter(|&&f| f).count(),
+        65,
+        "65 attach verts at 1e20 become Dirichlet"
+    );
+    assert!((s.model.bodies[0].mass - 10.0).abs() < 1e-9, "default Mass 10");
+    assert!(s.notes.iter().any(|n| n.contains("Dirichlet")));
+    // The bridge has no "Scale": the reference's default 0.05 applies.
+    let b = scene::load(paper("bridge/bridge.json"), LoadOptions::default()).unwrap();
+    assert!(b.notes.iter().any(|n| n.contains("default 0.05")));
+    let (lo, hi) = diffsoft::mesh::TetMesh {
+        vertices: b.model.rest.clone(),
+        tets: vec![],
+    }
+    .bounding_box();
+    assert!(
+        ((hi - lo).x - 14.9 * 0.05).abs() < 0.01,
+        "scaled by 0.05: {}",
+        (hi - lo).x
+    );
+    // Baymax's ground is a triangle-mesh obstacle.
+    let y = scene::load(paper("baymax/baymax.json"), LoadOptions::default()).unwrap();
+    assert_eq!(y.model.obstacles.len(), 1);
+    assert!((y.settings.dt - 0.01).abs() < 1e-15);
+}
+
+#[test]
+fn unsupported_paper_features_are_errors_unless_passive() {
+    for (file, feature) in [
+        ("fish/fish.json", "Bones"),
+        ("baymax/baymax_skeleton.json", "Bones"),
+        ("droneman/droneman.json", "Volume Verts"),
+        ("octopus/octopus.json", "Muscle filename"),
+        ("cloth_ball/cloth_ball.json", "Clothes"),
+    ] {
+        let e = scene::load(paper(file), LoadOptions::default()).unwrap_err();
+        assert!(matches!(e, SceneError::Unsupported { .. }), "{file}: {e}");
+        let msg = e.to_string();
+        assert!(
+            msg.contains(feature) && msg.contains("--passive") && msg.contains(file),
+            "{msg}"
+        );
+    }
+    // fish.json has a trailing comma (invalid strict JSON): it still parses, and with --passive
+    // its body is simulated without the skeleton.
+    let fish = scene::load(paper("fish/fish.json"), LoadOptions { passive: true }).unwrap();
+    assert_eq!(fish.model.n(), 759);
+    assert!(fish.notes.iter().any(|n| n.contains("Bones") && n.contains("ignored")));
+    assert!(fish.notes.iter().any(|n| n.contains("Is underwater")));
+}
+
+fn diffsoft_scene(dir: &std::path::Path, body_extra: &str, top_extra: &str) -> std::path::PathBuf {
+    write(
+        dir,
+        "cube.obj",
+        "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nv 1 1 1\nt 0 1 2 3\nt 1 2 3 4\n",
+    );
+    write(
+        dir,
+        "scene.json",
+        &format!(
+            r#"{{
+  "schema": "diffsoft.scene/1",
+  "time_step": 0.01,
+  "gravity": [0, -9.81, 0],
+  "bodies": [{{
+    "name": "c", "mesh": "cube.obj",
+    "material": {{ "youngs_modulus": 1e5, "poisson_ratio": 0.3 }}{body_extra}
+  }}]{top_extra}
+}}"#
+        ),
+    )
+}
+
+#[test]
+fn diffsoft_scenes_reject_unknown_keys_and_meaningless_values() {
+    let dir = tmp_dir("scene-errors");
+    let ok = diffsoft_scene(&dir, r#", "density": 1000, "fixed": {"indices": [0]}"#, "");
+    let s = scene::load(&ok, LoadOptions::default()).unwrap();
+    assert_eq!(s.format, SceneFormat::Diffsoft);
+    assert_eq!(s.settings.solver, SolverKind::Split);
+    for (body, top, expect) in [
+        (r#", "density": 1000, "colour": "red""#, "", "unknown field `colour`"),
+        (
+            r#", "density": 1000"#,
+            r#", "solver": {"dt": 0.1}"#,
+            "unknown field `dt`",
+        ),
+        ("", "", "exactly one of density and total_mass"),
+        (
+            r#", "density": 1000, "total_mass": 3"#,
+            "",
+            "exactly one of density and total_mass",
+        ),
+        (
+            r#", "density": -5"#,
+            "",
+            "density and total mass must be finite and positive",
+        ),
+        (
+            r#", "density": 1000, "fixed": {"indices": [9]}"#,
+            "",
+            "vertex 9 is not a vertex",
+        ),
+        (
+            r#", "density": 1000, "fixed": {"box": {"min": [5,5,5], "max": [6,6,6]}}"#,
+            "",
+            "contains no vertex",
+        ),
+        (
+            r#", "density": 1000"#,
+            r#", "obstacles": [{"plane": {"point": [0,0,0], "normal": [0,0,0]}, "friction": 0.3}]"#,
+            "normal must be non-zero",
+        ),
+        (
+            r#", "density": 1000"#,
+            r#", "obstacles": [{"plane": {"point": [0,0,0], "normal": [0,1,0]}, "friction": -1}]"#,
+            "friction",
+        ),
+    ] {
+        let p = diffsoft_scene(&dir, body, top);
+        let e = scene::load(&p, LoadOptions::default()).unwrap_err().to_string();
+        assert!(
+            e.contains("scene.json") && e.contains(expect),
+            "expected '{expect}' in: {e}"
+        );
+    }
+    // serde names the line of an unknown key.
+    let p = diffsoft_scene(&dir, r#", "density": 1000, "colour": "red""#, "");
+    let e = scene::load(&p, LoadOptions::default()).unwrap_err().to_string();
+    assert!(e.contains("line 7"), "{e}");
+    // A missing mesh names the mesh file.
+    let p = write(
+        &dir,
+        "missing.json",
+        r#"{"schema": "diffsoft.scene/1", "time_step": 0.01, "bodies": [{"name": "x", "mesh": "nope.msh", "material": {"youngs_modulus": 1, "poisson_ratio": 0.1}, "density": 1}]}"#,
+    );
+    let e = scene::load(&p, LoadOptions::default()).unwrap_err().to_string();
+    assert!(e.contains("nope.msh"), "{e}");
+    // Not a scene at all.
+    let p = write(&dir, "other.json", r#"{"hello": 1}"#);
+    assert!(scene::load(&p, LoadOptions::default())
+        .unwrap_err()
+        .to_string()
+        .contains("not a scene"));
+}
+
+#[test]
+fn simulate_writes_vtk_frames_and_a_run_log() {
+    let dir = tmp_dir("cli-simulate");
+    let out = Command::new(env!("CARGO_BIN_EXE_diffsoft"))
+        .args([
+            "simulate",
+            paper("bridgesus/bridgesus.json").to_str().unwrap(),
+            "--steps",
+            "6",
+            "--every",
+            "3",
+            "--out",
+            dir.to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("falling back to the direct solver"), "{stdout}");
+    let log: Value = serde_json::from_str(&std::fs::read_to_string(dir.join("run.json")).unwrap()).unwrap();
+    assert_eq!(log["schema"], "diffsoft.run/1");
+    assert_eq!(log["steps"].as_array().unwrap().len(), 6);
+    assert_eq!(log["certificate"]["used"], "direct");
+    assert_eq!(log["frames"].as_array().unwrap().len(), 3);
+    for f in ["frame_00000.vtu", "frame_00002.vtu", "frames.pvd"] {
+        assert!(dir.join(f).exists(), "{f}");
+    }
+    // The frame is a VTK XML unstructured grid with the mesh's points and tets.
+    let vtu = vtkio::Vtk::import(dir.join("frame_00002.vtu")).unwrap();
+    match vtu.data {
+        vtkio::model::DataSet::UnstructuredGrid { pieces, .. } => {
+            let piece = pieces[0].load_piece_data(None).unwrap();
+            assert_eq!(piece.num_points(), 212);
+            assert_eq!(piece.cells.types.len(), 668);
+        }
+        other => panic!("not an unstructured grid: {other:?}"),
+    }
+    // Divergence is a clear failure with exit status 1, not a panic.
+    let out = Command::new(env!("CARGO_BIN_EXE_diffsoft"))
+        .args([
+            "simulate",
+            paper("bridgesus/bridgesus.json").to_str().unwrap(),
+            "--steps",
+            "5",
+            "--certify",
+            "off",
+        ])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("diverged"),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let out = Command::new(env!("CARGO_BIN_EXE_diffsoft"))
+        .args([
+            "simulate",
+            paper("bridgesus/bridgesus.json").to_str().unwrap(),
+            "--steps",
+            "5",
+            "--certify",
+            "refuse",
+        ])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("rejected by certification"));
+}
