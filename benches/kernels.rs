@@ -2,7 +2,7 @@
 //! volume projection.
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use diffsoft::constraint::svd::{svd3, svd3_nalgebra, svd3_warm};
+use diffsoft::constraint::svd::{svd3, svd3_nalgebra, svd3_warm, svd3_warm_batch, LANES};
 use diffsoft::constraint::volume::nearest_product;
 use nalgebra::{Matrix3, Rotation3, Vector3};
 use std::hint::black_box;
@@ -38,6 +38,20 @@ fn kernels(c: &mut Criterion) {
                 .zip(&warm)
                 .map(|(f, v)| svd3_warm(black_box(f), v).sigma[0])
                 .sum::<f64>()
+        })
+    });
+    g.bench_function("svd3_fast_warm_batch4", |b| {
+        b.iter(|| {
+            let mut acc = 0.0;
+            for (fc, vc) in fs.chunks_exact(LANES).zip(warm.chunks_exact(LANES)) {
+                let f4: &[_; LANES] = fc.try_into().unwrap();
+                let v4: &[_; LANES] = vc.try_into().unwrap();
+                acc += svd3_warm_batch(black_box(f4), v4)
+                    .iter()
+                    .map(|s| s.sigma[0])
+                    .sum::<f64>();
+            }
+            acc
         })
     });
     g.bench_function("svd3_nalgebra", |b| {

@@ -6,18 +6,29 @@
 //! Data flows one way:
 //!
 //! ```text
-//! mesh file ──► mesh ──► fem ──► analysis ──► report / verify (JSON + SVG)
+//! scene file ─► scene ─► mesh ─► fem ─► solver (model, constraint, contact) ─► output (VTK, run log)
+//!                                 │
+//!                                 └───► analysis ─► report / verify (JSON + SVG)
 //! ```
 //!
 //! * [`mesh`]: tetrahedral meshes (OBJ with `t` lines, TetGen, Gmsh 2.2/4.1), validation with
-//!   errors that name file and line, structured generators, quality measures.
+//!   errors that name file and line, structured generators, quality measures, OBJ surfaces.
 //! * [`fem`]: per-tet operators `P`, `P^-1`, `V`, `A` (seed Eq. 23), lumped mass and the
-//!   per-axis stiffness `L = sum mu V A^T A` (seed Eq. 22) as a faer sparse matrix.
+//!   per-axis stiffness `L = sum mu V A^T A` (seed Eq. 22).
+//! * [`constraint`]: the signed 3x3 SVD and the projective constraints (corotated, volume,
+//!   attachment).
+//! * [`contact`]: static obstacles and the per-vertex Coulomb cone projection.
+//! * [`solver`]: projective dynamics with implicit Euler (paper Eqs. 2-5): parallel local step,
+//!   global solvers (sparse Cholesky, plain Eq. 19, split Eq. 21, Chebyshev) behind one trait,
+//!   certified by the spectral analysis before stepping.
+//! * [`scene`]: the JSON scene format and the importer for the paper's scene files.
+//! * [`output`]: VTK frames and the JSON run log of a simulation.
 //! * [`analysis`]: spectral radii of the plain (Eq. 19) and split (Eq. 21) iterations, their
 //!   critical time steps, the Appendix A/B claims checked on real meshes, empirical contraction
 //!   rates and `rho(dt)` sweeps.
 //! * [`report`], [`plot`], [`verify`]: versioned JSON reports, SVG plots and the suite that the
-//!   main job (`diffsoft verify`) runs over `verification/`.
+//!   main job (`diffsoft verify`) runs over `verification/`, including the physics checks of
+//!   the forward solver.
 //!
 //! Equation numbers refer to the paper and its supplementary appendix as summarised in the
 //! project's METHOD notes (paper Eqs. 1-21, seed Eqs. 22-40).

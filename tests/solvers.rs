@@ -153,3 +153,51 @@ fn bad_settings_and_states_are_errors() {
     );
     assert!(ModelBuilder::new().body(bad).build().is_err());
 }
+
+#[test]
+fn certification_also_rejects_iterations_too_slow_for_their_cap() {
+    // An M-matrix mesh: the split iteration converges for every dt, but slowly at large dt.
+    let mesh = BoxSpec::new([4, 4, 4], [1.0; 3]).build().unwrap();
+    let body = BodySpec::new(
+        "cube",
+        mesh,
+        Material {
+            youngs_modulus: 1e6,
+            poisson_ratio: 0.3,
+        },
+        MassSpec::Density(1000.0),
+    );
+    let model = ModelBuilder::new().body(body).build().unwrap();
+    let s = Settings {
+        dt: 0.05,
+        solver: SolverKind::Split,
+        certify: CertifyPolicy::Fallback,
+        inner_max_iterations: 50,
+        ..Settings::default()
+    };
+    let sim = Simulator::new(model.clone(), s.clone()).unwrap();
+    let c = sim.certificate();
+    assert_eq!(c.converges, Some(true));
+    assert!(c.predicted_iterations.is_none() || c.predicted_iterations.unwrap() > 50.0);
+    assert_eq!(c.used, SolverKind::Direct, "{}", c.message);
+    assert!(c.message.contains("above the cap of 50"), "{}", c.message);
+    let e = Simulator::new(
+        model.clone(),
+        Settings {
+            certify: CertifyPolicy::Refuse,
+            ..s.clone()
+        },
+    )
+    .unwrap_err();
+    assert!(e.to_string().contains("inner iterations"), "{e}");
+    // With a generous cap the same iteration is certified and used.
+    let ok = Simulator::new(
+        model,
+        Settings {
+            inner_max_iterations: 100_000,
+            ..s
+        },
+    )
+    .unwrap();
+    assert_eq!(ok.certificate().used, SolverKind::Split, "{}", ok.certificate().message);
+}

@@ -54,18 +54,28 @@ pub struct Certificate {
     pub chebyshev_rho: Option<f64>,
     /// Whether the requested iteration converges at this time step.
     pub converges: Option<bool>,
+    /// Asymptotic error reduction per inner iteration (`rho`; Chebyshev:
+    /// `r / (1 + sqrt(1 - r^2))`).
+    pub asymptotic_rate: Option<f64>,
+    /// Inner iterations predicted for a `1e-10` error reduction, `ln(1e-10) / ln(rate)`.
+    pub predicted_iterations: Option<f64>,
     /// What happened, in words.
     pub message: String,
     /// Time spent on the eigenvalue computation (ms).
     pub elapsed_ms: f64,
 }
 
-/// Certify `requested` on `sys` under `policy`.
+/// Error reduction a global solve must be able to reach within its iteration cap.
+pub const REQUIRED_REDUCTION: f64 = 1e-10;
+
+/// Certify `requested` on `sys` under `policy`: the iteration must converge (spectral radius
+/// below 1) and reach a [`REQUIRED_REDUCTION`] within `max_iterations` at its asymptotic rate.
 pub fn certify(
     sys: &GlobalSystem,
     requested: SolverKind,
     policy: CertifyPolicy,
     method: EigenMethod,
+    max_iterations: usize,
 ) -> Result<Certificate, SolverError> {
     let t0 = Instant::now();
     let h = sys.h;
@@ -80,6 +90,8 @@ pub fn certify(
         contact_relaxation: 1.0,
         chebyshev_rho: None,
         converges: None,
+        asymptotic_rate: None,
+        predicted_iterations: None,
         message: String::new(),
         elapsed_ms: 0.0,
     };
@@ -121,11 +133,33 @@ pub fn certify(
     cert.elapsed_ms = t0.elapsed().as_secs_f64() * 1e3;
     let converges = rho < 1.0;
     cert.converges = Some(converges);
+    let rate = match cert.chebyshev_rho {
+        Some(r) => r / (1.0 + (1.0 - r * r).max(0.0).sqrt()),
+        None => rho,
+    };
+    cert.asymptotic_rate = Some(rate);
+    let predicted = if rate <= 0.0 {
+        1.0
+    } else {
+        (REQUIRED_REDUCTION.ln() / rate.ln()).ceil()
+    };
     if converges {
-        cert.message = format!("{name} = {rho:.6} < 1 at dt = {h:e}: certified to converge");
+        cert.predicted_iterations = Some(predicted);
+    }
+    let fast_enough = converges && predicted <= max_iterations as f64;
+    if fast_enough {
+        cert.message = format!(
+            "{name} = {rho:.6} < 1 at dt = {h:e}: certified to converge (about {predicted} inner iterations per solve)"
+        );
         return Ok(cert);
     }
-    let why = format!("{name} = {rho:.6} >= 1 at dt = {h:e}: the iteration diverges");
+    let why = if converges {
+        format!(
+            "{name} = {rho:.6} at dt = {h:e}: converges, but needs about {predicted} inner iterations per solve for a {REQUIRED_REDUCTION:e} reduction, above the cap of {max_iterations}"
+        )
+    } else {
+        format!("{name} = {rho:.6} >= 1 at dt = {h:e}: the iteration diverges")
+    };
     match policy {
         CertifyPolicy::Refuse => Err(SolverError::Uncertified(format!(
             "{why}; use a smaller time step, --solver direct or chebyshev, or --certify fallback"

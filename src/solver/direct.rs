@@ -31,6 +31,10 @@ pub struct Direct {
     delassus: HashMap<usize, Vec<f64>>,
     control: InnerControl,
     lambda: Vec<Vector3<f64>>,
+    // Contact buffers, reused across solves.
+    idx: Vec<usize>,
+    dmat: Vec<f64>,
+    x_free: Vec<Vector3<f64>>,
 }
 
 impl std::fmt::Debug for Direct {
@@ -87,6 +91,9 @@ impl Direct {
             delassus: HashMap::new(),
             control,
             lambda: Vec::new(),
+            idx: Vec::new(),
+            dmat: Vec::new(),
+            x_free: Vec::new(),
         })
     }
 
@@ -172,9 +179,16 @@ impl GlobalSolver for Direct {
         self.lambda.clear();
         self.lambda.resize(m, Vector3::zeros());
         // Delassus entries D[j][k] = (A^-1)_{c_j c_k}.
-        let idx: Vec<usize> = contacts.iter().map(|c| c.index).collect();
-        let dmat: Vec<f64> = (0..m * m).map(|jk| self.delassus[&idx[jk / m]][idx[jk % m]]).collect();
-        let x_free: Vec<Vector3<f64>> = idx.iter().map(|&i| x[i]).collect();
+        self.idx.clear();
+        self.idx.extend(contacts.iter().map(|c| c.index));
+        self.dmat.clear();
+        for j in 0..m {
+            let col = &self.delassus[&self.idx[j]];
+            self.dmat.extend(self.idx.iter().map(|&i| col[i]));
+        }
+        self.x_free.clear();
+        self.x_free.extend(self.idx.iter().map(|&i| x[i]));
+        let (dmat, x_free) = (&self.dmat, &self.x_free);
         stats.converged = false;
         for sweep in 0..self.control.max_iterations {
             let mut change = 0.0f64;

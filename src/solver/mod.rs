@@ -184,6 +184,10 @@ pub struct StepStats {
     pub potential_energy: f64,
     /// Wall time (ms).
     pub wall_ms: f64,
+    /// Of which in local steps (projections and gather, ms).
+    pub local_ms: f64,
+    /// Of which in global solves (ms).
+    pub global_ms: f64,
 }
 
 impl StepStats {
@@ -206,6 +210,7 @@ struct Work {
     x_prev: Vec<Vector3<f64>>,
     contacts: Vec<Contact>,
     free_contacts: Vec<FreeContact>,
+    in_contact: Vec<bool>,
 }
 
 /// A running simulation.
@@ -237,7 +242,13 @@ fn build_solver(
     settings: &Settings,
     system: &GlobalSystem,
 ) -> Result<(Box<dyn GlobalSolver>, Certificate), SolverError> {
-    let cert = certify::certify(system, settings.solver, settings.certify, settings.eigen_method)?;
+    let cert = certify::certify(
+        system,
+        settings.solver,
+        settings.certify,
+        settings.eigen_method,
+        settings.inner_max_iterations,
+    )?;
     let control = InnerControl {
         tolerance: settings.inner_tolerance * model.length_scale,
         max_iterations: settings.inner_max_iterations,
@@ -291,6 +302,7 @@ impl Simulator {
                 x_prev: vec![Vector3::zeros(); nf],
                 contacts: Vec::new(),
                 free_contacts: Vec::new(),
+                in_contact: vec![false; n],
             },
             energy_scale: e_scale.max(f64::MIN_POSITIVE),
             model,
@@ -413,6 +425,8 @@ impl Simulator {
             elastic_energy: 0.0,
             potential_energy: 0.0,
             wall_ms: 0.0,
+            local_ms: 0.0,
+            global_ms: 0.0,
         };
         let nf = sys.n();
         let rms = (nf.max(1) as f64).sqrt();
@@ -423,13 +437,17 @@ impl Simulator {
                 for (k, &v) in sys.free.iter().enumerate() {
                     w.full[v] = w.x[k];
                 }
+                let tl = Instant::now();
                 stats.elastic_energy = self.local.project(model, &w.full)?;
                 self.local.gather(model, &mut w.gathered);
+                stats.local_ms += tl.elapsed().as_secs_f64() * 1e3;
                 for (k, &v) in sys.free.iter().enumerate() {
                     w.rhs[k] = w.base[k] + w.gathered[v];
                 }
                 w.x_prev.copy_from_slice(&w.x);
+                let tg = Instant::now();
                 let g = self.solver.solve(sys, &w.rhs, &mut w.x, &w.free_contacts)?;
+                stats.global_ms += tg.elapsed().as_secs_f64() * 1e3;
                 stats.iterations += 1;
                 stats.global_iterations += g.iterations;
                 stats.contact_iterations += g.contact_iterations;
@@ -458,9 +476,11 @@ impl Simulator {
                 w.full[v] = w.x[k];
             }
             let before = w.contacts.len();
-            let in_contact: std::collections::HashSet<usize> = w.contacts.iter().map(|c| c.vertex).collect();
+            for c in &w.contacts {
+                w.in_contact[c.vertex] = true;
+            }
             for (i, (a, x)) in w.q_start.iter().zip(&w.full).enumerate() {
-                if model.fixed[i] || in_contact.contains(&i) {
+                if model.fixed[i] || w.in_contact[i] {
                     continue;
                 }
                 for (oi, o) in model.obstacles.iter().enumerate() {
@@ -483,6 +503,9 @@ impl Simulator {
                         }
                     }
                 }
+            }
+            for c in &w.contacts {
+                w.in_contact[c.vertex] = false;
             }
             if w.contacts.len() == before {
                 break;
