@@ -2,7 +2,7 @@
 //!
 //! Two formats are read by [`load`]:
 //!
-//! * the diffsoft format ([`format`], `schema: "diffsoft.scene/1"`), strict: unknown keys are
+//! * the diffsoft format ([`mod@format`], `schema: "diffsoft.scene/1"`), strict: unknown keys are
 //!   errors;
 //! * the paper's own scene files ([`paper`]: "Simulation HZ", "Meshes", "Youngs Modulus",
 //!   "Attach Verts", "Obstacles", ...), with the reference implementation's defaults; every key

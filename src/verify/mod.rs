@@ -690,10 +690,11 @@ pub fn run_suite(suite_path: &Path, out: &Path) -> Result<SuiteBoundsReport> {
     write_json(out.join("physics.json"), &phys)?;
     print!("{}", summary::physics_table(&phys));
     println!(
-        "wrote {}, t_scaling.svg and {} sweep plots in {:.1} s",
+        "wrote {}, {}, t_scaling.svg, cantilever.svg and {} sweep plots in {:.1} s",
         path.display(),
+        out.join("physics.json").display(),
         report.meshes.len(),
-        report.wall_time_s
+        t0.elapsed().as_secs_f64()
     );
     Ok(report)
 }
