@@ -4,11 +4,15 @@
 //! * bridge (821 v / 2911 t, dt 1/200, Dirichlet pins, no contact): paper 12.5 ms/step;
 //! * Baymax falling freely (775 v / 3078 t, dt 1/100, one iteration): paper 7.2 ms/step;
 //! * Baymax resting on the ground (contacts): paper 253 ms/step;
-//! * a 50k-tet beam with pinned end under gravity.
+//! * a 50k-tet beam with pinned end under gravity;
+//! * Baymax with its skeleton (root + 4 rotational joints, shoulder torques) dropped on the
+//!   ground: paper 14.5 ms/step (5 bones, 3-6 local-global iterations per step);
+//! * the skeleton's overhead: the same scene with and without bones, both held to exactly 5
+//!   local-global iterations per step (so the ratio is the cost per iteration).
 
 use std::path::PathBuf;
 
-use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
+use criterion::{criterion_group, criterion_main, BatchSize, BenchmarkId, Criterion};
 use diffsoft::mesh::generate::box_with_about;
 use diffsoft::scene::{self, LoadOptions};
 use diffsoft::solver::{BodySpec, MassSpec, Material, ModelBuilder, Settings, Simulator};
@@ -19,10 +23,16 @@ fn root() -> PathBuf {
 }
 
 fn scene_sim(path: &str, warmup: usize, strip_obstacles: bool) -> Simulator {
+    scene_sim_with(path, warmup, |sc| {
+        if strip_obstacles {
+            sc.model.obstacles.clear();
+        }
+    })
+}
+
+fn scene_sim_with(path: &str, warmup: usize, edit: impl Fn(&mut scene::Scene)) -> Simulator {
     let mut sc = scene::load(root().join(path), LoadOptions::default()).expect("scene loads");
-    if strip_obstacles {
-        sc.model.obstacles.clear();
-    }
+    edit(&mut sc);
     let mut sim = Simulator::new(sc.model, sc.settings).expect("simulator");
     for _ in 0..warmup {
         sim.step().expect("warm-up step");
@@ -62,6 +72,13 @@ fn beam_50k() -> Simulator {
     sim
 }
 
+/// Exactly 5 local-global iterations per step, no acceleration.
+fn fixed_iterations(sc: &mut scene::Scene) {
+    sc.settings.max_iterations = 5;
+    sc.settings.tolerance = 0.0;
+    sc.settings.anderson = 0;
+}
+
 /// Builds the simulator of one benchmark case.
 type Make = Box<dyn Fn() -> Simulator + Send + Sync>;
 
@@ -79,6 +96,23 @@ fn steps(c: &mut Criterion) {
             Box::new(|| scene_sim("scenes/baymax_ground.json", 150, false)),
         ),
         ("beam_50k", Box::new(beam_50k)),
+        (
+            "baymax_skeleton",
+            Box::new(|| scene_sim("scenes/baymax_skeleton.json", 30, false)),
+        ),
+        (
+            "baymax_5_iterations_with_bones",
+            Box::new(|| scene_sim_with("scenes/baymax_skeleton.json", 30, fixed_iterations)),
+        ),
+        (
+            "baymax_5_iterations_without_bones",
+            Box::new(|| {
+                scene_sim_with("scenes/baymax_skeleton.json", 30, |sc| {
+                    sc.model.skeleton = None;
+                    fixed_iterations(sc);
+                })
+            }),
+        ),
     ];
     for (name, make) in cases {
         for threads in [1usize, 2] {
@@ -95,5 +129,32 @@ fn steps(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, steps);
+/// Whole episodes from the scene's initial state, timed per step: the skeleton scene's first
+/// second (drop, impact, arms lifting), which is what the paper's per-step time averages over.
+fn episodes(c: &mut Criterion) {
+    let mut g = c.benchmark_group("episode_100_steps");
+    g.sample_size(10);
+    for threads in [1usize, 2] {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .expect("pool");
+        g.bench_function(BenchmarkId::new("baymax_skeleton", format!("{threads}_threads")), |b| {
+            b.iter_batched(
+                || pool.install(|| scene_sim("scenes/baymax_skeleton.json", 0, false)),
+                |mut sim| {
+                    pool.install(|| {
+                        for _ in 0..100 {
+                            sim.step().expect("step");
+                        }
+                    })
+                },
+                BatchSize::PerIteration,
+            )
+        });
+    }
+    g.finish();
+}
+
+criterion_group!(benches, steps, episodes);
 criterion_main!(benches);

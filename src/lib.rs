@@ -43,5 +43,6 @@ pub mod output;
 pub mod plot;
 pub mod report;
 pub mod scene;
+pub mod skeleton;
 pub mod solver;
 pub mod verify;

@@ -130,6 +130,15 @@ enum Command {
         #[arg(long)]
         passive: bool,
     },
+    /// Jacobian checks of the joints and of B = dq/dz against dual numbers and finite differences.
+    Jacobians {
+        /// Seed of the random configurations.
+        #[arg(long, default_value_t = 2021)]
+        seed: u64,
+        /// Write the JSON report here.
+        #[arg(long)]
+        json: Option<PathBuf>,
+    },
     /// The main job: run the verification suite and write reports/.
     Verify {
         /// Suite definition.
@@ -186,13 +195,19 @@ impl MeshArgs {
 
 fn main() {
     let cli = Cli::parse();
-    if let Some(n) = cli.threads {
-        if let Err(e) = rayon::ThreadPoolBuilder::new().num_threads(n).build_global() {
+    // The whole command runs on a worker of the pool, so parallel sections fork from a worker
+    // (cheap) instead of being injected from an outside thread that then sleeps.
+    let pool = match rayon::ThreadPoolBuilder::new()
+        .num_threads(cli.threads.unwrap_or(0))
+        .build()
+    {
+        Ok(pool) => pool,
+        Err(e) => {
             eprintln!("error: cannot set thread count: {e}");
             std::process::exit(2);
         }
-    }
-    if let Err(e) = run(cli.command) {
+    };
+    if let Err(e) = pool.install(|| run(cli.command)) {
         eprintln!("error: {e:#}");
         std::process::exit(1);
     }
@@ -309,6 +324,13 @@ fn run(command: Command) -> Result<()> {
                 sc.settings.max_iterations = m;
             }
             simulate(sc, steps, out.as_deref(), every)?;
+        }
+        Command::Jacobians { seed, json } => {
+            let report = verify::jacobians::run(seed);
+            emit(&verify::jacobians_table(&report), &report, json.as_deref())?;
+            if report.verdicts.iter().any(|v| !v.holds) {
+                bail!("some Jacobian checks failed");
+            }
         }
         Command::Verify { suite, out } => {
             verify::run_suite(&suite, &out)?;

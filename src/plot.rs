@@ -143,3 +143,132 @@ pub fn write_svg(path: &Path, chart: &LogLogChart) -> std::io::Result<()> {
     };
     render().map_err(|e| std::io::Error::other(format!("{}: {e}", path.display())))
 }
+
+/// A line chart with linear axes (time series).
+#[derive(Debug, Clone, Default)]
+pub struct LinearChart {
+    /// Title.
+    pub title: String,
+    /// x-axis label.
+    pub x_label: String,
+    /// y-axis label.
+    pub y_label: String,
+    /// Curves (non-finite points are skipped).
+    pub series: Vec<Series>,
+}
+
+/// Render a [`LinearChart`] to an SVG file.
+pub fn write_linear_svg(path: &Path, chart: &LinearChart) -> std::io::Result<()> {
+    if let Some(dir) = path.parent() {
+        if !dir.as_os_str().is_empty() {
+            std::fs::create_dir_all(dir)?;
+        }
+    }
+    let finite = |p: &&(f64, f64)| p.0.is_finite() && p.1.is_finite();
+    let (mut x0, mut x1, mut y0, mut y1) = (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
+    for &(x, y) in chart.series.iter().flat_map(|s| s.points.iter()).filter(finite) {
+        x0 = x0.min(x);
+        x1 = x1.max(x);
+        y0 = y0.min(y);
+        y1 = y1.max(y);
+    }
+    if x1.partial_cmp(&x0) != Some(std::cmp::Ordering::Greater) || !y0.is_finite() {
+        return Err(std::io::Error::other(format!("{}: nothing to plot", path.display())));
+    }
+    let pad = ((y1 - y0) * 0.05).max(1e-12 * y1.abs().max(1.0));
+    let (y0, y1) = (y0 - pad, y1 + pad);
+    let render = || -> Result<(), Box<dyn std::error::Error>> {
+        let root = SVGBackend::new(path, (900, 600)).into_drawing_area();
+        root.fill(&WHITE)?;
+        let mut c = ChartBuilder::on(&root)
+            .caption(&chart.title, ("sans-serif", 20))
+            .margin(15)
+            .x_label_area_size(45)
+            .y_label_area_size(70)
+            .build_cartesian_2d(x0..x1, y0..y1)?;
+        c.configure_mesh()
+            .x_desc(&chart.x_label)
+            .y_desc(&chart.y_label)
+            .draw()?;
+        for (k, s) in chart.series.iter().enumerate() {
+            let color = PALETTE[k % PALETTE.len()];
+            let p: Vec<(f64, f64)> = s.points.iter().filter(finite).copied().collect();
+            c.draw_series(LineSeries::new(p, color.stroke_width(2)))?
+                .label(s.label.clone())
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2)));
+        }
+        c.configure_series_labels()
+            .position(SeriesLabelPosition::UpperLeft)
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK)
+            .draw()?;
+        root.present()?;
+        Ok(())
+    };
+    render().map_err(|e| std::io::Error::other(format!("{}: {e}", path.display())))
+}
+
+/// One panel of a [`Snapshots`] figure: a title and 2-D points.
+#[derive(Debug, Clone)]
+pub struct Panel {
+    /// Panel title.
+    pub title: String,
+    /// Points `(x, y)`.
+    pub points: Vec<(f64, f64)>,
+}
+
+/// A grid of point-cloud panels with shared axis ranges (e.g. front views of a body over time).
+#[derive(Debug, Clone)]
+pub struct Snapshots {
+    /// Title.
+    pub title: String,
+    /// Rows of panels (each row the same length).
+    pub rows: Vec<Vec<Panel>>,
+    /// Shared x range.
+    pub x_range: (f64, f64),
+    /// Shared y range.
+    pub y_range: (f64, f64),
+}
+
+/// Render [`Snapshots`] to an SVG file.
+pub fn write_snapshots_svg(path: &Path, s: &Snapshots) -> std::io::Result<()> {
+    if let Some(dir) = path.parent() {
+        if !dir.as_os_str().is_empty() {
+            std::fs::create_dir_all(dir)?;
+        }
+    }
+    let (nr, nc) = (s.rows.len(), s.rows.iter().map(Vec::len).max().unwrap_or(0));
+    if nr == 0 || nc == 0 {
+        return Err(std::io::Error::other(format!("{}: nothing to plot", path.display())));
+    }
+    let render = || -> Result<(), Box<dyn std::error::Error>> {
+        let (w, h) = (200 * nc as u32, 230 * nr as u32 + 40);
+        let root = SVGBackend::new(path, (w, h)).into_drawing_area();
+        root.fill(&WHITE)?;
+        let root = root.titled(&s.title, ("sans-serif", 20))?;
+        let cells = root.split_evenly((nr, nc));
+        for (k, cell) in cells.iter().enumerate() {
+            let Some(panel) = s.rows.get(k / nc).and_then(|r| r.get(k % nc)) else {
+                continue;
+            };
+            let mut c = ChartBuilder::on(cell)
+                .caption(&panel.title, ("sans-serif", 13))
+                .margin(4)
+                .x_label_area_size(18)
+                .y_label_area_size(28)
+                .build_cartesian_2d(s.x_range.0..s.x_range.1, s.y_range.0..s.y_range.1)?;
+            c.configure_mesh().x_labels(3).y_labels(3).disable_mesh().draw()?;
+            let color = PALETTE[k / nc % PALETTE.len()];
+            c.draw_series(
+                panel
+                    .points
+                    .iter()
+                    .filter(|p| p.0.is_finite() && p.1.is_finite())
+                    .map(|&p| Circle::new(p, 1, color.filled())),
+            )?;
+        }
+        root.present()?;
+        Ok(())
+    };
+    render().map_err(|e| std::io::Error::other(format!("{}: {e}", path.display())))
+}

@@ -211,3 +211,35 @@ fn quality_reports_the_sign_pattern() {
     assert!(r["l_sign"]["positive_offdiagonal_entries"].as_u64().unwrap() > 0);
     assert!(r["quality"]["max_dihedral_deg"].as_f64().unwrap() > 90.0);
 }
+
+#[test]
+fn jacobians_writes_its_report_with_every_check_passing() {
+    let dir = tmp_dir("cli-jacobians");
+    let out = dir.join("jacobians.json");
+    let o = diffsoft(&["jacobians", "--seed", "7", "--json", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let r: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+    assert_eq!(r["schema"], "diffsoft.jacobians/1");
+    assert_eq!(r["seed"], 7);
+    let checks = r["checks"].as_array().unwrap();
+    assert!(checks.len() >= 30, "{} checks", checks.len());
+    for c in checks {
+        // Each check names its worst entry with both values and its step sweep.
+        for key in [
+            "atol",
+            "rtol",
+            "max_abs_error",
+            "max_rel_error",
+            "worst_index",
+            "analytic_at_worst",
+            "reference_at_worst",
+            "pass",
+        ] {
+            assert!(!c["versus_fd"][key].is_null(), "{key} missing in {c}");
+        }
+        assert_eq!(c["sweep"]["steps"].as_array().unwrap().len(), 10);
+    }
+    assert!(r["verdicts"].as_array().unwrap().iter().all(|v| v["holds"] == true));
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(text.contains("column 0 of B") && text.contains("rotational"), "{text}");
+}

@@ -2,7 +2,7 @@
 //! against nalgebra, and the volume projection's optimality.
 
 use diffsoft::constraint::svd::{svd3, svd3_nalgebra, svd3_warm, svd3_warm_batch, Svd3, LANES};
-use diffsoft::constraint::volume::{nearest_product, nearest_product_batch};
+use diffsoft::constraint::volume::{nearest_product, nearest_product_batch, nearest_product_batch_warm};
 use nalgebra::{Matrix3, Rotation3, Vector3};
 use proptest::prelude::*;
 use proptest::test_runner::FileFailurePersistence;
@@ -70,7 +70,8 @@ proptest! {
     }
 
     #[test]
-    fn batched_svd_matches_the_single_one(fs in prop::array::uniform4(matrices()), w in prop::array::uniform3(-3.2f64..3.2)) {
+    fn batched_svd_matches_the_single_one(fs in prop::collection::vec(matrices(), LANES), w in prop::array::uniform3(-3.2f64..3.2)) {
+        let fs: [Matrix3<f64>; LANES] = fs.try_into().unwrap();
         let warm = *Rotation3::from_scaled_axis(Vector3::from(w)).matrix();
         let v0 = [warm; LANES];
         let b = svd3_warm_batch(&fs, &v0);
@@ -114,12 +115,24 @@ proptest! {
     }
 
     #[test]
-    fn batched_volume_projection_matches(ls in prop::array::uniform4(prop::array::uniform3(-1.0f64..1.0)), a in prop::sample::select(vec![1e-6, 0.5, 1.0, 2.0])) {
+    fn batched_volume_projection_matches(
+        ls in prop::collection::vec(prop::array::uniform3(-1.0f64..1.0), LANES),
+        a in prop::sample::select(vec![1e-6, 0.5, 1.0, 2.0]),
+        warm in prop::collection::vec(-1.0f64..1.0, LANES),
+    ) {
         let s: [Vector3<f64>; LANES] = std::array::from_fn(|k| Vector3::new(10f64.powf(ls[k][0]), 10f64.powf(ls[k][1]), 10f64.powf(ls[k][2])));
         let b = nearest_product_batch(&s, a).unwrap();
+        // Any warm start (including ones outside the fast path's domain) gives the same answer.
+        let mut t: [f64; LANES] = warm.try_into().unwrap();
+        let bw = nearest_product_batch_warm(&s, a, &mut t).unwrap();
         for k in 0..LANES {
             let x = nearest_product(&s[k], a).unwrap();
             prop_assert!((b[k] - x).amax() <= 1e-12 * x.amax(), "{} vs {}", b[k], x);
+            prop_assert!((bw[k] - x).amax() <= 1e-12 * x.amax(), "warm {} vs {}", bw[k], x);
+            // The returned multiplier satisfies x_i (x_i - s_i) = t for every component.
+            for i in 0..3 {
+                prop_assert!((x[i] * (x[i] - s[k][i]) - t[k]).abs() <= 1e-9 * (1.0 + t[k].abs()) * x.amax() * x.amax());
+            }
         }
     }
 }
@@ -152,16 +165,9 @@ fn degenerate_and_non_finite_matrices() {
         "non-finite input does not pretend to succeed"
     );
     assert!(nearest_product(&Vector3::new(1.0, f64::NAN, 1.0), 1.0).is_err());
-    let batch = nearest_product_batch(
-        &[
-            Vector3::new(1.0, f64::INFINITY, 1.0),
-            Vector3::repeat(1.0),
-            Vector3::repeat(1.0),
-            Vector3::repeat(1.0),
-        ],
-        1.0,
-    );
-    assert!(batch.is_err());
+    let mut s = [Vector3::repeat(1.0); LANES];
+    s[1] = Vector3::new(1.0, f64::INFINITY, 1.0);
+    assert!(nearest_product_batch(&s, 1.0).is_err());
 }
 
 fn check_svd_plain(f: &Matrix3<f64>) {

@@ -49,8 +49,6 @@ fn paper_scenes_import_with_the_reference_defaults() {
 #[test]
 fn unsupported_paper_features_are_errors_unless_passive() {
     for (file, feature) in [
-        ("fish/fish.json", "Bones"),
-        ("baymax/baymax_skeleton.json", "Bones"),
         ("droneman/droneman.json", "Volume Verts"),
         ("octopus/octopus.json", "Muscle filename"),
         ("cloth_ball/cloth_ball.json", "Clothes"),
@@ -63,11 +61,10 @@ fn unsupported_paper_features_are_errors_unless_passive() {
             "{msg}"
         );
     }
-    // fish.json has a trailing comma (invalid strict JSON): it still parses, and with --passive
-    // its body is simulated without the skeleton.
-    let fish = scene::load(paper("fish/fish.json"), LoadOptions { passive: true }).unwrap();
+    // fish.json has a trailing comma (invalid strict JSON): it still parses, with its skeleton.
+    let fish = scene::load(paper("fish/fish.json"), LoadOptions::default()).unwrap();
     assert_eq!(fish.model.n(), 759);
-    assert!(fish.notes.iter().any(|n| n.contains("Bones") && n.contains("ignored")));
+    assert_eq!(fish.model.skeleton.as_ref().map(|s| s.bones.len()), Some(4));
     assert!(fish.notes.iter().any(|n| n.contains("Is underwater")));
 }
 

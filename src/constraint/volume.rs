@@ -198,25 +198,47 @@ fn newton_from_s(s: &Vector3<f64>, a: f64, k: usize, others: [usize; 2]) -> Opti
 /// domain or does not converge in 8 steps is solved by the robust scalar solver. Results agree
 /// with the one-triple version to round-off.
 pub fn nearest_product_batch(s: &[Vector3<f64>; LANES], a: f64) -> Result<[Vector3<f64>; LANES], ProjectionError> {
+    let mut t = [0.0; LANES];
+    nearest_product_batch_warm(s, a, &mut t)
+}
+
+/// [`nearest_product_batch`] warm-started from the multipliers `t` (`x_i (x_i - s_i) = t` for
+/// every `i`, so one scalar per triple, independent of the ordering) of a nearby earlier
+/// solve, e.g. the same tet in the previous local step; `t` is overwritten with the new
+/// multipliers. A start outside the fast path's domain falls back to the cold start `x = s`.
+/// The result does not depend on the start beyond round-off: Newton runs to `4 eps` relative.
+pub fn nearest_product_batch_warm(
+    s: &[Vector3<f64>; LANES],
+    a: f64,
+    t: &mut [f64; LANES],
+) -> Result<[Vector3<f64>; LANES], ProjectionError> {
     #[cfg(target_arch = "x86_64")]
     {
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU supports AVX2, checked just above.
-            return unsafe { batch_avx2(s, a) };
+            return unsafe { batch_avx2(s, a, t) };
         }
     }
-    batch_generic(s, a)
+    batch_generic(s, a, t)
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn batch_avx2(s: &[Vector3<f64>; LANES], a: f64) -> Result<[Vector3<f64>; LANES], ProjectionError> {
-    batch_generic(s, a)
+unsafe fn batch_avx2(
+    s: &[Vector3<f64>; LANES],
+    a: f64,
+    t: &mut [f64; LANES],
+) -> Result<[Vector3<f64>; LANES], ProjectionError> {
+    batch_generic(s, a, t)
 }
 
 #[inline(always)]
 #[allow(clippy::needless_range_loop)] // lane loops over parallel arrays
-fn batch_generic(s: &[Vector3<f64>; LANES], a: f64) -> Result<[Vector3<f64>; LANES], ProjectionError> {
+pub(crate) fn batch_generic(
+    s: &[Vector3<f64>; LANES],
+    a: f64,
+    t_warm: &mut [f64; LANES],
+) -> Result<[Vector3<f64>; LANES], ProjectionError> {
     if !(a.is_finite() && a > 0.0) {
         return Err(ProjectionError::BadTarget(a));
     }
@@ -226,6 +248,7 @@ fn batch_generic(s: &[Vector3<f64>; LANES], a: f64) -> Result<[Vector3<f64>; LAN
     let mut s2 = [0.0f64; LANES];
     let mut perm = [[0usize; 3]; LANES];
     let mut ok = [true; LANES];
+    let mut xk = [0.0f64; LANES];
     for l in 0..LANES {
         let v = &s[l];
         let k = if v[0].abs() <= v[1].abs() && v[0].abs() <= v[2].abs() {
@@ -240,13 +263,21 @@ fn batch_generic(s: &[Vector3<f64>; LANES], a: f64) -> Result<[Vector3<f64>; LAN
         s1[l] = v[perm[l][1]];
         s2[l] = v[perm[l][2]];
         ok[l] = v.iter().all(|x| x.is_finite()) && sk[l] > 0.0 && s1[l] > 0.0 && s2[l] > 0.0;
+        // Warm start x_k = root of x (x - s_k) = t, if it lies in the fast path's domain.
+        let disc = sk[l] * sk[l] + 4.0 * t_warm[l];
+        let warm = 0.5 * (sk[l] + disc.max(0.0).sqrt());
+        xk[l] = if t_warm[l].is_finite() && disc > 0.0 && warm >= 0.5 * sk[l] {
+            warm
+        } else {
+            sk[l]
+        };
     }
-    let mut xk = sk;
     let mut x1 = s1;
     let mut x2 = s2;
+    // A lane is active until its residual is at round-off (done) or it leaves the domain (!ok).
+    let mut active = ok;
     let mut done = [false; LANES];
     for _ in 0..8 {
-        let mut r = [0.0f64; LANES];
         for l in 0..LANES {
             let t = xk[l] * (xk[l] - sk[l]);
             let dt = 2.0 * xk[l] - sk[l];
@@ -255,21 +286,17 @@ fn batch_generic(s: &[Vector3<f64>; LANES], a: f64) -> Result<[Vector3<f64>; LAN
             x1[l] = 0.5 * (s1[l] + d1);
             x2[l] = 0.5 * (s2[l] + d2);
             let p = xk[l] * x1[l] * x2[l];
-            r[l] = p / a - 1.0;
+            let converged = (p / a - 1.0).abs() <= 4.0 * f64::EPSILON;
             let dlp = 1.0 / xk[l] + dt / (d1 * x1[l]) + dt / (d2 * x2[l]);
             let next = xk[l] - (1.0 - a / p) / dlp;
-            if !done[l] {
-                if r[l].abs() <= 4.0 * f64::EPSILON {
-                    done[l] = true;
-                } else {
-                    ok[l] &= next.is_finite() && next >= 0.5 * sk[l];
-                    if ok[l] {
-                        xk[l] = next;
-                    }
-                }
-            }
+            let valid = next.is_finite() && next >= 0.5 * sk[l];
+            let step = active[l] && !converged;
+            done[l] |= active[l] && converged;
+            ok[l] &= !step || valid;
+            xk[l] = if step && valid { next } else { xk[l] };
+            active[l] = step && valid;
         }
-        if (0..LANES).all(|l| done[l] || !ok[l]) {
+        if !active.iter().any(|&x| x) {
             break;
         }
     }
@@ -280,8 +307,10 @@ fn batch_generic(s: &[Vector3<f64>; LANES], a: f64) -> Result<[Vector3<f64>; LAN
             out[l][k] = xk[l];
             out[l][j1] = x1[l];
             out[l][j2] = x2[l];
+            t_warm[l] = xk[l] * (xk[l] - sk[l]);
         } else {
             out[l] = nearest_product(&s[l], a)?;
+            t_warm[l] = out[l][0] * (out[l][0] - s[l][0]);
         }
     }
     Ok(out)

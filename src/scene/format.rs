@@ -33,6 +33,9 @@ pub const SCENE_SCHEMA: &str = "diffsoft.scene/1";
 pub struct SceneFile {
     /// Must be [`SCENE_SCHEMA`].
     pub schema: String,
+    /// What the scene is for, in words (not read by the solver).
+    #[serde(default)]
+    pub description: Option<String>,
     /// Time step (s).
     pub time_step: f64,
     /// Gravitational acceleration (m/s^2).
@@ -70,6 +73,8 @@ pub struct SolverFile {
     pub contact_margin: Option<f64>,
     /// Contact rounds per step.
     pub contact_rounds: Option<usize>,
+    /// Anderson acceleration memory (0: off).
+    pub anderson: Option<usize>,
 }
 
 impl SolverFile {
@@ -88,6 +93,7 @@ impl SolverFile {
             contact_margin: self.contact_margin.unwrap_or(d.contact_margin),
             contact_rounds: self.contact_rounds.unwrap_or(d.contact_rounds),
             eigen_method: d.eigen_method,
+            anderson: self.anderson.unwrap_or(d.anderson),
         }
     }
 }
@@ -132,6 +138,81 @@ pub struct BodyFile {
     /// Penalty attachments to the rest position.
     #[serde(default)]
     pub attachments: Vec<AttachmentFile>,
+    /// An embedded skeleton.
+    #[serde(default)]
+    pub skeleton: Option<SkeletonFile>,
+}
+
+/// Bones embedded in a body.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SkeletonFile {
+    /// Bones (parents may come in any order; names must be unique).
+    pub bones: Vec<BoneFile>,
+}
+
+/// One bone.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BoneFile {
+    /// Name (referred to by children).
+    pub name: String,
+    /// Parent bone's name (none for a root).
+    #[serde(default)]
+    pub parent: Option<String>,
+    /// The joint to the parent (or the world).
+    pub joint: JointFile,
+    /// Rigidly attached vertices.
+    #[serde(default)]
+    pub vertices: Option<VertexSelector>,
+    /// Torque on a 1-DoF joint: piecewise-linear in time.
+    #[serde(default)]
+    pub torque: Option<TorqueFile>,
+}
+
+/// Joint types; positions and axes in scene coordinates (after the body's scale, rotation and
+/// translation).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields, rename_all = "snake_case")]
+pub enum JointFile {
+    /// 6-DoF free joint (a root).
+    Free {},
+    /// Welded to the parent (or the world).
+    Fixed {},
+    /// Rotation about an axis through a point.
+    Rotational {
+        /// Joint position.
+        position: [f64; 3],
+        /// Rotation axis.
+        axis: [f64; 3],
+        /// Initial angle (rad).
+        #[serde(default)]
+        angle: f64,
+        /// Angle limits (rad).
+        #[serde(default)]
+        limits: Option<[f64; 2]>,
+    },
+    /// Translation along an axis.
+    Prismatic {
+        /// Axis.
+        axis: [f64; 3],
+        /// Initial extension (m).
+        #[serde(default)]
+        extension: f64,
+        /// Extension limits (m).
+        #[serde(default)]
+        limits: Option<[f64; 2]>,
+    },
+}
+
+/// A piecewise-linear time series.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TorqueFile {
+    /// Sample times (s), increasing.
+    pub times: Vec<f64>,
+    /// Values (N m for rotational joints, N for prismatic ones).
+    pub values: Vec<f64>,
 }
 
 /// Material parameters.

@@ -22,6 +22,7 @@ use serde::Serialize;
 
 use crate::contact::{Obstacle, Shape, TriMeshObstacle};
 use crate::mesh::{self, MeshInfo, TetMesh};
+use crate::skeleton::BoneSpec;
 use crate::solver::{BodySpec, MassSpec, Material, Model, ModelBuilder, Settings, SolverError};
 use format::{SceneFile, VertexSelector, SCENE_SCHEMA};
 
@@ -176,6 +177,96 @@ fn select(
     }
 }
 
+/// Bones of a body from the diffsoft format.
+fn bones_from_file(
+    scene: &str,
+    body: &str,
+    sk: &format::SkeletonFile,
+    mesh: &TetMesh,
+    info: &MeshInfo,
+) -> Result<Vec<BoneSpec>, SceneError> {
+    use crate::skeleton::{fixed::Fixed, free::Free, prismatic::Prismatic, rotational::Rotational, Joint, Schedule};
+    use format::JointFile;
+    let invalid = |message: String| SceneError::Invalid {
+        path: scene.to_string(),
+        message: format!("body '{body}': {message}"),
+    };
+    let names: Vec<&str> = sk.bones.iter().map(|b| b.name.as_str()).collect();
+    let mut out = Vec::new();
+    for (i, b) in sk.bones.iter().enumerate() {
+        if names[..i].contains(&b.name.as_str()) {
+            return Err(invalid(format!("two bones are named '{}'", b.name)));
+        }
+        let parent = match &b.parent {
+            None => None,
+            Some(p) => Some(
+                names
+                    .iter()
+                    .position(|n| n == p)
+                    .ok_or_else(|| invalid(format!("bone '{}': no parent bone named '{p}'", b.name)))?,
+            ),
+        };
+        let limits = |l: &Option<[f64; 2]>| -> Result<Option<(f64, f64)>, SceneError> {
+            match l {
+                Some([lo, hi]) if lo.is_finite() && hi.is_finite() && lo <= hi => Ok(Some((*lo, *hi))),
+                Some(l) => Err(invalid(format!(
+                    "bone '{}': limits must be finite with min <= max, got {l:?}",
+                    b.name
+                ))),
+                None => Ok(None),
+            }
+        };
+        let joint: Box<dyn Joint> = match &b.joint {
+            JointFile::Free {} => Box::new(Free::default()),
+            JointFile::Fixed {} => Box::new(Fixed),
+            JointFile::Rotational {
+                position,
+                axis,
+                angle,
+                limits: l,
+            } => {
+                let a = finite3(scene, "joint axis", axis)?;
+                if a.norm() == 0.0 {
+                    return Err(invalid(format!("bone '{}': joint axis must be non-zero", b.name)));
+                }
+                let mut r = Rotational::new(finite3(scene, "joint position", position)?, a);
+                r.limits = limits(l)?;
+                r.set_coordinates(&[*angle]);
+                Box::new(r)
+            }
+            JointFile::Prismatic {
+                axis,
+                extension,
+                limits: l,
+            } => {
+                let a = finite3(scene, "joint axis", axis)?;
+                if a.norm() == 0.0 {
+                    return Err(invalid(format!("bone '{}': joint axis must be non-zero", b.name)));
+                }
+                let mut p = Prismatic::new(a);
+                p.limits = limits(l)?;
+                p.set_coordinates(&[*extension]);
+                Box::new(p)
+            }
+        };
+        let vertices = match &b.vertices {
+            Some(sel) => select(scene, body, sel, mesh, info)?,
+            None => Vec::new(),
+        };
+        out.push(BoneSpec {
+            name: b.name.clone(),
+            parent,
+            joint,
+            vertices,
+            torque: b.torque.as_ref().map(|t| Schedule {
+                times: t.times.clone(),
+                values: t.values.clone(),
+            }),
+        });
+    }
+    Ok(out)
+}
+
 fn finite3(scene: &str, what: &str, v: &[f64; 3]) -> Result<Vector3<f64>, SceneError> {
     if v.iter().all(|x| x.is_finite()) {
         Ok(Vector3::from(*v))
@@ -242,6 +333,9 @@ fn from_diffsoft(path: &Path, file: SceneFile) -> Result<Scene, SceneError> {
             for v in select(&scene, &b.name, &a.vertices, &m, &loaded.info)? {
                 spec.attachments.push((v, a.stiffness));
             }
+        }
+        if let Some(sk) = &b.skeleton {
+            spec.bones = bones_from_file(&scene, &b.name, sk, &m, &loaded.info)?;
         }
         builder = builder.body(spec);
         meshes.push(loaded.info);

@@ -139,52 +139,84 @@ impl Direct {
     }
 }
 
-impl GlobalSolver for Direct {
-    fn kind(&self) -> SolverKind {
-        SolverKind::Direct
-    }
-
-    fn solve(
-        &mut self,
-        sys: &GlobalSystem,
-        b: &[Vector3<f64>],
-        x: &mut [Vector3<f64>],
-        contacts: &[FreeContact],
-    ) -> Result<GlobalStats, SolverError> {
-        let n = sys.n();
+impl Direct {
+    /// `x = (M/h^2 + L)^-1 b` on the free vertices (no contacts).
+    pub fn solve_free(&mut self, b: &[Vector3<f64>], x: &mut [Vector3<f64>]) -> Result<(), SolverError> {
         for (i, bi) in b.iter().enumerate() {
             for d in 0..3 {
                 self.rhs[(i, d)] = bi[d];
             }
         }
         self.solve_rhs();
-        for (i, xi) in x.iter_mut().enumerate().take(n) {
+        for (i, xi) in x.iter_mut().enumerate() {
             *xi = Vector3::new(self.rhs[(i, 0)], self.rhs[(i, 1)], self.rhs[(i, 2)]);
         }
-        if !x.iter().all(|v| v.iter().all(|c| c.is_finite())) {
-            return Err(SolverError::NonFinite(
+        if x.iter().all(|v| v.iter().all(|c| c.is_finite())) {
+            Ok(())
+        } else {
+            Err(SolverError::NonFinite(
                 "direct global solve produced a non-finite position".into(),
-            ));
+            ))
         }
+    }
+
+    /// Solve with several right-hand sides given per axis as columns (`n x k`), in place.
+    pub fn solve_columns(&self, cols: &mut Mat<f64>) {
+        let mut mem = MemBuffer::new(self.symbolic.solve_in_place_scratch::<f64>(cols.ncols(), Par::Seq));
+        LltRef::new(&self.symbolic, &self.numeric).solve_in_place_with_conj(
+            Conj::No,
+            cols.as_mut(),
+            Par::Seq,
+            MemStack::new(&mut mem),
+        );
+    }
+
+    /// The column of `A^-1` at free vertex `i` (cached; computed on first use).
+    pub fn inverse_column(&mut self, i: usize) -> &[f64] {
+        if !self.delassus.contains_key(&i) {
+            let n = self.rhs.nrows();
+            let mut e = Mat::<f64>::zeros(n, 1);
+            e[(i, 0)] = 1.0;
+            self.solve_columns(&mut e);
+            self.delassus.insert(i, (0..n).map(|r| e[(r, 0)]).collect());
+        }
+        &self.delassus[&i]
+    }
+
+    /// The contact impulses of the last [`Direct::apply_contacts`], with their free indices.
+    pub fn impulses(&self) -> impl Iterator<Item = (usize, Vector3<f64>)> + '_ {
+        self.idx.iter().copied().zip(self.lambda.iter().copied())
+    }
+
+    /// Contacts on a contact-free solution `x`: projected Gauss-Seidel on the contact-space
+    /// operator for the impulses (same cone projection as the iterative solvers), then
+    /// `x += sum_c (A^-1)_{:,c} lambda_c`.
+    pub fn apply_contacts(&mut self, x: &mut [Vector3<f64>], contacts: &[FreeContact]) -> GlobalStats {
         let mut stats = GlobalStats {
             converged: true,
             ..Default::default()
         };
         if contacts.is_empty() {
-            return Ok(stats);
+            self.idx.clear();
+            self.lambda.clear();
+            return stats;
         }
-        // Projected Gauss-Seidel on the contact-space operator.
         self.ensure_columns(contacts);
         let m = contacts.len();
-        self.lambda.clear();
-        self.lambda.resize(m, Vector3::zeros());
-        // Delassus entries D[j][k] = (A^-1)_{c_j c_k}.
-        self.idx.clear();
-        self.idx.extend(contacts.iter().map(|c| c.index));
-        self.dmat.clear();
-        for j in 0..m {
-            let col = &self.delassus[&self.idx[j]];
-            self.dmat.extend(self.idx.iter().map(|&i| col[i]));
+        // The same contact vertices as the previous call (the usual case between two
+        // local-global iterations): warm-start the impulses and keep the Delassus matrix.
+        let same = self.idx.len() == m && self.idx.iter().zip(contacts).all(|(&i, c)| i == c.index);
+        if !same {
+            self.idx.clear();
+            self.idx.extend(contacts.iter().map(|c| c.index));
+            self.lambda.clear();
+            self.lambda.resize(m, Vector3::zeros());
+            // Delassus entries D[j][k] = (A^-1)_{c_j c_k}.
+            self.dmat.clear();
+            for j in 0..m {
+                let col = &self.delassus[&self.idx[j]];
+                self.dmat.extend(self.idx.iter().map(|&i| col[i]));
+            }
         }
         self.x_free.clear();
         self.x_free.extend(self.idx.iter().map(|&i| x[i]));
@@ -220,6 +252,27 @@ impl GlobalSolver for Direct {
                 }
             }
         }
-        Ok(stats)
+        stats
+    }
+}
+
+impl GlobalSolver for Direct {
+    fn kind(&self) -> SolverKind {
+        SolverKind::Direct
+    }
+
+    fn solve(
+        &mut self,
+        _sys: &GlobalSystem,
+        b: &[Vector3<f64>],
+        x: &mut [Vector3<f64>],
+        contacts: &[FreeContact],
+    ) -> Result<GlobalStats, SolverError> {
+        self.solve_free(b, x)?;
+        Ok(self.apply_contacts(x, contacts))
+    }
+
+    fn as_direct(&mut self) -> Option<&mut Direct> {
+        Some(self)
     }
 }

@@ -52,6 +52,18 @@ pub struct GlobalSystem {
     pub attachment: Vec<f64>,
     /// `-L_fd x_d`: the constant pull of the fixed vertices on the free ones.
     pub coupling: Vec<Vector3<f64>>,
+    /// Bone vertices (global numbering, in the skeleton's order); empty without a skeleton.
+    pub rigid: Vec<usize>,
+    /// Global vertex -> index among the bone vertices (`usize::MAX` for others).
+    pub rigid_index: Vec<usize>,
+    /// For each bone vertex, its couplings `(free index, L value)` to free vertices.
+    pub l_rf: Vec<Vec<(usize, f64)>>,
+    /// `L` among bone vertices (dense, `n_rigid x n_rigid`, row-major).
+    pub l_rr: Vec<f64>,
+    /// Lumped mass of the bone vertices.
+    pub mass_rigid: Vec<f64>,
+    /// `-L_rd x_d` for the bone vertices.
+    pub coupling_rigid: Vec<Vector3<f64>>,
 }
 
 impl GlobalSystem {
@@ -64,7 +76,14 @@ impl GlobalSystem {
         }
         let n = model.n();
         let full = model.fem.pattern.to_sym_csc(model.stiffness_values());
-        let keep: Vec<bool> = model.fixed.iter().map(|f| !f).collect();
+        let rigid: Vec<usize> = model.skeleton.as_ref().map_or(Vec::new(), |s| s.rigid.clone());
+        let mut rigid_index = vec![usize::MAX; n];
+        for (k, &v) in rigid.iter().enumerate() {
+            rigid_index[v] = k;
+        }
+        let keep: Vec<bool> = (0..n)
+            .map(|i| !model.fixed[i] && rigid_index[i] == usize::MAX)
+            .collect();
         let (l, free) = full.principal_submatrix(&keep);
         let mut index = vec![usize::MAX; n];
         for (k, &v) in free.iter().enumerate() {
@@ -77,6 +96,21 @@ impl GlobalSystem {
                     if model.fixed[i] {
                         coupling[k] -= v * model.rest[i];
                     }
+                }
+            }
+        }
+        let nr = rigid.len();
+        let mut l_rf = vec![Vec::new(); nr];
+        let mut l_rr = vec![0.0; nr * nr];
+        let mut coupling_rigid = vec![Vector3::zeros(); nr];
+        for (r, &v) in rigid.iter().enumerate() {
+            for (i, val) in full.column(v) {
+                if index[i] != usize::MAX {
+                    l_rf[r].push((index[i], val));
+                } else if rigid_index[i] != usize::MAX {
+                    l_rr[r * nr + rigid_index[i]] = val;
+                } else if model.fixed[i] {
+                    coupling_rigid[r] -= val * model.rest[i];
                 }
             }
         }
@@ -98,6 +132,12 @@ impl GlobalSystem {
             l,
             attachment,
             coupling,
+            mass_rigid: rigid.iter().map(|&v| model.mass[v]).collect(),
+            rigid,
+            rigid_index,
+            l_rf,
+            l_rr,
+            coupling_rigid,
         })
     }
 
@@ -152,6 +192,11 @@ pub trait GlobalSolver: Send {
         x: &mut [Vector3<f64>],
         contacts: &[FreeContact],
     ) -> Result<GlobalStats, SolverError>;
+
+    /// The direct solver behind this one, if it is one (the skeletal step needs it).
+    fn as_direct(&mut self) -> Option<&mut super::direct::Direct> {
+        None
+    }
 }
 
 /// Tolerances of the inner iterations.

@@ -8,8 +8,8 @@ use rayon::prelude::*;
 
 use super::model::Model;
 use super::SolverError;
-use crate::constraint::svd::{svd3_warm_batch, LANES};
-use crate::constraint::volume;
+use crate::constraint::svd::{self, LANES};
+use crate::constraint::{volume, ProjectionError};
 
 /// Per-tet buffers of the local step.
 #[derive(Debug, Clone)]
@@ -20,6 +20,8 @@ pub struct LocalStep {
     pub v_warm: Vec<Matrix3<f64>>,
     /// Constraint energy per tet.
     pub energy: Vec<f64>,
+    /// Last volume-projection multiplier of each tet (warm start for the next one).
+    pub t_warm: Vec<f64>,
 }
 
 impl LocalStep {
@@ -29,11 +31,13 @@ impl LocalStep {
             weighted: vec![Matrix3::zeros(); tets],
             v_warm: vec![Matrix3::identity(); tets],
             energy: vec![0.0; tets],
+            t_warm: vec![0.0; tets],
         }
     }
 
     /// Project every tet of `model` at positions `q`; returns the total constraint energy.
-    /// Tets are decomposed four at a time ([`svd3_warm_batch`]), chunks in parallel.
+    /// Tets are decomposed `LANES` at a time by one fused kernel (SVD, volume projection,
+    /// composition), chunks in parallel.
     pub fn project(&mut self, model: &Model, q: &[Vector3<f64>]) -> Result<f64, SolverError> {
         let tets = &model.tets;
         let geo = &model.fem.geometry;
@@ -42,9 +46,10 @@ impl LocalStep {
             .par_chunks_mut(LANES)
             .zip(self.v_warm.par_chunks_mut(LANES))
             .zip(self.energy.par_chunks_mut(LANES))
+            .zip(self.t_warm.par_chunks_mut(LANES))
             .enumerate()
-            .with_min_len(64)
-            .try_for_each(|(chunk, ((out, v), e))| {
+            .with_min_len(32)
+            .try_for_each(|(chunk, (((out, v), e), tw))| {
                 let t0 = chunk * LANES;
                 let len = out.len();
                 let f: [Matrix3<f64>; LANES] = std::array::from_fn(|k| {
@@ -56,43 +61,18 @@ impl LocalStep {
                         Matrix3::identity()
                     }
                 });
-                let v0: [Matrix3<f64>; LANES] =
-                    std::array::from_fn(|k| if k < len { v[k] } else { Matrix3::identity() });
-                let svds = svd3_warm_batch(&f, &v0);
-                let sig: [Vector3<f64>; LANES] = std::array::from_fn(|k| svds[k].sigma);
-                let any_volume = (0..len).any(|k| w_vol[t0 + k] > 0.0);
-                let targets = if any_volume {
-                    Some(
-                        volume::nearest_product_batch(&sig, 1.0)
-                            .map_err(|err| SolverError::Projection { tet: t0, source: err })?,
-                    )
-                } else {
-                    None
+                let chunk = Chunk {
+                    w_rot: &w_rot[t0..t0 + len],
+                    w_vol: &w_vol[t0..t0 + len],
+                    v_warm: v,
+                    t_warm: tw,
+                    out,
+                    energy: e,
                 };
-                for k in 0..len {
-                    let t = t0 + k;
-                    let svd = &svds[k];
-                    v[k] = svd.v;
-                    // p = w_rot U V^T + w_vol U X V^T = U diag(w_rot + w_vol x) V^T; energies from
-                    // the singular values: |F - U V^T|^2 = sum (s - 1)^2, |F - U X V^T|^2 = sum (s - x)^2.
-                    let s = svd.sigma;
-                    let mut diag = Vector3::repeat(w_rot[t]);
-                    let mut en = 0.5 * w_rot[t] * (s - Vector3::repeat(1.0)).norm_squared();
-                    if let Some(x) = &targets {
-                        if w_vol[t] > 0.0 {
-                            diag += x[k] * w_vol[t];
-                            en += 0.5 * w_vol[t] * (s - x[k]).norm_squared();
-                        }
-                    }
-                    if !en.is_finite() {
-                        return Err(SolverError::NonFinite(format!(
-                            "tet {t}: deformation gradient is not finite"
-                        )));
-                    }
-                    out[k] = svd.compose(&diag);
-                    e[k] = en;
-                }
-                Ok(())
+                project_chunk(&f, chunk).map_err(|(k, err)| match err {
+                    Some(source) => SolverError::Projection { tet: t0 + k, source },
+                    None => SolverError::NonFinite(format!("tet {}: deformation gradient is not finite", t0 + k)),
+                })
             })?;
         Ok(self.energy.iter().sum())
     }
@@ -109,4 +89,75 @@ impl LocalStep {
             *r = s;
         });
     }
+}
+
+/// One chunk's inputs and outputs (`len <= LANES` tets).
+struct Chunk<'a> {
+    w_rot: &'a [f64],
+    w_vol: &'a [f64],
+    v_warm: &'a mut [Matrix3<f64>],
+    t_warm: &'a mut [f64],
+    out: &'a mut [Matrix3<f64>],
+    energy: &'a mut [f64],
+}
+
+/// A failed tet of a chunk: its lane and the projection error (`None`: non-finite `F`).
+type ChunkError = (usize, Option<ProjectionError>);
+
+/// Dispatch to the AVX2 build of [`chunk_kernel`] when the CPU has it.
+fn project_chunk(f: &[Matrix3<f64>; LANES], c: Chunk<'_>) -> Result<(), ChunkError> {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU supports AVX2, checked just above.
+            return unsafe { chunk_avx2(f, c) };
+        }
+    }
+    chunk_kernel(f, c)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn chunk_avx2(f: &[Matrix3<f64>; LANES], c: Chunk<'_>) -> Result<(), ChunkError> {
+    chunk_kernel(f, c)
+}
+
+/// SVD (warm-started), volume projection (warm-started) and
+/// `p = w_rot U V^T + w_vol U X V^T = U diag(w_rot + w_vol x) V^T` per tet, with the energies
+/// from the singular values: `|F - U V^T|^2 = sum (s - 1)^2`, `|F - U X V^T|^2 = sum (s - x)^2`.
+/// Everything is inlined into one function so the AVX2 build covers all of it and the
+/// per-lane arrays stay in registers or on this frame.
+#[inline(always)]
+fn chunk_kernel(f: &[Matrix3<f64>; LANES], c: Chunk<'_>) -> Result<(), ChunkError> {
+    let len = c.out.len();
+    let v0: [Matrix3<f64>; LANES] = std::array::from_fn(|k| if k < len { c.v_warm[k] } else { Matrix3::identity() });
+    let svds = svd::batch_generic(f, &v0);
+    let sig: [Vector3<f64>; LANES] = std::array::from_fn(|k| svds[k].sigma);
+    let targets = if c.w_vol.iter().any(|&w| w > 0.0) {
+        let mut t: [f64; LANES] = std::array::from_fn(|k| if k < len { c.t_warm[k] } else { 0.0 });
+        let x = volume::batch_generic(&sig, 1.0, &mut t).map_err(|err| (0, Some(err)))?;
+        c.t_warm.copy_from_slice(&t[..len]);
+        Some(x)
+    } else {
+        None
+    };
+    for k in 0..len {
+        let svd = &svds[k];
+        c.v_warm[k] = svd.v;
+        let s = svd.sigma;
+        let mut diag = Vector3::repeat(c.w_rot[k]);
+        let mut en = 0.5 * c.w_rot[k] * (s - Vector3::repeat(1.0)).norm_squared();
+        if let Some(x) = &targets {
+            if c.w_vol[k] > 0.0 {
+                diag += x[k] * c.w_vol[k];
+                en += 0.5 * c.w_vol[k] * (s - x[k]).norm_squared();
+            }
+        }
+        if !en.is_finite() {
+            return Err((k, None));
+        }
+        c.out[k] = svd.compose(&diag);
+        c.energy[k] = en;
+    }
+    Ok(())
 }

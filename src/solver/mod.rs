@@ -17,11 +17,14 @@
 //! [`Simulator::new`]. Non-finite values, exploding energy and divergent iterations end the run
 //! with a [`SolverError`] that says what happened.
 
+pub mod anderson;
 pub mod certify;
 pub mod direct;
 pub mod global;
 pub mod local;
 pub mod model;
+pub mod skeletal;
+pub mod warm;
 
 use std::time::Instant;
 
@@ -95,6 +98,9 @@ pub struct Settings {
     pub contact_rounds: usize,
     /// Eigensolver for certification.
     pub eigen_method: EigenMethod,
+    /// Anderson acceleration memory of the local-global iteration (0: off, the paper's plain
+    /// iteration).
+    pub anderson: usize,
 }
 
 impl Default for Settings {
@@ -111,6 +117,7 @@ impl Default for Settings {
             contact_margin: 1e-3,
             contact_rounds: 4,
             eigen_method: EigenMethod::Auto,
+            anderson: 0,
         }
     }
 }
@@ -188,6 +195,10 @@ pub struct StepStats {
     pub local_ms: f64,
     /// Of which in global solves (ms).
     pub global_ms: f64,
+    /// Accelerated iterates rejected by the energy safeguard.
+    pub anderson_rejections: usize,
+    /// Largest change of a distance within a bone after the step (m; 0 without a skeleton).
+    pub bone_length_error: f64,
 }
 
 impl StepStats {
@@ -210,7 +221,16 @@ struct Work {
     x_prev: Vec<Vector3<f64>>,
     contacts: Vec<Contact>,
     free_contacts: Vec<FreeContact>,
+    rigid_contacts: Vec<(usize, Contact)>,
     in_contact: Vec<bool>,
+    /// Vertices that take no contacts: Dirichlet vertices.
+    excluded: Vec<bool>,
+    b_rigid: Vec<Vector3<f64>>,
+    q_rigid: Vec<Vector3<f64>>,
+    q_start_free: Vec<Vector3<f64>>,
+    /// Joint scalars at the start of the step and joint torques (skeleton DoF layout).
+    coords0: Vec<f64>,
+    torque: Vec<f64>,
 }
 
 /// A running simulation.
@@ -224,6 +244,10 @@ pub struct Simulator {
     local: LocalStep,
     work: Work,
     energy_scale: f64,
+    /// The skeleton's current state (joint coordinates), and its reduced step.
+    skeleton: Option<(crate::skeleton::Skeleton, skeletal::Skeletal)>,
+    /// Anderson acceleration of the local-global iteration.
+    anderson: Option<anderson::Anderson>,
 }
 
 impl std::fmt::Debug for Simulator {
@@ -237,18 +261,79 @@ impl std::fmt::Debug for Simulator {
     }
 }
 
+/// The one-DoF joints' coordinates into `c` (indexed by DoF offset; other entries untouched).
+fn joint_scalars(sk: &crate::skeleton::Skeleton, c: &mut [f64]) {
+    for b in &sk.bones {
+        if let Some(x) = b.joint.scalar() {
+            c[b.dof_offset] = x;
+        }
+    }
+}
+
+/// The objective the local-global iteration of one step minimises:
+/// `1/(2h^2) |q - s|_M^2 + E_constraints(q) + attachments - tau . (z - z_start)`.
+#[allow(clippy::too_many_arguments)]
+fn step_objective(
+    model: &Model,
+    q: &[Vector3<f64>],
+    s: &[Vector3<f64>],
+    ih2: f64,
+    elastic: f64,
+    skeleton: Option<&crate::skeleton::Skeleton>,
+    coords0: &[f64],
+    torque: &[f64],
+) -> f64 {
+    let mut e = elastic;
+    for ((qi, si), m) in q.iter().zip(s).zip(&model.mass) {
+        e += 0.5 * ih2 * m * (qi - si).norm_squared();
+    }
+    for a in &model.attachments {
+        e += a.energy(&q[a.vertex]);
+    }
+    if let Some(sk) = skeleton {
+        for b in &sk.bones {
+            let (Some(c), k) = (b.joint.scalar(), b.dof_offset) else {
+                continue;
+            };
+            if torque[k] != 0.0 {
+                // Angles wrap: take the difference on the circle.
+                let mut d = c - coords0[k];
+                if d > std::f64::consts::PI {
+                    d -= 2.0 * std::f64::consts::PI;
+                } else if d < -std::f64::consts::PI {
+                    d += 2.0 * std::f64::consts::PI;
+                }
+                e -= torque[k] * d;
+            }
+        }
+    }
+    e
+}
+
 fn build_solver(
     model: &Model,
     settings: &Settings,
     system: &GlobalSystem,
 ) -> Result<(Box<dyn GlobalSolver>, Certificate), SolverError> {
-    let cert = certify::certify(
-        system,
-        settings.solver,
-        settings.certify,
-        settings.eigen_method,
-        settings.inner_max_iterations,
-    )?;
+    let cert = if model.skeleton.is_some() && settings.solver != SolverKind::Direct {
+        // The reduced step (Eqs. 17-18) eliminates the free vertices with the factored free
+        // block, so a skeleton always runs on the direct solver; no eigenvalue check is needed.
+        let mut c = certify::certify(system, SolverKind::Direct, settings.certify, settings.eigen_method, 0)?;
+        c.requested = settings.solver;
+        c.message = format!(
+            "{:?} requested, but the skeleton's reduced step (Eqs. 17-18) factors the free block: direct sparse Cholesky",
+            settings.solver
+        );
+        c
+    } else {
+        certify::certify(
+            system,
+            settings.solver,
+            settings.certify,
+            settings.eigen_method,
+            settings.inner_max_iterations,
+        )?
+    };
     let control = InnerControl {
         tolerance: settings.inner_tolerance * model.length_scale,
         max_iterations: settings.inner_max_iterations,
@@ -279,6 +364,16 @@ impl Simulator {
         let (solver, certificate) = build_solver(&model, &settings, &system)?;
         let n = model.n();
         let nf = system.n();
+        let nr = system.rigid.len();
+        let excluded = model.fixed.clone();
+        let mut solver = solver;
+        let skeleton = match &model.skeleton {
+            Some(sk) => {
+                let direct = solver.as_direct().expect("skeleton scenes use the direct solver");
+                Some((sk.clone(), skeletal::Skeletal::new(&system, direct, sk)))
+            }
+            None => None,
+        };
         let state = State {
             q: model.rest.clone(),
             v: model.initial_velocity.clone(),
@@ -289,6 +384,7 @@ impl Simulator {
         let total_mass: f64 = model.mass.iter().sum();
         let v0 = state.v.iter().map(|v| v.norm()).fold(0.0, f64::max);
         let e_scale = total_mass * (g * model.length_scale + v0 * v0) + model.w_rot.iter().sum::<f64>() * 1e-6;
+        let dofs = skeleton.as_ref().map_or(0, |(sk, _)| sk.dofs);
         Ok(Self {
             local: LocalStep::new(model.tets.len()),
             work: Work {
@@ -302,8 +398,17 @@ impl Simulator {
                 x_prev: vec![Vector3::zeros(); nf],
                 contacts: Vec::new(),
                 free_contacts: Vec::new(),
+                rigid_contacts: Vec::new(),
                 in_contact: vec![false; n],
+                excluded,
+                b_rigid: vec![Vector3::zeros(); nr],
+                q_rigid: vec![Vector3::zeros(); nr],
+                q_start_free: vec![Vector3::zeros(); nf],
+                coords0: vec![0.0; dofs],
+                torque: vec![0.0; dofs],
             },
+            skeleton,
+            anderson: (settings.anderson > 0).then(|| anderson::Anderson::new(settings.anderson, nf)),
             energy_scale: e_scale.max(f64::MIN_POSITIVE),
             model,
             settings,
@@ -347,6 +452,38 @@ impl Simulator {
         Ok(())
     }
 
+    /// Set joint coordinates (by bone name) and move the bone vertices with them; free vertices
+    /// stay where they are.
+    pub fn set_joint_coordinates(&mut self, bone: &str, c: &[f64]) -> Result<(), SolverError> {
+        let (sk, _) = self
+            .skeleton
+            .as_mut()
+            .ok_or_else(|| SolverError::Input("the model has no skeleton".into()))?;
+        let b = sk
+            .bones
+            .iter_mut()
+            .find(|b| b.name == bone)
+            .ok_or_else(|| SolverError::Input(format!("no bone named '{bone}'")))?;
+        if c.len() != b.joint.coordinates().len() || !c.iter().all(|v| v.is_finite()) {
+            return Err(SolverError::Input(format!(
+                "bone '{bone}': expected {} finite coordinates, got {c:?}",
+                b.joint.coordinates().len()
+            )));
+        }
+        b.joint.set_coordinates(c);
+        let mut q = vec![Vector3::zeros(); sk.rigid.len()];
+        sk.positions(&mut q);
+        for (k, &v) in sk.rigid.iter().enumerate() {
+            self.state.q[v] = q[k];
+        }
+        Ok(())
+    }
+
+    /// The skeleton's current state, if the model has one.
+    pub fn skeleton(&self) -> Option<&crate::skeleton::Skeleton> {
+        self.skeleton.as_ref().map(|(s, _)| s)
+    }
+
     /// The certification outcome (which solver runs and why).
     pub fn certificate(&self) -> &Certificate {
         &self.certificate
@@ -358,7 +495,11 @@ impl Simulator {
         s.dt = dt;
         s.validate()?;
         let system = GlobalSystem::new(&self.model, dt)?;
-        let (solver, cert) = build_solver(&self.model, &s, &system)?;
+        let (mut solver, cert) = build_solver(&self.model, &s, &system)?;
+        if let Some((sk, sp)) = self.skeleton.as_mut() {
+            let direct = solver.as_direct().expect("skeleton scenes use the direct solver");
+            *sp = skeletal::Skeletal::new(&system, direct, sk);
+        }
         self.settings = s;
         self.system = system;
         self.solver = solver;
@@ -392,22 +533,30 @@ impl Simulator {
             }
         }
         w.full.copy_from_slice(&w.s);
+        if let Some((_, sp)) = self.skeleton.as_mut() {
+            // Bone vertices start where the skeleton is.
+            for &v in &sys.rigid {
+                w.full[v] = st.q[v];
+            }
+            sp.reset_impulses();
+        }
         let margin = self.settings.contact_margin * model.length_scale;
         w.contacts.clear();
         w.free_contacts.clear();
+        w.rigid_contacts.clear();
         if !model.obstacles.is_empty() {
-            contact::detect(
-                &model.obstacles,
-                &model.fixed,
-                &w.q_start,
-                &w.s,
-                margin,
-                &mut w.contacts,
-            );
-            w.free_contacts.extend(w.contacts.iter().map(|c| FreeContact {
-                index: sys.index[c.vertex],
-                contact: *c,
-            }));
+            contact::detect(&model.obstacles, &w.excluded, &w.q_start, &w.s, margin, &mut w.contacts);
+            w.rigid_contacts.clear();
+            for c in &w.contacts {
+                if sys.index[c.vertex] != usize::MAX {
+                    w.free_contacts.push(FreeContact {
+                        index: sys.index[c.vertex],
+                        contact: *c,
+                    });
+                } else {
+                    w.rigid_contacts.push((sys.rigid_index[c.vertex], *c));
+                }
+            }
         }
         let tol = self.settings.tolerance * model.length_scale;
         let mut stats = StepStats {
@@ -427,10 +576,22 @@ impl Simulator {
             wall_ms: 0.0,
             local_ms: 0.0,
             global_ms: 0.0,
+            anderson_rejections: 0,
+            bone_length_error: 0.0,
         };
         let nf = sys.n();
         let rms = (nf.max(1) as f64).sqrt();
+        // Joint coordinates at the start of the step, for the torques' potential.
+        if let Some((sk, _)) = &self.skeleton {
+            joint_scalars(sk, &mut w.coords0);
+            sk.torques(st.time + h, &mut w.torque);
+        }
         for round in 0..self.settings.contact_rounds.max(1) {
+            if let Some(aa) = self.anderson.as_mut() {
+                aa.reset();
+            }
+            let mut energy_prev = f64::INFINITY;
+            let mut accelerated = false;
             stats.contact_rounds = round + 1;
             stats.converged = false;
             for _ in 0..self.settings.max_iterations {
@@ -439,6 +600,41 @@ impl Simulator {
                 }
                 let tl = Instant::now();
                 stats.elastic_energy = self.local.project(model, &w.full)?;
+                if let Some(aa) = self.anderson.as_mut() {
+                    // Safeguard: an accelerated iterate must lower the step's objective;
+                    // otherwise fall back to the plain update and forget the history.
+                    let sk = self.skeleton.as_ref().map(|(sk, _)| sk);
+                    let mut e = step_objective(
+                        model,
+                        &w.full,
+                        &w.s,
+                        ih2,
+                        stats.elastic_energy,
+                        sk,
+                        &w.coords0,
+                        &w.torque,
+                    );
+                    if accelerated && e > energy_prev + 1e-12 * energy_prev.abs() {
+                        w.x.copy_from_slice(aa.last_plain());
+                        for (k, &v) in sys.free.iter().enumerate() {
+                            w.full[v] = w.x[k];
+                        }
+                        stats.elastic_energy = self.local.project(model, &w.full)?;
+                        e = step_objective(
+                            model,
+                            &w.full,
+                            &w.s,
+                            ih2,
+                            stats.elastic_energy,
+                            sk,
+                            &w.coords0,
+                            &w.torque,
+                        );
+                        aa.reset();
+                        stats.anderson_rejections += 1;
+                    }
+                    energy_prev = e;
+                }
                 self.local.gather(model, &mut w.gathered);
                 stats.local_ms += tl.elapsed().as_secs_f64() * 1e3;
                 for (k, &v) in sys.free.iter().enumerate() {
@@ -446,7 +642,52 @@ impl Simulator {
                 }
                 w.x_prev.copy_from_slice(&w.x);
                 let tg = Instant::now();
-                let g = self.solver.solve(sys, &w.rhs, &mut w.x, &w.free_contacts)?;
+                let direct_only = self.solver.as_direct().is_some();
+                let (skeleton, solver, settings) = (&mut self.skeleton, &mut self.solver, &self.settings);
+                let mut global = || -> Result<_, SolverError> {
+                    Ok(match skeleton.as_mut() {
+                        None => solver.solve(sys, &w.rhs, &mut w.x, &w.free_contacts)?,
+                        Some((sk, sp)) => {
+                            for (r, &v) in sys.rigid.iter().enumerate() {
+                                w.b_rigid[r] = w.s[v] * (model.mass[v] * ih2) + w.gathered[v] + sys.coupling_rigid[r];
+                            }
+                            for a in &model.attachments {
+                                if let Some(r) = sys.rigid.iter().position(|&v| v == a.vertex) {
+                                    w.b_rigid[r] += a.target * a.weight;
+                                }
+                            }
+                            let direct = solver.as_direct().expect("skeleton scenes use the direct solver");
+                            let control = InnerControl {
+                                tolerance: settings.inner_tolerance * model.length_scale,
+                                max_iterations: settings.inner_max_iterations,
+                            };
+                            let g = sp.solve(
+                                sys,
+                                direct,
+                                sk,
+                                &w.rhs,
+                                &w.b_rigid,
+                                st.time + h,
+                                &mut w.x,
+                                &mut w.q_rigid,
+                                &w.free_contacts,
+                                &w.rigid_contacts,
+                                control,
+                            )?;
+                            for (r, &v) in sys.rigid.iter().enumerate() {
+                                w.full[v] = w.q_rigid[r];
+                            }
+                            g
+                        }
+                    })
+                };
+                // A direct solve has no parallel section inside: keep the workers warm for the
+                // next local step meanwhile (see `warm`).
+                let g = if direct_only {
+                    warm::keep_warm(global)?
+                } else {
+                    global()?
+                };
                 stats.global_ms += tg.elapsed().as_secs_f64() * 1e3;
                 stats.iterations += 1;
                 stats.global_iterations += g.iterations;
@@ -467,6 +708,12 @@ impl Simulator {
                     stats.converged = true;
                     break;
                 }
+                if let Some(aa) = self.anderson.as_mut() {
+                    // w.x = G(x_prev): mix into the next iterate (the plain update is kept).
+                    w.q_start_free.copy_from_slice(&w.x);
+                    aa.mix(&w.x_prev, &w.q_start_free, &mut w.x);
+                    accelerated = true;
+                }
             }
             if model.obstacles.is_empty() {
                 break;
@@ -480,7 +727,7 @@ impl Simulator {
                 w.in_contact[c.vertex] = true;
             }
             for (i, (a, x)) in w.q_start.iter().zip(&w.full).enumerate() {
-                if model.fixed[i] || w.in_contact[i] {
+                if w.excluded[i] || w.in_contact[i] {
                     continue;
                 }
                 for (oi, o) in model.obstacles.iter().enumerate() {
@@ -495,10 +742,14 @@ impl Simulator {
                                 friction: o.friction,
                             };
                             w.contacts.push(c);
-                            w.free_contacts.push(FreeContact {
-                                index: sys.index[i],
-                                contact: c,
-                            });
+                            if sys.index[i] != usize::MAX {
+                                w.free_contacts.push(FreeContact {
+                                    index: sys.index[i],
+                                    contact: c,
+                                });
+                            } else {
+                                w.rigid_contacts.push((sys.rigid_index[i], c));
+                            }
                             break;
                         }
                     }
@@ -529,6 +780,9 @@ impl Simulator {
             st.v[i] = v;
             kinetic += 0.5 * model.mass[i] * v.norm_squared();
             potential -= model.mass[i] * model.accel[i].dot(&q);
+        }
+        if let Some((sk, _)) = &self.skeleton {
+            stats.bone_length_error = sk.bone_length_error(&st.q);
         }
         st.time += h;
         st.step += 1;

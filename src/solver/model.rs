@@ -12,6 +12,7 @@ use crate::constraint::attachment::Attachment;
 use crate::contact::Obstacle;
 use crate::fem::{Coefficient, FemOperators};
 use crate::mesh::TetMesh;
+use crate::skeleton::{BoneSpec, Skeleton};
 
 /// Elastic material of a body.
 ///
@@ -68,7 +69,7 @@ pub enum MassSpec {
 }
 
 /// One body as given to the builder.
-#[derive(Debug, Clone)]
+#[derive(Debug)]
 pub struct BodySpec {
     /// Name (reports, output files).
     pub name: String,
@@ -88,6 +89,8 @@ pub struct BodySpec {
     pub attachments: Vec<(usize, f64)>,
     /// Enable the volume constraint (weight `nu E/(1+nu) V`).
     pub volume_constraint: bool,
+    /// Bones embedded in the body (vertex indices and parents are body-local).
+    pub bones: Vec<BoneSpec>,
 }
 
 impl BodySpec {
@@ -103,6 +106,7 @@ impl BodySpec {
             fixed: Vec::new(),
             attachments: Vec::new(),
             volume_constraint: true,
+            bones: Vec::new(),
         }
     }
 }
@@ -191,6 +195,8 @@ pub struct Model {
     pub bodies: Vec<Body>,
     /// Vertex-to-tet adjacency for the right-hand-side gather.
     pub vertex_tets: VertexTets,
+    /// Embedded skeleton (`None`: no skeleton code runs).
+    pub skeleton: Option<Skeleton>,
     /// Characteristic length: the diagonal of the rest bounding box.
     pub length_scale: f64,
 }
@@ -218,7 +224,7 @@ impl Model {
 }
 
 /// Builds a [`Model`] from bodies, obstacles and gravity.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Default)]
 pub struct ModelBuilder {
     bodies: Vec<BodySpec>,
     obstacles: Vec<Obstacle>,
@@ -250,7 +256,7 @@ impl ModelBuilder {
     }
 
     /// Validate and assemble.
-    pub fn build(self) -> Result<Model, SolverError> {
+    pub fn build(mut self) -> Result<Model, SolverError> {
         if self.bodies.is_empty() {
             return Err(SolverError::Input("the scene has no bodies".into()));
         }
@@ -270,7 +276,8 @@ impl ModelBuilder {
         let mut fixed = Vec::new();
         let mut attachments = Vec::new();
         let mut mass = Vec::new();
-        for b in &self.bodies {
+        let mut bones: Vec<BoneSpec> = Vec::new();
+        for b in &mut self.bodies {
             b.material.validate(&b.name)?;
             if !b.initial_velocity.iter().all(|v| v.is_finite()) {
                 return Err(SolverError::Input(format!(
@@ -341,6 +348,26 @@ impl ModelBuilder {
                     weight: w,
                 });
             }
+            let bone0 = bones.len();
+            for mut bone in std::mem::take(&mut b.bones) {
+                for v in &mut bone.vertices {
+                    if *v >= nb {
+                        return Err(SolverError::Input(format!(
+                            "body '{}', bone '{}': vertex {v} out of range ({nb} vertices)",
+                            b.name, bone.name
+                        )));
+                    }
+                    if b.fixed.contains(v) {
+                        return Err(SolverError::Input(format!(
+                            "body '{}', bone '{}': vertex {v} is also a fixed (Dirichlet) vertex",
+                            b.name, bone.name
+                        )));
+                    }
+                    *v += v0;
+                }
+                bone.parent = bone.parent.map(|p| p + bone0);
+                bones.push(bone);
+            }
             bodies.push(Body {
                 name: b.name.clone(),
                 vertices: v0..v0 + nb,
@@ -362,6 +389,11 @@ impl ModelBuilder {
         let fem = FemOperators::new(&all).map_err(|e| SolverError::Input(e.to_string()))?;
         let (lo, hi) = all.bounding_box();
         let vertex_tets = VertexTets::new(rest.len(), &tets);
+        let skeleton = if bones.is_empty() {
+            None
+        } else {
+            Some(Skeleton::new(bones, &rest)?)
+        };
         Ok(Model {
             rest,
             initial_velocity,
@@ -376,6 +408,7 @@ impl ModelBuilder {
             obstacles: self.obstacles,
             bodies,
             vertex_tets,
+            skeleton,
             length_scale: (hi - lo).norm().max(f64::MIN_POSITIVE),
         })
     }

@@ -2,11 +2,16 @@
 //! suite runner behind `diffsoft verify` (the main job), which reads `verification/suite.json`
 //! and writes `reports/`.
 
+pub mod fd;
+pub mod jacobians;
 pub mod physics;
+pub mod skeleton;
 pub mod suite;
 mod summary;
 
-pub use summary::{bounds_summary, physics_table, quality_summary, sweep_summary, table};
+pub use summary::{
+    bounds_summary, jacobians_table, physics_table, quality_summary, skeleton_table, sweep_summary, table,
+};
 
 use std::collections::HashMap;
 use std::path::Path;
@@ -685,14 +690,31 @@ pub fn run_suite(suite_path: &Path, out: &Path) -> Result<SuiteBoundsReport> {
     write_json(&path, &report)?;
     plot::write_svg(&out.join("t_scaling.svg"), &t_scaling_chart(&report.t_scaling))?;
     print!("{}", summary::table(&report));
+    println!("\nJacobian checks of the skeleton:");
+    let jac = jacobians::run(2021);
+    write_json(out.join("jacobians.json"), &jac)?;
+    for v in &jac.verdicts {
+        println!("  [{}] {}", if v.holds { "holds" } else { "FAILS" }, v.claim);
+    }
     println!("\nphysics checks of the forward solver:");
     let phys = run_physics(base, out, &suite.physics)?;
     write_json(out.join("physics.json"), &phys)?;
     print!("{}", summary::physics_table(&phys));
+    println!("\nskeleton study ({}):", suite.skeleton.scene.display());
+    let sk = skeleton::study(
+        &base.join(&suite.skeleton.scene),
+        suite.skeleton.steps,
+        &suite.skeleton.arm_bones,
+        out,
+    )?;
+    write_json(out.join("skeleton.json"), &sk)?;
+    print!("{}", summary::skeleton_table(&sk));
     println!(
-        "wrote {}, {}, t_scaling.svg, cantilever.svg and {} sweep plots in {:.1} s",
+        "wrote {}, {}, {}, {}, t_scaling.svg, cantilever.svg, skeleton_*.svg and {} sweep plots in {:.1} s",
         path.display(),
+        out.join("jacobians.json").display(),
         out.join("physics.json").display(),
+        out.join("skeleton.json").display(),
         report.meshes.len(),
         t0.elapsed().as_secs_f64()
     );

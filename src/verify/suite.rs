@@ -19,6 +19,20 @@ pub struct Suite {
     pub t_scaling: TScalingSuite,
     /// Physics checks of the forward solver.
     pub physics: PhysicsSuite,
+    /// The embedded-skeleton study (paper Fig. 5).
+    pub skeleton: SkeletonSuite,
+}
+
+/// The embedded-skeleton study.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SkeletonSuite {
+    /// Scene with bones and joint torques, relative to the suite file.
+    pub scene: PathBuf,
+    /// Steps of each run.
+    pub steps: usize,
+    /// Bones whose arms are measured (elevation, length).
+    pub arm_bones: Vec<String>,
 }
 
 /// Physics checks of the forward solver.

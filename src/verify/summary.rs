@@ -236,3 +236,73 @@ pub fn physics_table(r: &PhysicsReport) -> String {
     }
     s
 }
+
+/// The table printed by `diffsoft jacobians`.
+pub fn jacobians_table(r: &super::jacobians::JacobiansReport) -> String {
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "{:<44} {:<36} {:>10} {:>10} {:>9} {:>6} {:>5}",
+        "check", "configuration", "vs dual", "vs FD", "best h", "slope", "pass"
+    );
+    for c in &r.checks {
+        let _ = writeln!(
+            s,
+            "{:<44} {:<36} {:>10.2e} {:>10.2e} {:>9.1e} {:>6} {:>5}",
+            c.name,
+            c.configuration,
+            c.versus_dual.max_abs_error,
+            c.versus_fd.max_abs_error,
+            c.sweep.best_step,
+            // No truncation side: the map is linear in this coordinate (exact at every step).
+            if c.sweep.truncation_slope.is_finite() {
+                format!("{:.2}", c.sweep.truncation_slope)
+            } else {
+                "linear".to_string()
+            },
+            yes(c.pass())
+        );
+    }
+    for v in &r.verdicts {
+        let _ = writeln!(s, "  [{}] {}", if v.holds { "holds" } else { "FAILS" }, v.claim);
+    }
+    s
+}
+
+/// The lines `diffsoft verify` prints for the skeleton study.
+pub fn skeleton_table(r: &super::skeleton::SkeletonReport) -> String {
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "  {:<12} {:>10} {:>8} {:>10} {:>22} {:>22} {:>7}",
+        "run", "ms/step", "it/step", "bone err", "arm elevation (deg)", "arm length ratio", "height"
+    );
+    for run in [&r.with_bones, &r.without_bones] {
+        let last = run.samples.last();
+        let fmt = |v: Option<&Vec<f64>>, p: usize| {
+            v.map_or(String::new(), |v| {
+                v.iter().map(|x| format!("{x:.*}", p)).collect::<Vec<_>>().join(" / ")
+            })
+        };
+        let _ = writeln!(
+            s,
+            "  {:<12} {:>10.3} {:>8.2} {:>10.1e} {:>22} {:>22} {:>7.3}",
+            if run.with_bones { "with bones" } else { "no bones" },
+            run.median_ms_per_step,
+            run.mean_iterations,
+            run.max_bone_length_error,
+            fmt(last.map(|l| &l.arm_elevation_deg), 1),
+            fmt(last.map(|l| &l.arm_length_ratio), 3),
+            last.map_or(f64::NAN, |l| l.height_ratio)
+        );
+    }
+    let _ = writeln!(
+        s,
+        "  cost per iteration ({} it/step, {} threads): {:.3} ms with bones / {:.3} ms without = {:.2}x",
+        r.cost.iterations, r.cost.threads, r.cost.with_bones_ms, r.cost.without_bones_ms, r.cost.ratio
+    );
+    for v in &r.verdicts {
+        let _ = writeln!(s, "  [{}] {}", if v.holds { "holds" } else { "FAILS" }, v.claim);
+    }
+    s
+}

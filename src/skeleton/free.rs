@@ -1,0 +1,100 @@
+//! Free (6-DoF) root joint ("ALL"; paper Eqs. 9-10). Its state is a rigid transform `T`; its
+//! coordinates are an increment `(w, l)` (rotation vector, translation) applied from the left:
+//! `T' = [I + [w]x] T + [0, l]` (Eq. 10), after which the rotation block is projected back onto
+//! the rotations by SVD (`R = U V^T`). So `dq/dw = -[q]x`, `dq/dl = I` for every vertex of the
+//! tree (Eq. 9).
+
+use nalgebra::{Matrix3, Matrix4, Vector3};
+use num_dual::Dual64;
+
+use super::joint::{dual_matrix4, homogeneous, homogeneous_derivative, skew, Joint};
+
+/// A free root joint.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Free {
+    /// Current rotation (rest to world).
+    pub rotation: Matrix3<f64>,
+    /// Current translation.
+    pub translation: Vector3<f64>,
+}
+
+impl Default for Free {
+    fn default() -> Self {
+        Self {
+            rotation: Matrix3::identity(),
+            translation: Vector3::zeros(),
+        }
+    }
+}
+
+impl Free {
+    /// Eq. 10 without the projection: `[I + [w]x] T + [0, l]`.
+    pub fn increment<T: nalgebra::RealField + Copy>(t: &Matrix4<T>, w: &Vector3<T>, l: &Vector3<T>) -> Matrix4<T> {
+        let lin = Matrix3::identity() + skew(w);
+        let mut out = homogeneous(&lin, &Vector3::zeros()) * t;
+        for i in 0..3 {
+            out[(i, 3)] += l[i];
+        }
+        out
+    }
+}
+
+impl Joint for Free {
+    fn kind(&self) -> &'static str {
+        "free"
+    }
+    fn dofs(&self) -> usize {
+        6
+    }
+    fn transform(&self) -> Matrix4<f64> {
+        homogeneous(&self.rotation, &self.translation)
+    }
+    fn derivative(&self, k: usize) -> Matrix4<f64> {
+        if k < 3 {
+            let e = skew(&Vector3::ith(k, 1.0));
+            homogeneous_derivative(&(e * self.rotation), &(e * self.translation))
+        } else {
+            homogeneous_derivative(&Matrix3::zeros(), &Vector3::ith(k - 3, 1.0))
+        }
+    }
+    fn update(&mut self, dz: &[f64]) {
+        let w = Vector3::new(dz[0], dz[1], dz[2]);
+        let l = Vector3::new(dz[3], dz[4], dz[5]);
+        let t = Self::increment(&self.transform(), &w, &l);
+        let m: Matrix3<f64> = t.fixed_view::<3, 3>(0, 0).into_owned();
+        // Project back onto the rotations: R = U V^T with det = +1.
+        let svd = crate::constraint::svd::svd3(&m);
+        self.rotation = svd.rotation();
+        self.translation = t.fixed_view::<3, 1>(0, 3).into_owned();
+    }
+    fn transform_dual(&self, z: &[Dual64]) -> Matrix4<Dual64> {
+        let w = Vector3::new(z[0], z[1], z[2]);
+        let l = Vector3::new(z[3], z[4], z[5]);
+        Self::increment(&dual_matrix4(&self.transform()), &w, &l)
+    }
+    fn transform_after(&self, z: &[f64]) -> Matrix4<f64> {
+        // The actual update, projection included (it changes the result only at second order,
+        // so finite differences of it converge to `derivative` at order 2).
+        let mut j = self.clone();
+        j.update(z);
+        j.transform()
+    }
+    fn coordinates(&self) -> Vec<f64> {
+        let r = nalgebra::Rotation3::from_matrix_unchecked(self.rotation).scaled_axis();
+        vec![
+            r.x,
+            r.y,
+            r.z,
+            self.translation.x,
+            self.translation.y,
+            self.translation.z,
+        ]
+    }
+    fn set_coordinates(&mut self, c: &[f64]) {
+        self.rotation = *nalgebra::Rotation3::from_scaled_axis(Vector3::new(c[0], c[1], c[2])).matrix();
+        self.translation = Vector3::new(c[3], c[4], c[5]);
+    }
+    fn boxed_clone(&self) -> Box<dyn Joint> {
+        Box::new(self.clone())
+    }
+}

@@ -1,0 +1,367 @@
+//! Embedded skeletons (paper Eqs. 6-18, seed Appendix C): bones that own mesh vertices rigidly,
+//! linked in a tree by joints.
+//!
+//! A bone `b` moves its vertices by its world transform `T_b = T_parent A_b` (Eq. 11), the
+//! product of the joint transforms from the root down (`q_u = Q T_b V_u`, Eq. 6, with `V_u` the
+//! vertex's rest position). The reduced coordinates are the free vertices plus one block per
+//! joint (6 for a free root, 1 for rotational and prismatic joints, 0 for fixed ones). The
+//! Jacobian `B = dq/dz` of the bone vertices is assembled with prefix and suffix products in one
+//! pass per bone: `B_{u,v} = Q P_v (dA_v / dz_v) S_{v,b} V_u` (Eq. 12), `P_v` the product of the
+//! transforms above joint `v`, `S_{v,b}` of those below it down to bone `b` (Eqs. 15-16). The
+//! reduced global step itself lives in `solver::skeletal`.
+//!
+//! [`Joint`] is the interface; [`free`], [`rotational`], [`prismatic`] and [`fixed`] are the
+//! joint types, one file each.
+
+pub mod fixed;
+pub mod free;
+pub mod joint;
+pub mod prismatic;
+pub mod rotational;
+
+pub use joint::Joint;
+
+use nalgebra::{DMatrix, Matrix4, Vector3, Vector4};
+use num_dual::Dual64;
+use serde::Serialize;
+
+use crate::solver::SolverError;
+
+/// Piecewise-linear time series (constant before the first and after the last sample).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Schedule {
+    /// Sample times, increasing.
+    pub times: Vec<f64>,
+    /// Values at those times.
+    pub values: Vec<f64>,
+}
+
+impl Schedule {
+    /// A constant value.
+    pub fn constant(v: f64) -> Self {
+        Self {
+            times: vec![0.0],
+            values: vec![v],
+        }
+    }
+
+    /// Check lengths, order and finiteness.
+    pub fn validate(&self, what: &str) -> Result<(), SolverError> {
+        let bad = |m: &str| Err(SolverError::Input(format!("{what}: {m}")));
+        if self.times.is_empty() || self.times.len() != self.values.len() {
+            return bad("needs as many values as times, at least one");
+        }
+        if !self.times.iter().chain(&self.values).all(|v| v.is_finite()) {
+            return bad("times and values must be finite");
+        }
+        if self.times.windows(2).any(|w| w[1] <= w[0]) {
+            return bad("times must increase");
+        }
+        Ok(())
+    }
+
+    /// Value at time `t`.
+    pub fn at(&self, t: f64) -> f64 {
+        let n = self.times.len();
+        if t <= self.times[0] {
+            return self.values[0];
+        }
+        if t >= self.times[n - 1] {
+            return self.values[n - 1];
+        }
+        let k = self.times.partition_point(|&s| s <= t);
+        let (t0, t1) = (self.times[k - 1], self.times[k]);
+        let a = (t - t0) / (t1 - t0);
+        self.values[k - 1] * (1.0 - a) + self.values[k] * a
+    }
+}
+
+/// A bone as given by a scene.
+#[derive(Debug)]
+pub struct BoneSpec {
+    /// Name.
+    pub name: String,
+    /// Parent bone index in the spec list (`None` for a root).
+    pub parent: Option<usize>,
+    /// The joint to the parent (or world).
+    pub joint: Box<dyn Joint>,
+    /// Rigidly attached vertices (global numbering).
+    pub vertices: Vec<usize>,
+    /// Torque on the joint's coordinate (1-DoF joints), N m or N.
+    pub torque: Option<Schedule>,
+}
+
+/// A bone of a built skeleton.
+#[derive(Debug)]
+pub struct Bone {
+    /// Name.
+    pub name: String,
+    /// Parent bone (earlier in the list).
+    pub parent: Option<usize>,
+    /// Joint.
+    pub joint: Box<dyn Joint>,
+    /// Attached vertices (global numbering).
+    pub vertices: Vec<usize>,
+    /// Their rest positions (homogeneous).
+    pub rest: Vec<Vector4<f64>>,
+    /// First reduced coordinate of the joint.
+    pub dof_offset: usize,
+    /// Torque schedule.
+    pub torque: Option<Schedule>,
+}
+
+impl Clone for Bone {
+    fn clone(&self) -> Self {
+        Self {
+            name: self.name.clone(),
+            parent: self.parent,
+            joint: self.joint.boxed_clone(),
+            vertices: self.vertices.clone(),
+            rest: self.rest.clone(),
+            dof_offset: self.dof_offset,
+            torque: self.torque.clone(),
+        }
+    }
+}
+
+/// A skeleton (a forest of bones: several roots are allowed).
+#[derive(Debug, Clone)]
+pub struct Skeleton {
+    /// Bones, parents before children.
+    pub bones: Vec<Bone>,
+    /// Number of reduced coordinates of the joints.
+    pub dofs: usize,
+    /// All bone vertices (global numbering), bone by bone.
+    pub rigid: Vec<usize>,
+}
+
+impl Skeleton {
+    /// Build from specs: reorders parents before children, checks indices, that no vertex is in
+    /// two bones, and torque schedules.
+    pub fn new(specs: Vec<BoneSpec>, rest: &[Vector3<f64>]) -> Result<Self, SolverError> {
+        let n = specs.len();
+        for (i, s) in specs.iter().enumerate() {
+            if let Some(p) = s.parent {
+                if p >= n {
+                    return Err(SolverError::Input(format!(
+                        "bone '{}': parent {p} does not exist ({n} bones)",
+                        s.name
+                    )));
+                }
+                if p == i {
+                    return Err(SolverError::Input(format!("bone '{}' is its own parent", s.name)));
+                }
+            }
+        }
+        // Topological order (parents first); a cycle leaves bones unplaced.
+        let mut order = Vec::with_capacity(n);
+        let mut placed = vec![false; n];
+        while order.len() < n {
+            let before = order.len();
+            for i in 0..n {
+                if !placed[i] && specs[i].parent.is_none_or(|p| placed[p]) {
+                    placed[i] = true;
+                    order.push(i);
+                }
+            }
+            if order.len() == before {
+                let stuck: Vec<&str> = (0..n).filter(|&i| !placed[i]).map(|i| specs[i].name.as_str()).collect();
+                return Err(SolverError::Input(format!("the bones {stuck:?} form a cycle")));
+            }
+        }
+        let mut new_index = vec![0usize; n];
+        for (k, &i) in order.iter().enumerate() {
+            new_index[i] = k;
+        }
+        let mut owner = vec![usize::MAX; rest.len()];
+        let mut slots: Vec<Option<BoneSpec>> = specs.into_iter().map(Some).collect();
+        let mut bones = Vec::with_capacity(n);
+        let mut rigid = Vec::new();
+        let mut dofs = 0;
+        for &i in &order {
+            let s = slots[i].take().expect("each bone placed once");
+            for &v in &s.vertices {
+                if v >= rest.len() {
+                    return Err(SolverError::Input(format!(
+                        "bone '{}': vertex {v} out of range ({} vertices)",
+                        s.name,
+                        rest.len()
+                    )));
+                }
+                if owner[v] != usize::MAX {
+                    return Err(SolverError::Input(format!(
+                        "vertex {v} belongs to two bones ('{}' and another)",
+                        s.name
+                    )));
+                }
+                owner[v] = i;
+            }
+            if let Some(t) = &s.torque {
+                t.validate(&format!("bone '{}' torque", s.name))?;
+                if s.joint.dofs() != 1 {
+                    return Err(SolverError::Input(format!(
+                        "bone '{}': torques act on 1-DoF joints, this one is {}",
+                        s.name,
+                        s.joint.kind()
+                    )));
+                }
+            }
+            rigid.extend(&s.vertices);
+            let dof_offset = dofs;
+            dofs += s.joint.dofs();
+            bones.push(Bone {
+                rest: s.vertices.iter().map(|&v| rest[v].push(1.0)).collect(),
+                name: s.name,
+                parent: s.parent.map(|p| new_index[p]),
+                joint: s.joint,
+                vertices: s.vertices,
+                dof_offset,
+                torque: s.torque,
+            });
+        }
+        Ok(Self { bones, dofs, rigid })
+    }
+
+    /// World transform `T_b` of every bone (Eq. 11).
+    pub fn world_transforms(&self) -> Vec<Matrix4<f64>> {
+        let mut w: Vec<Matrix4<f64>> = Vec::with_capacity(self.bones.len());
+        for b in &self.bones {
+            let parent = b.parent.map_or(Matrix4::identity(), |p| w[p]);
+            w.push(parent * b.joint.transform());
+        }
+        w
+    }
+
+    /// Positions of the bone vertices (in [`Skeleton::rigid`] order): `q_u = Q T_b V_u` (Eq. 6).
+    pub fn positions(&self, out: &mut [Vector3<f64>]) {
+        let w = self.world_transforms();
+        let mut k = 0;
+        for (b, t) in self.bones.iter().zip(&w) {
+            for v in &b.rest {
+                out[k] = (t * v).xyz();
+                k += 1;
+            }
+        }
+    }
+
+    /// `B = dq/dz` of the bone vertices, `3 n_rigid x dofs` (Eqs. 12-16): for every bone, walk
+    /// up its chain accumulating the suffix `S`, with the prefix `P_v` the parent's world
+    /// transform.
+    pub fn jacobian(&self, out: &mut DMatrix<f64>) {
+        let w = self.world_transforms();
+        out.fill(0.0);
+        let mut row0 = 0;
+        for (bi, b) in self.bones.iter().enumerate() {
+            let mut suffix = Matrix4::identity();
+            let mut v = bi;
+            loop {
+                let joint = &self.bones[v];
+                let prefix = joint.parent.map_or(Matrix4::identity(), |p| w[p]);
+                for k in 0..joint.joint.dofs() {
+                    let g = prefix * joint.joint.derivative(k) * suffix;
+                    let col = joint.dof_offset + k;
+                    for (j, x) in b.rest.iter().enumerate() {
+                        let d = g * x;
+                        for a in 0..3 {
+                            out[(row0 + 3 * j + a, col)] = d[a];
+                        }
+                    }
+                }
+                suffix = joint.joint.transform() * suffix;
+                match joint.parent {
+                    Some(p) => v = p,
+                    None => break,
+                }
+            }
+            row0 += 3 * b.rest.len();
+        }
+    }
+
+    /// Bone vertex positions after an increment `z` of coordinate `dof` only, evaluated with
+    /// [`Joint::transform_after`] (finite differences).
+    pub fn positions_after(&self, dof: usize, z: f64) -> Vec<Vector3<f64>> {
+        let mut w: Vec<Matrix4<f64>> = Vec::with_capacity(self.bones.len());
+        let mut out = Vec::new();
+        for b in &self.bones {
+            let parent = b.parent.map_or(Matrix4::identity(), |p| w[p]);
+            let a = if dof >= b.dof_offset && dof < b.dof_offset + b.joint.dofs() {
+                let mut inc = vec![0.0; b.joint.dofs()];
+                inc[dof - b.dof_offset] = z;
+                b.joint.transform_after(&inc)
+            } else {
+                b.joint.transform()
+            };
+            let t = parent * a;
+            out.extend(b.rest.iter().map(|x| (t * x).xyz()));
+            w.push(t);
+        }
+        out
+    }
+
+    /// Column `dof` of `B` by forward-mode dual numbers (an independent derivative).
+    pub fn jacobian_column_dual(&self, dof: usize) -> Vec<Vector3<f64>> {
+        let mut w: Vec<Matrix4<Dual64>> = Vec::with_capacity(self.bones.len());
+        let mut out = Vec::new();
+        for b in &self.bones {
+            let parent = b.parent.map_or(Matrix4::identity(), |p| w[p]);
+            let a = if dof >= b.dof_offset && dof < b.dof_offset + b.joint.dofs() {
+                let mut inc = vec![Dual64::from(0.0); b.joint.dofs()];
+                inc[dof - b.dof_offset] = Dual64::from(0.0).derivative();
+                b.joint.transform_dual(&inc)
+            } else {
+                joint::dual_matrix4(&b.joint.transform())
+            };
+            let t = parent * a;
+            out.extend(b.rest.iter().map(|x| {
+                let q = t * x.map(Dual64::from);
+                Vector3::new(q.x.eps, q.y.eps, q.z.eps)
+            }));
+            w.push(t);
+        }
+        out
+    }
+
+    /// Apply increments `dz` (length [`Skeleton::dofs`]) with each joint's update rule.
+    pub fn update(&mut self, dz: &[f64]) {
+        for b in &mut self.bones {
+            let n = b.joint.dofs();
+            if n > 0 {
+                b.joint.update(&dz[b.dof_offset..b.dof_offset + n]);
+            }
+        }
+    }
+
+    /// Joint torques at time `t` (one entry per coordinate; zero where none).
+    pub fn torques(&self, t: f64, out: &mut [f64]) {
+        out.fill(0.0);
+        for b in &self.bones {
+            if let Some(s) = &b.torque {
+                out[b.dof_offset] = s.at(t);
+            }
+        }
+    }
+
+    /// Largest change of a distance between two vertices of the same bone (or a vertex and the
+    /// bone's first vertex) relative to the rest state, over all bones.
+    pub fn bone_length_error(&self, q: &[Vector3<f64>]) -> f64 {
+        let mut worst = 0.0f64;
+        for b in &self.bones {
+            for i in 0..b.vertices.len() {
+                for j in i + 1..b.vertices.len() {
+                    let now = (q[b.vertices[i]] - q[b.vertices[j]]).norm();
+                    let rest = (b.rest[i] - b.rest[j]).xyz().norm();
+                    worst = worst.max((now - rest).abs());
+                }
+            }
+        }
+        worst
+    }
+
+    /// Every joint's coordinates, bone by bone (for reports).
+    pub fn coordinates(&self) -> Vec<(String, Vec<f64>)> {
+        self.bones
+            .iter()
+            .map(|b| (b.name.clone(), b.joint.coordinates()))
+            .collect()
+    }
+}

@@ -1,0 +1,78 @@
+//! Prismatic joint (seed Appendix C, Eqs. 36-38): translation by `l` along the unit axis `u`,
+//! `A = [I, l u; 0, 1]`, `dA/dl = [0, u; 0, 0]`, update `l <- l + dl`.
+
+use nalgebra::{Matrix3, Matrix4, RealField, Vector3};
+use num_dual::Dual64;
+
+use super::joint::{homogeneous, homogeneous_derivative, Joint};
+
+/// A 1-DoF prismatic joint.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Prismatic {
+    /// Unit axis (rest frame).
+    pub axis: Vector3<f64>,
+    /// Current extension.
+    pub extension: f64,
+    /// Optional limits `(min, max)`.
+    pub limits: Option<(f64, f64)>,
+}
+
+impl Prismatic {
+    /// A joint along `axis` (normalised here) at extension 0.
+    pub fn new(axis: Vector3<f64>) -> Self {
+        Self {
+            axis: axis.normalize(),
+            extension: 0.0,
+            limits: None,
+        }
+    }
+
+    /// The transform at extension `l`, in any real field.
+    pub fn transform_at<T: RealField + Copy>(&self, l: T) -> Matrix4<T> {
+        let u = self.axis.map(|x| T::from_f64(x).expect("f64 converts"));
+        homogeneous(&Matrix3::identity(), &(u * l))
+    }
+}
+
+impl Joint for Prismatic {
+    fn kind(&self) -> &'static str {
+        "prismatic"
+    }
+    fn dofs(&self) -> usize {
+        1
+    }
+    fn transform(&self) -> Matrix4<f64> {
+        self.transform_at(self.extension)
+    }
+    fn derivative(&self, _k: usize) -> Matrix4<f64> {
+        homogeneous_derivative(&Matrix3::zeros(), &self.axis)
+    }
+    fn update(&mut self, dz: &[f64]) {
+        self.extension += dz[0];
+        if let Some((lo, hi)) = self.limits {
+            self.extension = self.extension.clamp(lo, hi);
+        }
+    }
+    fn transform_dual(&self, z: &[Dual64]) -> Matrix4<Dual64> {
+        self.transform_at(Dual64::from(self.extension) + z[0])
+    }
+    fn increment_bounds(&self) -> Option<(f64, f64)> {
+        let (lo, hi) = self.limits?;
+        Some((lo - self.extension, hi - self.extension))
+    }
+    fn transform_after(&self, z: &[f64]) -> Matrix4<f64> {
+        self.transform_at(self.extension + z[0])
+    }
+    fn coordinates(&self) -> Vec<f64> {
+        vec![self.extension]
+    }
+    fn scalar(&self) -> Option<f64> {
+        Some(self.extension)
+    }
+    fn set_coordinates(&mut self, c: &[f64]) {
+        self.extension = c[0];
+    }
+    fn boxed_clone(&self) -> Box<dyn Joint> {
+        Box::new(self.clone())
+    }
+}

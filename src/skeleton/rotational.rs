@@ -1,0 +1,119 @@
+//! Rotational joint (seed Appendix C, Eqs. 32-35): rotation by `theta` about the unit axis `n`
+//! through the joint position `p` (rest frame):
+//! `A = [R, p - R p; 0, 1]`, `R = cos t I + sin t [n]x + (1 - cos t) n n^T` (33),
+//! `dR/dt = -sin t I + cos t [n]x + sin t n n^T` (34), and the update
+//! `t <- atan2(sin t + cos t dt, cos t - sin t dt)` (35), which keeps the angle on the circle
+//! (it adds `atan(dt)`, equal to `dt` to first order).
+
+use nalgebra::{Matrix3, Matrix4, RealField, Vector3};
+use num_dual::Dual64;
+
+use super::joint::{homogeneous, homogeneous_derivative, skew, Joint};
+
+/// A 1-DoF rotational joint.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Rotational {
+    /// Joint position (rest frame).
+    pub position: Vector3<f64>,
+    /// Unit rotation axis (rest frame).
+    pub axis: Vector3<f64>,
+    /// Current angle, in `(-pi, pi]`.
+    pub angle: f64,
+    /// Optional angle limits `(min, max)`.
+    pub limits: Option<(f64, f64)>,
+}
+
+/// Rodrigues' formula (Eq. 33).
+pub fn rodrigues<T: RealField + Copy>(n: &Vector3<T>, t: T) -> Matrix3<T> {
+    let (s, c) = (t.sin(), t.cos());
+    Matrix3::identity() * c + skew(n) * s + n * n.transpose() * (T::one() - c)
+}
+
+/// Its derivative with respect to the angle (Eq. 34).
+pub fn rodrigues_derivative<T: RealField + Copy>(n: &Vector3<T>, t: T) -> Matrix3<T> {
+    let (s, c) = (t.sin(), t.cos());
+    -Matrix3::identity() * s + skew(n) * c + n * n.transpose() * s
+}
+
+impl Rotational {
+    /// A joint at `position` about `axis` (normalised here) at angle 0.
+    pub fn new(position: Vector3<f64>, axis: Vector3<f64>) -> Self {
+        Self {
+            position,
+            axis: axis.normalize(),
+            angle: 0.0,
+            limits: None,
+        }
+    }
+
+    /// The transform at angle `t`, in any real field.
+    pub fn transform_at<T: RealField + Copy>(&self, t: T) -> Matrix4<T> {
+        let n = self.axis.map(|x| T::from_f64(x).expect("f64 converts"));
+        let p = self.position.map(|x| T::from_f64(x).expect("f64 converts"));
+        let r = rodrigues(&n, t);
+        homogeneous(&r, &(p - r * p))
+    }
+
+    /// Eq. 35: the angle after an increment `dt`, kept in `(-pi, pi]`.
+    pub fn updated_angle(angle: f64, dt: f64) -> f64 {
+        let (s, c) = angle.sin_cos();
+        (s + c * dt).atan2(c - s * dt)
+    }
+}
+
+impl Joint for Rotational {
+    fn kind(&self) -> &'static str {
+        "rotational"
+    }
+    fn dofs(&self) -> usize {
+        1
+    }
+    fn transform(&self) -> Matrix4<f64> {
+        self.transform_at(self.angle)
+    }
+    fn derivative(&self, _k: usize) -> Matrix4<f64> {
+        let dr = rodrigues_derivative(&self.axis, self.angle);
+        homogeneous_derivative(&dr, &(-dr * self.position))
+    }
+    fn update(&mut self, dz: &[f64]) {
+        self.angle = Self::updated_angle(self.angle, dz[0]);
+        if let Some((lo, hi)) = self.limits {
+            self.angle = self.angle.clamp(lo, hi);
+        }
+    }
+    fn transform_dual(&self, z: &[Dual64]) -> Matrix4<Dual64> {
+        self.transform_at(Dual64::from(self.angle) + z[0])
+    }
+    fn transform_after(&self, z: &[f64]) -> Matrix4<f64> {
+        self.transform_at(self.angle + z[0])
+    }
+    fn coordinates(&self) -> Vec<f64> {
+        vec![self.angle]
+    }
+    fn scalar(&self) -> Option<f64> {
+        Some(self.angle)
+    }
+    fn increment_bounds(&self) -> Option<(f64, f64)> {
+        // Eq. 35 moves the angle by atan(dz): angle + atan(dz) in [lo, hi].
+        use std::f64::consts::FRAC_PI_2;
+        let (lo, hi) = self.limits?;
+        let (a, b) = (lo - self.angle, hi - self.angle);
+        let lower = if a <= -FRAC_PI_2 {
+            f64::NEG_INFINITY
+        } else {
+            a.min(FRAC_PI_2 - 1e-6).tan()
+        };
+        let upper = if b >= FRAC_PI_2 {
+            f64::INFINITY
+        } else {
+            b.max(-FRAC_PI_2 + 1e-6).tan()
+        };
+        Some((lower, upper))
+    }
+    fn set_coordinates(&mut self, c: &[f64]) {
+        self.angle = Self::updated_angle(c[0], 0.0);
+    }
+    fn boxed_clone(&self) -> Box<dyn Joint> {
+        Box::new(self.clone())
+    }
+}
