@@ -4,10 +4,12 @@
 //! * [`corotated`]: `F` onto the rotations (as-rigid-as-possible);
 //! * [`volume`]: `F` onto `det F = a` through its singular values (also the pneumatic cell of
 //!   seed Eq. 40);
-//! * [`attachment`]: a vertex onto a target point.
+//! * [`attachment`]: a vertex onto a target point;
+//! * [`actuator`]: pneumatic cells and muscle fibres (seed Appendix D, Eqs. 39-40).
 //!
 //! [`svd`] provides the signed, rotation-preserving 3 x 3 SVD they share.
 
+pub mod actuator;
 pub mod attachment;
 pub mod corotated;
 pub mod svd;
