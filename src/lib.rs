@@ -16,7 +16,11 @@
 //! * [`fem`]: per-tet operators `P`, `P^-1`, `V`, `A` (seed Eq. 23), lumped mass and the
 //!   per-axis stiffness `L = sum mu V A^T A` (seed Eq. 22).
 //! * [`constraint`]: the signed 3x3 SVD and the projective constraints (corotated, volume,
-//!   attachment).
+//!   attachment, pneumatic cell and muscle fibre).
+//! * [`skeleton`]: embedded skeletons (paper Eqs. 6-18): joints behind one trait (free root,
+//!   rotational, prismatic, fixed), the bone tree and `B = dq/dz` (Eqs. 12-16).
+//! * [`actuator`]: groups of pneumatic cells and muscle fibres with their activation schedules
+//!   (seed Appendix D).
 //! * [`contact`]: static obstacles and the per-vertex Coulomb cone projection.
 //! * [`solver`]: projective dynamics with implicit Euler (paper Eqs. 2-5): parallel local step,
 //!   global solvers (sparse Cholesky, plain Eq. 19, split Eq. 21, Chebyshev) behind one trait,
@@ -34,6 +38,7 @@
 //! project's METHOD notes (paper Eqs. 1-21, seed Eqs. 22-40).
 #![warn(missing_docs)]
 
+pub mod actuator;
 pub mod analysis;
 pub mod constraint;
 pub mod contact;

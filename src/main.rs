@@ -125,10 +125,14 @@ enum Command {
         /// Override the local-global iteration cap.
         #[arg(long)]
         max_iterations: Option<usize>,
-        /// Paper scenes: simulate the bodies without features not supported yet (skeletons,
-        /// actuators, cloth) instead of failing.
+        /// Paper scenes: simulate the bodies without features not supported yet (cloth)
+        /// instead of failing.
         #[arg(long)]
         passive: bool,
+        /// Hold an actuator group at an activation for the whole run, `NAME=VALUE` (repeatable;
+        /// e.g. `pneumatic0=1.5`, `muscle3=0.4`).
+        #[arg(long, value_name = "NAME=VALUE")]
+        activation: Vec<String>,
     },
     /// Jacobian checks of the joints and of B = dq/dz against dual numbers and finite differences.
     Jacobians {
@@ -309,6 +313,7 @@ fn run(command: Command) -> Result<()> {
             dt,
             max_iterations,
             passive,
+            activation,
         } => {
             let mut sc = diffsoft::scene::load(&scene, diffsoft::scene::LoadOptions { passive })?;
             if let Some(s) = solver {
@@ -323,7 +328,17 @@ fn run(command: Command) -> Result<()> {
             if let Some(m) = max_iterations {
                 sc.settings.max_iterations = m;
             }
-            simulate(sc, steps, out.as_deref(), every)?;
+            let mut held = Vec::new();
+            for a in &activation {
+                let (name, value) = a
+                    .split_once('=')
+                    .ok_or_else(|| anyhow::anyhow!("--activation {a}: expected NAME=VALUE"))?;
+                let value: f64 = value
+                    .parse()
+                    .map_err(|_| anyhow::anyhow!("--activation {a}: {value} is not a number"))?;
+                held.push((name.to_string(), value));
+            }
+            simulate(sc, steps, out.as_deref(), every, &held)?;
         }
         Command::Jacobians { seed, json } => {
             let report = verify::jacobians::run(seed);
@@ -340,7 +355,13 @@ fn run(command: Command) -> Result<()> {
 }
 
 /// Run a scene, printing a summary and writing frames and the run log.
-fn simulate(sc: diffsoft::scene::Scene, steps: usize, out: Option<&Path>, every: usize) -> Result<()> {
+fn simulate(
+    sc: diffsoft::scene::Scene,
+    steps: usize,
+    out: Option<&Path>,
+    every: usize,
+    activations: &[(String, f64)],
+) -> Result<()> {
     use diffsoft::output::{FrameWriter, RunLog, RunSummary, RUN_SCHEMA};
     use diffsoft::report::Header;
     use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
@@ -359,6 +380,10 @@ fn simulate(sc: diffsoft::scene::Scene, steps: usize, out: Option<&Path>, every:
     }
     let mut sim = diffsoft::solver::Simulator::new(sc.model, sc.settings.clone())?;
     println!("solver      {}", sim.certificate().message);
+    for (name, a) in activations {
+        sim.set_activation(name, *a)?;
+        println!("activation  {name} held at {a}");
+    }
     let mut frames = match out {
         Some(dir) if every > 0 => Some(FrameWriter::new(dir, sim.model())?),
         _ => None,

@@ -141,6 +141,95 @@ pub struct BodyFile {
     /// An embedded skeleton.
     #[serde(default)]
     pub skeleton: Option<SkeletonFile>,
+    /// Actuator groups (pneumatic cells, muscle fibres).
+    #[serde(default)]
+    pub actuators: Vec<ActuatorFile>,
+}
+
+/// One actuator group: exactly one of `pneumatic` and `muscle`.
+///
+/// ```json
+/// { "name": "top", "pneumatic": { "tets": { "box": { "min": [0, 0.05, 0], "max": [1, 0.1, 0.1] } } },
+///   "stiffness": 1e5, "activation": { "times": [0, 1], "values": [1, 1.5] } }
+/// { "name": "arm", "muscle": { "polyline": [[0, 0, 0], [0, -1, 0]], "radius": 0.1 },
+///   "stiffness": 5e5, "activation": 0.3 }
+/// ```
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ActuatorFile {
+    /// Name (activations are set by name).
+    pub name: String,
+    /// Pneumatic cells (seed Eqs. 39-40): activation = target volume ratio, `> 0`.
+    #[serde(default)]
+    pub pneumatic: Option<PneumaticFile>,
+    /// Muscle fibres: activation in `[0, 1]` pulls fibres to length `1 - a`.
+    #[serde(default)]
+    pub muscle: Option<MuscleFile>,
+    /// Stiffness `k` (Pa): weight per unit rest volume.
+    pub stiffness: f64,
+    /// Activation: a constant or a piecewise-linear time series.
+    pub activation: ActivationFile,
+}
+
+/// Tets of a pneumatic group.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PneumaticFile {
+    /// Which tets.
+    pub tets: TetSelector,
+}
+
+/// Fibres of a muscle group: `tets` with a uniform `direction`, or a `polyline` with a
+/// `radius` (tets whose centroid is within `radius` of it, each along its nearest segment).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MuscleFile {
+    /// Which tets (with `direction`).
+    #[serde(default)]
+    pub tets: Option<TetSelector>,
+    /// Uniform fibre direction (scene coordinates).
+    #[serde(default)]
+    pub direction: Option<[f64; 3]>,
+    /// Fibre polyline (scene coordinates).
+    #[serde(default)]
+    pub polyline: Option<Vec<[f64; 3]>>,
+    /// Capture radius around the polyline (m).
+    #[serde(default)]
+    pub radius: Option<f64>,
+}
+
+/// Selects tets of a body's mesh.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+pub enum TetSelector {
+    /// Every tet.
+    All {},
+    /// Tets by index in the mesh file's tet order (0-based).
+    Indices(Vec<usize>),
+    /// Tets whose centroid lies in an axis-aligned box (scene coordinates).
+    Box {
+        /// Lower corner.
+        min: [f64; 3],
+        /// Upper corner.
+        max: [f64; 3],
+    },
+    /// Tets with at least `min_shared` vertices among the given mesh-file vertex ids.
+    Vertices {
+        /// Vertex ids of the mesh file.
+        indices: Vec<usize>,
+        /// How many of a tet's vertices must be listed (1-4).
+        min_shared: usize,
+    },
+}
+
+/// An activation: a constant or `{ "times": [...], "values": [...] }`.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(untagged)]
+pub enum ActivationFile {
+    /// The same value at all times.
+    Constant(f64),
+    /// Piecewise linear in time.
+    Series(TorqueFile),
 }
 
 /// Bones embedded in a body.

@@ -267,6 +267,116 @@ fn bones_from_file(
     Ok(out)
 }
 
+/// Tets of a body selected by a [`format::TetSelector`].
+fn select_tets(
+    scene: &str,
+    what: &str,
+    sel: &format::TetSelector,
+    mesh: &TetMesh,
+    info: &MeshInfo,
+) -> Result<Vec<usize>, SceneError> {
+    use format::TetSelector;
+    let invalid = |message: String| SceneError::Invalid {
+        path: scene.to_string(),
+        message: format!("{what}: {message}"),
+    };
+    let tets = match sel {
+        TetSelector::All {} => (0..mesh.num_tets()).collect(),
+        TetSelector::Indices(ids) => {
+            if let Some(t) = ids.iter().find(|&&t| t >= mesh.num_tets()) {
+                return Err(invalid(format!("tet {t} out of range ({} tets)", mesh.num_tets())));
+            }
+            ids.clone()
+        }
+        TetSelector::Box { min, max } => (0..mesh.num_tets())
+            .filter(|&t| {
+                let c = crate::actuator::centroid(mesh, t);
+                (0..3).all(|k| c[k] >= min[k] && c[k] <= max[k])
+            })
+            .collect(),
+        TetSelector::Vertices { indices, min_shared } => {
+            if !(1..=4).contains(min_shared) {
+                return Err(invalid(format!("min_shared must be 1 to 4, got {min_shared}")));
+            }
+            let map: HashMap<i64, usize> = info.file_ids.iter().enumerate().map(|(i, &id)| (id, i)).collect();
+            let verts = indices
+                .iter()
+                .map(|&id| {
+                    map.get(&(id as i64))
+                        .copied()
+                        .ok_or_else(|| invalid(format!("vertex {id} is not a vertex of any tet of {}", info.path)))
+                })
+                .collect::<Result<Vec<_>, _>>()?;
+            crate::actuator::tets_of_vertices(mesh, &verts, *min_shared)
+        }
+    };
+    if tets.is_empty() {
+        return Err(invalid("selects no tet".into()));
+    }
+    Ok(tets)
+}
+
+/// One actuator group from the diffsoft format.
+fn actuator_from_file(
+    scene: &str,
+    body: &str,
+    a: &format::ActuatorFile,
+    mesh: &TetMesh,
+    info: &MeshInfo,
+) -> Result<crate::actuator::ActuatorSpec, SceneError> {
+    use crate::actuator::{fibres_along, fibres_from_polyline, ActuatorSpec};
+    use crate::skeleton::Schedule;
+    let what = format!("body '{body}', actuator '{}'", a.name);
+    let invalid = |message: String| SceneError::Invalid {
+        path: scene.to_string(),
+        message: format!("{what}: {message}"),
+    };
+    let activation = match &a.activation {
+        format::ActivationFile::Constant(v) => Schedule::constant(*v),
+        format::ActivationFile::Series(t) => Schedule {
+            times: t.times.clone(),
+            values: t.values.clone(),
+        },
+    };
+    match (&a.pneumatic, &a.muscle) {
+        (Some(p), None) => {
+            let tets = select_tets(scene, &what, &p.tets, mesh, info)?;
+            Ok(ActuatorSpec::pneumatic(&a.name, &tets, a.stiffness, activation))
+        }
+        (None, Some(m)) => {
+            let fibres = match (&m.tets, &m.direction, &m.polyline, m.radius) {
+                (Some(sel), Some(d), None, None) => {
+                    let d = finite3(scene, &format!("{what}: direction"), d)?;
+                    fibres_along(&select_tets(scene, &what, sel, mesh, info)?, d)
+                }
+                (None, None, Some(line), Some(r)) => {
+                    if !(r.is_finite() && r > 0.0) {
+                        return Err(invalid(format!("radius must be finite and positive, got {r}")));
+                    }
+                    let pts = line
+                        .iter()
+                        .map(|p| finite3(scene, &format!("{what}: polyline point"), p))
+                        .collect::<Result<Vec<_>, _>>()?;
+                    let f = fibres_from_polyline(mesh, &pts, r);
+                    if f.is_empty() {
+                        return Err(invalid(format!(
+                            "no tet centroid lies within {r} of the polyline (or it has no segment of positive length)"
+                        )));
+                    }
+                    f
+                }
+                _ => {
+                    return Err(invalid(
+                        "a muscle takes either `tets` and `direction`, or `polyline` and `radius`".into(),
+                    ))
+                }
+            };
+            Ok(ActuatorSpec::muscle(&a.name, fibres, a.stiffness, activation))
+        }
+        _ => Err(invalid("give exactly one of `pneumatic` and `muscle`".into())),
+    }
+}
+
 fn finite3(scene: &str, what: &str, v: &[f64; 3]) -> Result<Vector3<f64>, SceneError> {
     if v.iter().all(|x| x.is_finite()) {
         Ok(Vector3::from(*v))
@@ -336,6 +446,10 @@ fn from_diffsoft(path: &Path, file: SceneFile) -> Result<Scene, SceneError> {
         }
         if let Some(sk) = &b.skeleton {
             spec.bones = bones_from_file(&scene, &b.name, sk, &m, &loaded.info)?;
+        }
+        for a in &b.actuators {
+            spec.actuators
+                .push(actuator_from_file(&scene, &b.name, a, &m, &loaded.info)?);
         }
         builder = builder.body(spec);
         meshes.push(loaded.info);

@@ -8,6 +8,8 @@ use rayon::prelude::*;
 
 use super::model::Model;
 use super::SolverError;
+use crate::actuator::ActuatorKind;
+use crate::constraint::actuator::{muscle_target, pneumatic_target};
 use crate::constraint::svd::{self, LANES};
 use crate::constraint::{volume, ProjectionError};
 
@@ -22,17 +24,106 @@ pub struct LocalStep {
     pub energy: Vec<f64>,
     /// Last volume-projection multiplier of each tet (warm start for the next one).
     pub t_warm: Vec<f64>,
+    /// Actuator buffers (`None` when the model has no actuators).
+    pub actuators: Option<ActuatorStep>,
+}
+
+/// Per-cell buffers of the actuator projections and the current activations.
+#[derive(Debug, Clone)]
+pub struct ActuatorStep {
+    /// Activation of each group.
+    pub activations: Vec<f64>,
+    /// `w p` per cell, as it enters the right-hand side (`w p m^T` for a fibre).
+    pub weighted: Vec<Matrix3<f64>>,
+    /// Last `V` of each pneumatic cell's SVD (warm start).
+    pub v_warm: Vec<Matrix3<f64>>,
+    /// Constraint energy per cell.
+    pub energy: Vec<f64>,
+}
+
+impl ActuatorStep {
+    /// Project every actuator cell at positions `q` (in parallel) and add the results to the
+    /// per-tet `weighted`; returns the actuators' energy.
+    fn project(
+        &mut self,
+        model: &Model,
+        q: &[Vector3<f64>],
+        weighted: &mut [Matrix3<f64>],
+    ) -> Result<f64, SolverError> {
+        let Some(act) = model.actuators.as_ref() else {
+            return Ok(0.0);
+        };
+        let (tets, geo, activations) = (&model.tets, &model.fem.geometry, &self.activations);
+        self.weighted
+            .par_iter_mut()
+            .zip(self.v_warm.par_iter_mut())
+            .zip(self.energy.par_iter_mut())
+            .zip(act.cells.par_iter())
+            .with_min_len(64)
+            .try_for_each(|(((out, v), e), c)| {
+                let [i0, i1, i2, i3] = tets[c.tet];
+                let x0 = q[i0];
+                let f = Matrix3::from_columns(&[q[i1] - x0, q[i2] - x0, q[i3] - x0]) * geo[c.tet].p_inv;
+                let group = &act.groups[c.group];
+                let a = activations[c.group];
+                let fail = |source| SolverError::Actuator {
+                    group: group.name.clone(),
+                    tet: c.tet,
+                    source,
+                };
+                match group.kind {
+                    ActuatorKind::Pneumatic => {
+                        if !f.iter().all(|x| x.is_finite()) {
+                            return Err(fail(crate::constraint::actuator::ActuatorError::NonFinite));
+                        }
+                        let d = svd::svd3_warm(&f, v);
+                        *v = d.v;
+                        let p = pneumatic_target(&d, a).map_err(fail)?;
+                        *out = p * c.weight;
+                        *e = crate::constraint::energy(c.weight, &f, &p);
+                    }
+                    ActuatorKind::Muscle => {
+                        let fm = f * c.direction;
+                        let p = muscle_target(&fm, a).map_err(fail)?;
+                        *out = (p * c.direction.transpose()) * c.weight;
+                        *e = 0.5 * c.weight * (fm - p).norm_squared();
+                    }
+                }
+                Ok(())
+            })?;
+        for (c, w) in act.cells.iter().zip(&self.weighted) {
+            weighted[c.tet] += w;
+        }
+        Ok(self.energy.iter().sum())
+    }
 }
 
 impl LocalStep {
-    /// Buffers for `tets` tets.
+    /// Buffers for `tets` tets (no actuators).
     pub fn new(tets: usize) -> Self {
         Self {
             weighted: vec![Matrix3::zeros(); tets],
             v_warm: vec![Matrix3::identity(); tets],
             energy: vec![0.0; tets],
             t_warm: vec![0.0; tets],
+            actuators: None,
         }
+    }
+
+    /// Buffers for `model`, with actuator buffers when it has actuators (activations at their
+    /// schedules' values at time 0).
+    pub fn for_model(model: &Model) -> Self {
+        let mut s = Self::new(model.tets.len());
+        s.actuators = model.actuators.as_ref().map(|act| {
+            let n = act.cells.len();
+            ActuatorStep {
+                activations: act.groups.iter().map(|g| g.activation.at(0.0)).collect(),
+                weighted: vec![Matrix3::zeros(); n],
+                v_warm: vec![Matrix3::identity(); n],
+                energy: vec![0.0; n],
+            }
+        });
+        s
     }
 
     /// Project every tet of `model` at positions `q`; returns the total constraint energy.
@@ -74,7 +165,11 @@ impl LocalStep {
                     None => SolverError::NonFinite(format!("tet {}: deformation gradient is not finite", t0 + k)),
                 })
             })?;
-        Ok(self.energy.iter().sum())
+        let mut energy: f64 = self.energy.iter().sum();
+        if let Some(act) = self.actuators.as_mut() {
+            energy += act.project(model, q, &mut self.weighted)?;
+        }
+        Ok(energy)
     }
 
     /// `rhs[v] = sum over tets t of v: weighted_t a_{t, corner(v)}` for every vertex.

@@ -64,6 +64,16 @@ pub enum SolverError {
         /// Cause.
         source: ProjectionError,
     },
+    /// An actuator projection failed.
+    #[error("actuator '{group}', tet {tet}: {source}")]
+    Actuator {
+        /// Group name.
+        group: String,
+        /// Tet index.
+        tet: usize,
+        /// Cause.
+        source: crate::constraint::actuator::ActuatorError,
+    },
     /// A NaN or infinity appeared.
     #[error("non-finite value: {0}")]
     NonFinite(String),
@@ -248,6 +258,8 @@ pub struct Simulator {
     skeleton: Option<(crate::skeleton::Skeleton, skeletal::Skeletal)>,
     /// Anderson acceleration of the local-global iteration.
     anderson: Option<anderson::Anderson>,
+    /// Activations set through the API, per actuator group (`None`: follow the schedule).
+    activation_override: Vec<Option<f64>>,
 }
 
 impl std::fmt::Debug for Simulator {
@@ -385,8 +397,10 @@ impl Simulator {
         let v0 = state.v.iter().map(|v| v.norm()).fold(0.0, f64::max);
         let e_scale = total_mass * (g * model.length_scale + v0 * v0) + model.w_rot.iter().sum::<f64>() * 1e-6;
         let dofs = skeleton.as_ref().map_or(0, |(sk, _)| sk.dofs);
+        let groups = model.actuators.as_ref().map_or(0, |a| a.groups.len());
         Ok(Self {
-            local: LocalStep::new(model.tets.len()),
+            activation_override: vec![None; groups],
+            local: LocalStep::for_model(&model),
             work: Work {
                 q_start: vec![Vector3::zeros(); n],
                 s: vec![Vector3::zeros(); n],
@@ -477,6 +491,46 @@ impl Simulator {
             self.state.q[v] = q[k];
         }
         Ok(())
+    }
+
+    /// Set the activation of actuator group `name` from the next step on (overrides its
+    /// schedule until [`Simulator::follow_schedule`]); `a > 0` for pneumatic groups, `a` in
+    /// `[0, 1]` for muscles.
+    pub fn set_activation(&mut self, name: &str, a: f64) -> Result<(), SolverError> {
+        let act = self
+            .model
+            .actuators
+            .as_ref()
+            .ok_or_else(|| SolverError::Input("the model has no actuators".into()))?;
+        let g = act
+            .group(name)
+            .ok_or_else(|| SolverError::Input(format!("no actuator group named '{name}'")))?;
+        let kind = act.groups[g].kind;
+        if !kind.admits(a) {
+            return Err(SolverError::Input(format!(
+                "actuator '{name}': activation {a} out of range ({})",
+                kind.range()
+            )));
+        }
+        self.activation_override[g] = Some(a);
+        Ok(())
+    }
+
+    /// Let actuator group `name` follow its schedule again.
+    pub fn follow_schedule(&mut self, name: &str) -> Result<(), SolverError> {
+        let g = self
+            .model
+            .actuators
+            .as_ref()
+            .and_then(|a| a.group(name))
+            .ok_or_else(|| SolverError::Input(format!("no actuator group named '{name}'")))?;
+        self.activation_override[g] = None;
+        Ok(())
+    }
+
+    /// The activations used by the last step, per group (`None` without actuators).
+    pub fn activations(&self) -> Option<&[f64]> {
+        self.local.actuators.as_ref().map(|a| a.activations.as_slice())
     }
 
     /// The skeleton's current state, if the model has one.
@@ -581,6 +635,12 @@ impl Simulator {
         };
         let nf = sys.n();
         let rms = (nf.max(1) as f64).sqrt();
+        // Activations at the end of the step (implicit Euler), unless set through the API.
+        if let (Some(act), Some(ls)) = (model.actuators.as_ref(), self.local.actuators.as_mut()) {
+            for (g, group) in act.groups.iter().enumerate() {
+                ls.activations[g] = self.activation_override[g].unwrap_or_else(|| group.activation.at(st.time + h));
+            }
+        }
         // Joint coordinates at the start of the step, for the torques' potential.
         if let Some((sk, _)) = &self.skeleton {
             joint_scalars(sk, &mut w.coords0);

@@ -8,6 +8,7 @@ use nalgebra::Vector3;
 use serde::Serialize;
 
 use super::SolverError;
+use crate::actuator::{ActuatorKind, ActuatorSpec, Actuators};
 use crate::constraint::attachment::Attachment;
 use crate::contact::Obstacle;
 use crate::fem::{Coefficient, FemOperators};
@@ -91,6 +92,8 @@ pub struct BodySpec {
     pub volume_constraint: bool,
     /// Bones embedded in the body (vertex indices and parents are body-local).
     pub bones: Vec<BoneSpec>,
+    /// Actuator groups (tets are body-local).
+    pub actuators: Vec<ActuatorSpec>,
 }
 
 impl BodySpec {
@@ -107,6 +110,7 @@ impl BodySpec {
             attachments: Vec::new(),
             volume_constraint: true,
             bones: Vec::new(),
+            actuators: Vec::new(),
         }
     }
 }
@@ -197,6 +201,8 @@ pub struct Model {
     pub vertex_tets: VertexTets,
     /// Embedded skeleton (`None`: no skeleton code runs).
     pub skeleton: Option<Skeleton>,
+    /// Pneumatic cells and muscle fibres (`None`: no actuator code runs).
+    pub actuators: Option<Actuators>,
     /// Characteristic length: the diagonal of the rest bounding box.
     pub length_scale: f64,
 }
@@ -207,15 +213,36 @@ impl Model {
         self.rest.len()
     }
 
-    /// `L = sum_t (w_rot + w_vol) A_t^T A_t + attachments` (per axis), values in the pattern.
+    /// `L = sum_t (w_rot + w_vol + w_pneumatic) A_t^T A_t + sum_fibres w (A_t m)(A_t m)^T +
+    /// attachments` (per axis), values in the pattern.
     pub fn stiffness_values(&self) -> Vec<f64> {
-        let k: Vec<f64> = (0..self.tets.len())
+        let mut k: Vec<f64> = (0..self.tets.len())
             .map(|t| (self.w_rot[t] + self.w_vol[t]) / self.fem.geometry[t].volume)
             .collect();
+        let mut fibres = Vec::new();
+        if let Some(act) = &self.actuators {
+            for c in &act.cells {
+                match act.groups[c.group].kind {
+                    ActuatorKind::Pneumatic => k[c.tet] += c.weight / self.fem.geometry[c.tet].volume,
+                    ActuatorKind::Muscle => fibres.push(c),
+                }
+            }
+        }
         let mut values = self
             .fem
             .laplacian_values(Coefficient::PerTet(&k))
             .expect("weights validated");
+        // A fibre's constraint is on F m = sum_a x_a (a_a . m): a rank-one block.
+        for c in fibres {
+            let g = &self.fem.geometry[c.tet];
+            let gm: [f64; 4] = std::array::from_fn(|a| g.grads[a].dot(&c.direction));
+            let slots = &self.fem.pattern.tet_slots[c.tet];
+            for a in 0..4 {
+                for b in 0..4 {
+                    values[slots[4 * a + b] as usize] += c.weight * gm[a] * gm[b];
+                }
+            }
+        }
         for a in &self.attachments {
             values[self.fem.pattern.diag_slot[a.vertex]] += a.weight;
         }
@@ -277,6 +304,11 @@ impl ModelBuilder {
         let mut attachments = Vec::new();
         let mut mass = Vec::new();
         let mut bones: Vec<BoneSpec> = Vec::new();
+        let mut actuators = Actuators {
+            groups: Vec::new(),
+            cells: Vec::new(),
+        };
+        let mut volumes = Vec::new();
         for b in &mut self.bodies {
             b.material.validate(&b.name)?;
             if !b.initial_velocity.iter().all(|v| v.is_finite()) {
@@ -304,6 +336,7 @@ impl ModelBuilder {
             let body_mass: f64 = m.iter().sum();
             mass.extend(m);
             for g in &fem.geometry {
+                volumes.push(g.volume);
                 w_rot.push(b.material.rotation_stiffness() * g.volume);
                 w_vol.push(if b.volume_constraint {
                     b.material.volume_stiffness() * g.volume
@@ -368,6 +401,13 @@ impl ModelBuilder {
                 bone.parent = bone.parent.map(|p| p + bone0);
                 bones.push(bone);
             }
+            actuators.push_body(
+                &b.name,
+                std::mem::take(&mut b.actuators),
+                t0,
+                b.mesh.num_tets(),
+                &volumes,
+            )?;
             bodies.push(Body {
                 name: b.name.clone(),
                 vertices: v0..v0 + nb,
@@ -409,6 +449,7 @@ impl ModelBuilder {
             bodies,
             vertex_tets,
             skeleton,
+            actuators: (!actuators.groups.is_empty()).then_some(actuators),
             length_scale: (hi - lo).norm().max(f64::MIN_POSITIVE),
         })
     }

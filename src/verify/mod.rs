@@ -2,6 +2,7 @@
 //! suite runner behind `diffsoft verify` (the main job), which reads `verification/suite.json`
 //! and writes `reports/`.
 
+pub mod actuators;
 pub mod fd;
 pub mod jacobians;
 pub mod physics;
@@ -709,12 +710,29 @@ pub fn run_suite(suite_path: &Path, out: &Path) -> Result<SuiteBoundsReport> {
     )?;
     write_json(out.join("skeleton.json"), &sk)?;
     print!("{}", summary::skeleton_table(&sk));
+    println!("\nactuator study:");
+    let ac = &suite.actuators;
+    let act = actuators::study(
+        &actuators::StudyInputs {
+            drone: &base.join(&ac.drone),
+            drone_activation: ac.drone_activation,
+            drone_steps: ac.drone_steps,
+            octopus: &base.join(&ac.octopus),
+            octopus_muscle: &ac.octopus_muscle,
+            octopus_activation: ac.octopus_activation,
+            octopus_steps: ac.octopus_steps,
+        },
+        out,
+    )?;
+    write_json(out.join("actuators.json"), &act)?;
+    print!("{}", actuators::table(&act));
     println!(
-        "wrote {}, {}, {}, {}, t_scaling.svg, cantilever.svg, skeleton_*.svg and {} sweep plots in {:.1} s",
+        "wrote {}, {}, {}, {}, {}, t_scaling.svg, cantilever.svg, skeleton_*.svg, actuator frames and {} sweep plots in {:.1} s",
         path.display(),
         out.join("jacobians.json").display(),
         out.join("physics.json").display(),
         out.join("skeleton.json").display(),
+        out.join("actuators.json").display(),
         report.meshes.len(),
         t0.elapsed().as_secs_f64()
     );

@@ -21,6 +21,28 @@ pub struct Suite {
     pub physics: PhysicsSuite,
     /// The embedded-skeleton study (paper Fig. 5).
     pub skeleton: SkeletonSuite,
+    /// The actuator study (seed Appendix D).
+    pub actuators: ActuatorSuite,
+}
+
+/// The actuator study: static checks plus the paper's drone and octopus scenes.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ActuatorSuite {
+    /// The drone scene (paper format), relative to the suite file.
+    pub drone: PathBuf,
+    /// Activation of every pneumatic group of the drone.
+    pub drone_activation: f64,
+    /// Steps of the drone run.
+    pub drone_steps: usize,
+    /// The octopus scene (paper format).
+    pub octopus: PathBuf,
+    /// The muscle group driven.
+    pub octopus_muscle: String,
+    /// Its activation.
+    pub octopus_activation: f64,
+    /// Steps of the octopus run.
+    pub octopus_steps: usize,
 }
 
 /// The embedded-skeleton study.

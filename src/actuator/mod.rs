@@ -1,0 +1,277 @@
+//! Actuators of a body (METHOD.md section 5, seed Appendix D): groups of pneumatic cells and
+//! muscle fibres, each group driven by one activation.
+//!
+//! A group owns tets. A pneumatic group adds, per tet, the constraint of seed Eqs. 39-40 with
+//! weight `k_p V` (the tet's singular values pulled to a product `a`); a muscle group adds, per
+//! tet, a fibre along a rest direction `m` with weight `k_m V`, pulled to length `1 - a`
+//! ([`crate::constraint::actuator`]). Both are ordinary projective constraints: their weights
+//! enter the constant global matrix once, and each local step projects them in parallel.
+//! Activations are piecewise-linear time series ([`Schedule`]) or set per step through
+//! [`Simulator::set_activation`](crate::solver::Simulator::set_activation).
+//!
+//! A model without actuators has `Model::actuators == None` and runs no actuator code.
+//!
+//! Where tets come from:
+//! * [`tets_of_vertices`]: the tets with at least `min_shared` vertices in a vertex group (the
+//!   paper's drone lists pneumatic "Volume Verts");
+//! * [`fibres_along`]: a uniform direction for a set of tets;
+//! * [`fibres_from_polyline`]: the tets whose centroid lies within `radius` of a polyline, each
+//!   with the direction of its nearest segment (the paper's `octopus.muscle`).
+
+use nalgebra::Vector3;
+use serde::Serialize;
+
+use crate::mesh::TetMesh;
+use crate::skeleton::Schedule;
+use crate::solver::SolverError;
+
+/// The kind of a group.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ActuatorKind {
+    /// Pneumatic cells: activation = target volume ratio, `a > 0`.
+    Pneumatic,
+    /// Muscle fibres: activation in `[0, 1]`, fibre length `1 - a`.
+    Muscle,
+}
+
+impl ActuatorKind {
+    /// Whether `a` is an admissible activation.
+    pub fn admits(&self, a: f64) -> bool {
+        match self {
+            ActuatorKind::Pneumatic => a.is_finite() && a > 0.0,
+            ActuatorKind::Muscle => (0.0..=1.0).contains(&a),
+        }
+    }
+
+    /// The admissible range, in words.
+    pub fn range(&self) -> &'static str {
+        match self {
+            ActuatorKind::Pneumatic => "finite and > 0",
+            ActuatorKind::Muscle => "in [0, 1]",
+        }
+    }
+}
+
+/// A group as given to the model builder (tets in body numbering).
+#[derive(Debug, Clone)]
+pub struct ActuatorSpec {
+    /// Name (activations are set by name).
+    pub name: String,
+    /// Kind.
+    pub kind: ActuatorKind,
+    /// Stiffness `k` (Pa): the weight per unit rest volume.
+    pub stiffness: f64,
+    /// Activation over time.
+    pub activation: Schedule,
+    /// The tets, with their fibre direction for muscles (ignored for pneumatic cells).
+    pub cells: Vec<(usize, Vector3<f64>)>,
+}
+
+impl ActuatorSpec {
+    /// A pneumatic group on `tets`.
+    pub fn pneumatic(name: &str, tets: &[usize], stiffness: f64, activation: Schedule) -> Self {
+        Self {
+            name: name.to_string(),
+            kind: ActuatorKind::Pneumatic,
+            stiffness,
+            activation,
+            cells: tets.iter().map(|&t| (t, Vector3::zeros())).collect(),
+        }
+    }
+
+    /// A muscle group from `(tet, direction)` fibres.
+    pub fn muscle(name: &str, fibres: Vec<(usize, Vector3<f64>)>, stiffness: f64, activation: Schedule) -> Self {
+        Self {
+            name: name.to_string(),
+            kind: ActuatorKind::Muscle,
+            stiffness,
+            activation,
+            cells: fibres,
+        }
+    }
+}
+
+/// A group in the assembled model.
+#[derive(Debug, Clone, Serialize)]
+pub struct ActuatorGroup {
+    /// Name.
+    pub name: String,
+    /// Body it belongs to.
+    pub body: String,
+    /// Kind.
+    pub kind: ActuatorKind,
+    /// Stiffness (Pa).
+    pub stiffness: f64,
+    /// Activation over time.
+    pub activation: Schedule,
+    /// Its cells' range in [`Actuators::cells`].
+    pub cells: std::ops::Range<usize>,
+}
+
+/// One actuated tet.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Cell {
+    /// Tet (global numbering).
+    pub tet: usize,
+    /// Group index.
+    pub group: usize,
+    /// Weight `k V`.
+    pub weight: f64,
+    /// Unit rest direction of a muscle fibre (zero for a pneumatic cell).
+    pub direction: Vector3<f64>,
+}
+
+/// All actuators of a model.
+#[derive(Debug, Clone, Serialize)]
+pub struct Actuators {
+    /// Groups.
+    pub groups: Vec<ActuatorGroup>,
+    /// Cells, grouped.
+    pub cells: Vec<Cell>,
+}
+
+impl Actuators {
+    /// Index of the group called `name`.
+    pub fn group(&self, name: &str) -> Option<usize> {
+        self.groups.iter().position(|g| g.name == name)
+    }
+
+    /// Append a body's groups (`t0`: its first tet; `volumes`: rest volume of every tet of the
+    /// model so far, global numbering).
+    pub(crate) fn push_body(
+        &mut self,
+        body: &str,
+        specs: Vec<ActuatorSpec>,
+        t0: usize,
+        num_tets: usize,
+        volumes: &[f64],
+    ) -> Result<(), SolverError> {
+        for spec in specs {
+            let what = format!("body '{body}', actuator '{}'", spec.name);
+            let bad = |m: String| Err(SolverError::Input(format!("{what}: {m}")));
+            if self.groups.iter().any(|g| g.name == spec.name) {
+                return bad("duplicate actuator name".into());
+            }
+            if !(spec.stiffness.is_finite() && spec.stiffness > 0.0) {
+                return bad(format!("stiffness must be finite and positive, got {}", spec.stiffness));
+            }
+            spec.activation.validate(&format!("{what} activation"))?;
+            if let Some(a) = spec.activation.values.iter().find(|a| !spec.kind.admits(**a)) {
+                return bad(format!("activation {a} out of range ({})", spec.kind.range()));
+            }
+            if spec.cells.is_empty() {
+                return bad("no tets".into());
+            }
+            let group = self.groups.len();
+            let c0 = self.cells.len();
+            for (t, d) in spec.cells {
+                if t >= num_tets {
+                    return bad(format!("tet {t} out of range ({num_tets} tets)"));
+                }
+                let direction = match spec.kind {
+                    ActuatorKind::Pneumatic => Vector3::zeros(),
+                    ActuatorKind::Muscle => {
+                        let n = d.norm();
+                        if !(n.is_finite() && n > 0.0) {
+                            return bad(format!(
+                                "tet {t}: fibre direction must be finite and non-zero, got {d:?}"
+                            ));
+                        }
+                        d / n
+                    }
+                };
+                self.cells.push(Cell {
+                    tet: t + t0,
+                    group,
+                    weight: spec.stiffness * volumes[t + t0],
+                    direction,
+                });
+            }
+            self.groups.push(ActuatorGroup {
+                name: spec.name,
+                body: body.to_string(),
+                kind: spec.kind,
+                stiffness: spec.stiffness,
+                activation: spec.activation,
+                cells: c0..self.cells.len(),
+            });
+        }
+        Ok(())
+    }
+}
+
+/// The tets with at least `min_shared` of their vertices in `vertices` (body numbering).
+pub fn tets_of_vertices(mesh: &TetMesh, vertices: &[usize], min_shared: usize) -> Vec<usize> {
+    let mut mark = vec![false; mesh.num_vertices()];
+    for &v in vertices {
+        if v < mark.len() {
+            mark[v] = true;
+        }
+    }
+    (0..mesh.num_tets())
+        .filter(|&t| mesh.tets[t].iter().filter(|&&v| mark[v]).count() >= min_shared)
+        .collect()
+}
+
+/// Centroid of tet `t`.
+pub fn centroid(mesh: &TetMesh, t: usize) -> Vector3<f64> {
+    mesh.tets[t].iter().map(|&v| mesh.vertices[v]).sum::<Vector3<f64>>() / 4.0
+}
+
+/// Every tet of `tets` with the same fibre direction.
+pub fn fibres_along(tets: &[usize], direction: Vector3<f64>) -> Vec<(usize, Vector3<f64>)> {
+    tets.iter().map(|&t| (t, direction)).collect()
+}
+
+/// Distance from `p` to segment `[a, b]`.
+fn segment_distance(p: &Vector3<f64>, a: &Vector3<f64>, b: &Vector3<f64>) -> f64 {
+    let ab = b - a;
+    let len2 = ab.norm_squared();
+    let s = if len2 > 0.0 {
+        ((p - a).dot(&ab) / len2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    (a + ab * s - p).norm()
+}
+
+/// Distance from the centroid of every tet to the nearest segment of `polyline`, with that
+/// segment's unit direction (`None` for a polyline without a segment of positive length).
+pub fn nearest_segments(mesh: &TetMesh, polyline: &[Vector3<f64>]) -> Option<Vec<(f64, Vector3<f64>)>> {
+    let segments: Vec<(Vector3<f64>, Vector3<f64>)> = polyline
+        .windows(2)
+        .filter(|w| (w[1] - w[0]).norm() > 0.0)
+        .map(|w| (w[0], w[1]))
+        .collect();
+    if segments.is_empty() {
+        return None;
+    }
+    Some(
+        (0..mesh.num_tets())
+            .map(|t| {
+                let c = centroid(mesh, t);
+                let (d, (a, b)) = segments
+                    .iter()
+                    .map(|s| (segment_distance(&c, &s.0, &s.1), *s))
+                    .min_by(|x, y| x.0.total_cmp(&y.0))
+                    .expect("non-empty");
+                (d, (b - a).normalize())
+            })
+            .collect(),
+    )
+}
+
+/// The tets whose centroid lies within `radius` of `polyline`, each with the direction of its
+/// nearest segment.
+pub fn fibres_from_polyline(mesh: &TetMesh, polyline: &[Vector3<f64>], radius: f64) -> Vec<(usize, Vector3<f64>)> {
+    nearest_segments(mesh, polyline)
+        .map(|near| {
+            near.into_iter()
+                .enumerate()
+                .filter(|(_, (d, _))| *d <= radius)
+                .map(|(t, (_, m))| (t, m))
+                .collect()
+        })
+        .unwrap_or_default()
+}
