@@ -11,7 +11,10 @@
 //! smallest direction shrinks, reached for targets far below the current volume), stays
 //! well conditioned at the fold between them, and keeps full relative precision in `x_k` for
 //! tiny targets. It is solved by Newton's method in `ln x_k`, safeguarded by bisection on a
-//! bracket, with the roots in cancellation-free form. Inverted input (`s_3 < 0`) is projected
+//! bracket, with the roots in cancellation-free form. For targets `a <= prod(s)/2` the branch
+//! `x_k < s_k/2` can hold several stationary points (nearly isotropic `s` compressed strongly:
+//! shrinking uniformly and collapsing the smallest direction are both local minima); unless a
+//! bound shows the product monotone there, every root is found and the nearest kept. Inverted input (`s_3 < 0`) is projected
 //! to the nearest point with all `x > 0`. Every failure is an explicit error, never a NaN.
 
 use nalgebra::{Matrix3, Vector3};
@@ -44,6 +47,9 @@ pub fn nearest_product(s: &Vector3<f64>, a: f64) -> Result<Vector3<f64>, Project
     }
     let k = (0..3).min_by(|&i, &j| s[i].abs().total_cmp(&s[j].abs())).unwrap_or(0);
     let others = [(k + 1) % 3, (k + 2) % 3];
+    if a <= 0.5 * s.product() && !collapse_branch_is_monotone(s, k, others) {
+        return nearest_of_all_roots(s, a, k, others);
+    }
     if let Some(x) = newton_from_s(s, a, k, others) {
         return Ok(x);
     }
@@ -105,6 +111,120 @@ pub fn nearest_product(s: &Vector3<f64>, a: f64) -> Result<Vector3<f64>, Project
         };
     }
     Err(ProjectionError::NoConvergence)
+}
+
+/// `h(x_k) = ln x_k + sum_j ln x_j(t(x_k)) - ln a` with `d h / d ln x_k`, and `x`.
+fn eval_k(s: &Vector3<f64>, k: usize, others: [usize; 2], ln_a: f64, xk: f64) -> (f64, f64, Vector3<f64>) {
+    let t = xk * (xk - s[k]);
+    let dt = 2.0 * xk - s[k];
+    let mut x = Vector3::zeros();
+    x[k] = xk;
+    let mut h = xk.ln() - ln_a;
+    let mut dh = 1.0 / xk;
+    for &j in &others {
+        let d = (s[j] * s[j] + 4.0 * t).max(0.0).sqrt();
+        let xj = root_plus(s[j], t);
+        x[j] = xj;
+        h += xj.ln();
+        dh += dt / (d.max(f64::MIN_POSITIVE) * xj);
+    }
+    (h, dh * xk, x)
+}
+
+/// Whether the product `p(x_k)` certainly increases on the collapse branch `x_k < s_k/2` (all
+/// `s > 0`, `s_k` the smallest), so that `h` has a single root: there
+/// `d ln p / d x_k = (1 - phi) / x_k` with `phi = x_k (s_k - 2 x_k) sum_j 1/(d_j x_j)`, and
+/// `x_k (s_k - 2 x_k) <= s_k^2/8`, `d_j >= sqrt(s_j^2 - s_k^2)`, `x_j >= s_j/2` bound `phi` below 1.
+fn collapse_branch_is_monotone(s: &Vector3<f64>, k: usize, others: [usize; 2]) -> bool {
+    let sum: f64 = others
+        .iter()
+        .map(|&j| {
+            let g = (s[j] - s[k]) * (s[j] + s[k]);
+            if g > 0.0 {
+                2.0 / (s[j] * g.sqrt())
+            } else {
+                f64::INFINITY
+            }
+        })
+        .sum();
+    sum * s[k] * s[k] / 8.0 < 1.0
+}
+
+/// Samples of `x_k` on the collapse branch `(0, s_k/2]` scanned for roots of `h`.
+const COLLAPSE_SAMPLES: usize = 64;
+
+/// All `s > 0` and `a <= prod(s)/2`. The product `p(x_k)` is increasing for `x_k >= s_k/2`
+/// (at most one root there), but on the collapse branch `x_k < s_k/2` it need not be monotone:
+/// for nearly isotropic `s` compressed strongly, "shrink uniformly" and "collapse the smallest
+/// direction" are both local minima, and a single bracketed solve may return the wrong one (or a
+/// saddle). On that branch `p <= (s_k/2) s_i s_j = prod(s)/2`, so larger targets never get here,
+/// nor do spectra whose collapse branch is monotone ([`collapse_branch_is_monotone`]).
+/// Every root is found (a scan of `h` on the branch, each sign change refined by safeguarded
+/// Newton, plus the root beyond the fold) and the nearest is kept.
+fn nearest_of_all_roots(
+    s: &Vector3<f64>,
+    a: f64,
+    k: usize,
+    others: [usize; 2],
+) -> Result<Vector3<f64>, ProjectionError> {
+    let ln_a = a.ln();
+    let eval = |y: f64| eval_k(s, k, others, ln_a, y.exp());
+    // Safeguarded Newton in y = ln x_k on a bracket whose ends have opposite signs of h.
+    let refine = |(mut ya, mut ha): (f64, f64), mut yb: f64| -> Option<Vector3<f64>> {
+        let mut y = 0.5 * (ya + yb);
+        for _ in 0..400 {
+            let (h, dh, x) = eval(y);
+            if h.abs() <= 2.0 * f64::EPSILON || (yb - ya).abs() <= 2.0 * f64::EPSILON * y.abs().max(1.0) {
+                return Some(x);
+            }
+            if (h > 0.0) == (ha > 0.0) {
+                ya = y;
+                ha = h;
+            } else {
+                yb = y;
+            }
+            let newton = y - h / dh;
+            let (lo, hi) = (ya.min(yb), ya.max(yb));
+            y = if newton.is_finite() && newton > lo && newton < hi {
+                newton
+            } else {
+                0.5 * (ya + yb)
+            };
+        }
+        None
+    };
+    let mut roots = Vec::new();
+    let fold = 0.5 * s[k];
+    // h -> -inf as x_k -> 0 (the other components stay near s_j).
+    let (mut y_prev, mut h_prev) = (f64::MIN_POSITIVE.ln(), f64::NEG_INFINITY);
+    for i in 1..=COLLAPSE_SAMPLES {
+        let y = (fold * i as f64 / COLLAPSE_SAMPLES as f64).ln();
+        let h = eval(y).0;
+        if h == 0.0 {
+            roots.push(eval(y).2);
+        } else if h_prev != 0.0 && (h > 0.0) != (h_prev > 0.0) {
+            roots.extend(refine((y_prev, h_prev), y));
+        }
+        (y_prev, h_prev) = (y, h);
+    }
+    // Beyond the fold h increases: one root iff h(fold) < 0.
+    if h_prev < 0.0 {
+        let mut y_hi = s.amax().max(a.cbrt()).max(1.0).ln() + 1.0;
+        let mut n = 0;
+        while eval(y_hi).0 <= 0.0 {
+            y_hi += 2.0;
+            n += 1;
+            if n > 400 {
+                return Err(ProjectionError::NoConvergence);
+            }
+        }
+        roots.extend(refine((y_prev, h_prev), y_hi));
+    }
+    roots
+        .into_iter()
+        .filter(|x| x.iter().all(|v| v.is_finite() && *v > 0.0))
+        .min_by(|x, y| (x - s).norm_squared().total_cmp(&(y - s).norm_squared()))
+        .ok_or(ProjectionError::NoConvergence)
 }
 
 /// Some `s_i <= 0` (inverted or flat `F`): the multiplier `t > 0` is the unknown. Every
@@ -262,7 +382,15 @@ pub(crate) fn batch_generic(
         sk[l] = v[k];
         s1[l] = v[perm[l][1]];
         s2[l] = v[perm[l][2]];
-        ok[l] = v.iter().all(|x| x.is_finite()) && sk[l] > 0.0 && s1[l] > 0.0 && s2[l] > 0.0;
+        // Targets at most half the current product may have several stationary points on the
+        // collapse branch unless it is monotone: those lanes go to the scalar solver, which
+        // compares them.
+        ok[l] = v.iter().all(|x| x.is_finite())
+            && sk[l] > 0.0
+            && s1[l] > 0.0
+            && s2[l] > 0.0
+            && (a > 0.5 * sk[l] * s1[l] * s2[l]
+                || collapse_branch_is_monotone(v, perm[l][0], [perm[l][1], perm[l][2]]));
         // Warm start x_k = root of x (x - s_k) = t, if it lies in the fast path's domain.
         let disc = sk[l] * sk[l] + 4.0 * t_warm[l];
         let warm = 0.5 * (sk[l] + disc.max(0.0).sqrt());

@@ -237,32 +237,46 @@ pub fn physics_table(r: &PhysicsReport) -> String {
     s
 }
 
-/// The table printed by `diffsoft jacobians`.
+/// The table printed by `diffsoft jacobians`: per check the largest error against dual numbers
+/// and against central differences, each with its tolerance at the worst entry
+/// (`atol + rtol |r|`), the best step and the truncation slope ("linear": no truncation error
+/// at any step; "-": an actuator check whose sweep shows no truncation side above round-off).
 pub fn jacobians_table(r: &super::jacobians::JacobiansReport) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "{:<44} {:<36} {:>10} {:>10} {:>9} {:>6} {:>5}",
-        "check", "configuration", "vs dual", "vs FD", "best h", "slope", "pass"
+        "{:<26} {:<40} {:>9} {:>9} {:>9} {:>9} {:>8} {:>6} {:>4}",
+        "check", "configuration", "vs dual", "tol", "vs FD", "tol", "best h", "slope", "pass"
     );
+    let bound = |c: &super::fd::Comparison| c.atol + c.rtol * c.reference_at_worst.abs();
     for c in &r.checks {
         let _ = writeln!(
             s,
-            "{:<44} {:<36} {:>10.2e} {:>10.2e} {:>9.1e} {:>6} {:>5}",
+            "{:<26} {:<40} {:>9.2e} {:>9.2e} {:>9.2e} {:>9.2e} {:>8.1e} {:>6} {:>4}",
             c.name,
             c.configuration,
             c.versus_dual.max_abs_error,
+            bound(&c.versus_dual),
             c.versus_fd.max_abs_error,
+            bound(&c.versus_fd),
             c.sweep.best_step,
-            // No truncation side: the map is linear in this coordinate (exact at every step).
             if c.sweep.truncation_slope.is_finite() {
                 format!("{:.2}", c.sweep.truncation_slope)
+            } else if c.condition.is_some() {
+                "-".to_string()
             } else {
+                // No truncation side: the map is linear in this coordinate (exact at every step).
                 "linear".to_string()
             },
             yes(c.pass())
         );
     }
+    let a = &r.actuator_constraints;
+    let _ = writeln!(
+        s,
+        "actuator constraints: max |prod x - a|/a = {:.1e} over {} pneumatic cases, max ||p| - (1 - a)| = {:.1e} over {} muscle cases",
+        a.max_product_rel_error, a.pneumatic_cases, a.max_fibre_length_error, a.muscle_cases
+    );
     for v in &r.verdicts {
         let _ = writeln!(s, "  [{}] {}", if v.holds { "holds" } else { "FAILS" }, v.claim);
     }
