@@ -16,7 +16,7 @@ use std::time::{Duration, Instant};
 const MAX_SPIN: Duration = Duration::from_millis(2);
 
 /// Run `f` on this thread while the other workers of the current rayon pool spin until it
-/// returns (or [`MAX_SPIN`] passes). Outside a pool, or with one thread, just runs `f`.
+/// returns (or 2 ms pass). Outside a pool, or with one thread, just runs `f`.
 pub fn keep_warm<R: Send>(f: impl FnOnce() -> R + Send) -> R {
     let threads = rayon::current_num_threads();
     if threads < 2 || rayon::current_thread_index().is_none() {
