@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{root, tmp_dir, write};
+use common::{cube_scene, root, tmp_dir};
 use diffsoft::actuator::{fibres_along, ActuatorSpec};
 use diffsoft::mesh::generate::BoxSpec;
 use diffsoft::scene::{self, LoadOptions};
@@ -160,26 +160,7 @@ fn bad_actuator_specs_are_named() {
 }
 
 fn actuator_scene(dir: &std::path::Path, actuators: &str) -> std::path::PathBuf {
-    write(
-        dir,
-        "cube.obj",
-        "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nv 1 1 1\nt 0 1 2 3\nt 1 2 3 4\n",
-    );
-    write(
-        dir,
-        "scene.json",
-        &format!(
-            r#"{{
-  "schema": "diffsoft.scene/1",
-  "time_step": 0.01,
-  "bodies": [{{
-    "name": "c", "mesh": "cube.obj", "density": 1000,
-    "material": {{ "youngs_modulus": 1e5, "poisson_ratio": 0.3 }},
-    "actuators": {actuators}
-  }}]
-}}"#
-        ),
-    )
+    cube_scene(dir, &format!(r#", "density": 1000, "actuators": {actuators}"#), "")
 }
 
 #[test]

@@ -4,7 +4,7 @@ mod common;
 
 use std::process::Command;
 
-use common::{root, tmp_dir, write};
+use common::{cube_scene, root, tmp_dir, write};
 use diffsoft::scene::{self, LoadOptions, SceneError, SceneFormat};
 use diffsoft::solver::SolverKind;
 use serde_json::Value;
@@ -71,33 +71,10 @@ fn unsupported_paper_features_are_errors_unless_passive() {
     assert!(fish.notes.iter().any(|n| n.contains("Is underwater")));
 }
 
-fn diffsoft_scene(dir: &std::path::Path, body_extra: &str, top_extra: &str) -> std::path::PathBuf {
-    write(
-        dir,
-        "cube.obj",
-        "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nv 1 1 1\nt 0 1 2 3\nt 1 2 3 4\n",
-    );
-    write(
-        dir,
-        "scene.json",
-        &format!(
-            r#"{{
-  "schema": "diffsoft.scene/1",
-  "time_step": 0.01,
-  "gravity": [0, -9.81, 0],
-  "bodies": [{{
-    "name": "c", "mesh": "cube.obj",
-    "material": {{ "youngs_modulus": 1e5, "poisson_ratio": 0.3 }}{body_extra}
-  }}]{top_extra}
-}}"#
-        ),
-    )
-}
-
 #[test]
 fn diffsoft_scenes_reject_unknown_keys_and_meaningless_values() {
     let dir = tmp_dir("scene-errors");
-    let ok = diffsoft_scene(&dir, r#", "density": 1000, "fixed": {"indices": [0]}"#, "");
+    let ok = cube_scene(&dir, r#", "density": 1000, "fixed": {"indices": [0]}"#, "");
     let s = scene::load(&ok, LoadOptions::default()).unwrap();
     assert_eq!(s.format, SceneFormat::Diffsoft);
     assert_eq!(s.settings.solver, SolverKind::Split);
@@ -140,7 +117,7 @@ fn diffsoft_scenes_reject_unknown_keys_and_meaningless_values() {
             "friction",
         ),
     ] {
-        let p = diffsoft_scene(&dir, body, top);
+        let p = cube_scene(&dir, body, top);
         let e = scene::load(&p, LoadOptions::default()).unwrap_err().to_string();
         assert!(
             e.contains("scene.json") && e.contains(expect),
@@ -148,7 +125,7 @@ fn diffsoft_scenes_reject_unknown_keys_and_meaningless_values() {
         );
     }
     // serde names the line of an unknown key.
-    let p = diffsoft_scene(&dir, r#", "density": 1000, "colour": "red""#, "");
+    let p = cube_scene(&dir, r#", "density": 1000, "colour": "red""#, "");
     let e = scene::load(&p, LoadOptions::default()).unwrap_err().to_string();
     assert!(e.contains("line 7"), "{e}");
     // A missing mesh names the mesh file.

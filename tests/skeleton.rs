@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{root, tmp_dir, write};
+use common::{cube_scene, root, tmp_dir};
 use diffsoft::mesh::generate::BoxSpec;
 use diffsoft::scene::{self, LoadOptions};
 use diffsoft::skeleton::fixed::Fixed;
@@ -316,25 +316,10 @@ fn paper_bone_lists_import() {
 }
 
 fn bone_scene(dir: &std::path::Path, bones: &str, body_extra: &str) -> std::path::PathBuf {
-    write(
+    cube_scene(
         dir,
-        "cube.obj",
-        "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nv 1 1 1\nt 0 1 2 3\nt 1 2 3 4\n",
-    );
-    write(
-        dir,
-        "scene.json",
-        &format!(
-            r#"{{
-  "schema": "diffsoft.scene/1",
-  "time_step": 0.01,
-  "bodies": [{{
-    "name": "c", "mesh": "cube.obj", "density": 1000,
-    "material": {{ "youngs_modulus": 1e5, "poisson_ratio": 0.3 }}{body_extra},
-    "skeleton": {{ "bones": [{bones}] }}
-  }}]
-}}"#
-        ),
+        &format!(r#", "density": 1000{body_extra}, "skeleton": {{ "bones": [{bones}] }}"#),
+        "",
     )
 }
 

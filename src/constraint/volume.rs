@@ -34,6 +34,51 @@ fn root_plus(s: f64, t: f64) -> f64 {
     }
 }
 
+/// Safeguarded Newton for a root of `h` on a bracket `[ya, yb]` (either order) whose ends have
+/// opposite signs of `h` (`ha` is the sign at `ya`), from `y`: Newton steps that stay inside the
+/// shrinking bracket, bisection otherwise. `eval(y) = (h, dh/dy, x)`; returns the `x` at the root.
+fn bracketed_newton(
+    eval: impl Fn(f64) -> (f64, f64, Vector3<f64>),
+    (mut ya, mut ha): (f64, f64),
+    mut yb: f64,
+    mut y: f64,
+) -> Option<Vector3<f64>> {
+    for _ in 0..400 {
+        let (h, dh, x) = eval(y);
+        if h.abs() <= 2.0 * f64::EPSILON || (yb - ya).abs() <= 2.0 * f64::EPSILON * y.abs().max(1.0) {
+            return Some(x);
+        }
+        if (h > 0.0) == (ha > 0.0) {
+            ya = y;
+            ha = h;
+        } else {
+            yb = y;
+        }
+        let newton = y - h / dh;
+        let (lo, hi) = (ya.min(yb), ya.max(yb));
+        y = if newton.is_finite() && newton > lo && newton < hi {
+            newton
+        } else {
+            0.5 * (ya + yb)
+        };
+    }
+    None
+}
+
+/// Raise `hi` in steps of 2 while `h(hi) <= 0` (at most 400 steps).
+fn raise_until_positive(h: impl Fn(f64) -> f64, mut hi: f64) -> Result<f64, ProjectionError> {
+    for _ in 0..=400 {
+        let v = h(hi);
+        // A NaN stops the search too (as a positive value would); the caller's Newton then
+        // reports it.
+        if v > 0.0 || v.is_nan() {
+            return Ok(hi);
+        }
+        hi += 2.0;
+    }
+    Err(ProjectionError::NoConvergence)
+}
+
 /// Nearest `x` (Euclidean) to `s` with `x1 x2 x3 = a` and `x > 0`.
 pub fn nearest_product(s: &Vector3<f64>, a: f64) -> Result<Vector3<f64>, ProjectionError> {
     if !(a.is_finite() && a > 0.0) {
@@ -77,40 +122,15 @@ pub fn nearest_product(s: &Vector3<f64>, a: f64) -> Result<Vector3<f64>, Project
     } else {
         0.0
     };
-    let mut y_lo = lo.max(f64::MIN_POSITIVE).ln();
-    let mut y_hi = s.amax().max(a.cbrt()).max(1.0).ln() + 1.0;
-    let mut n = 0;
-    while eval(y_hi.exp()).0 <= 0.0 {
-        y_hi += 2.0;
-        n += 1;
-        if n > 400 {
-            return Err(ProjectionError::NoConvergence);
-        }
-    }
+    let y_lo = lo.max(f64::MIN_POSITIVE).ln();
+    let y_hi = raise_until_positive(|y| eval(y.exp()).0, s.amax().max(a.cbrt()).max(1.0).ln() + 1.0)?;
     // Start from x = s when s is feasible (a solution near the identity converges in 2 steps).
-    let mut y = if s[k] > lo && s[k].ln() < y_hi {
+    let y = if s[k] > lo && s[k].ln() < y_hi {
         s[k].ln()
     } else {
         0.5 * (y_lo + y_hi)
     };
-    for _ in 0..400 {
-        let (h, dh, x) = eval(y.exp());
-        if h.abs() <= 2.0 * f64::EPSILON || y_hi - y_lo <= 2.0 * f64::EPSILON * y.abs().max(1.0) {
-            return Ok(x);
-        }
-        if h > 0.0 {
-            y_hi = y;
-        } else {
-            y_lo = y;
-        }
-        let newton = y - h / dh;
-        y = if newton.is_finite() && newton > y_lo && newton < y_hi {
-            newton
-        } else {
-            0.5 * (y_lo + y_hi)
-        };
-    }
-    Err(ProjectionError::NoConvergence)
+    bracketed_newton(|y| eval(y.exp()), (y_lo, -1.0), y_hi, y).ok_or(ProjectionError::NoConvergence)
 }
 
 /// `h(x_k) = ln x_k + sum_j ln x_j(t(x_k)) - ln a` with `d h / d ln x_k`, and `x`.
@@ -169,30 +189,7 @@ fn nearest_of_all_roots(
 ) -> Result<Vector3<f64>, ProjectionError> {
     let ln_a = a.ln();
     let eval = |y: f64| eval_k(s, k, others, ln_a, y.exp());
-    // Safeguarded Newton in y = ln x_k on a bracket whose ends have opposite signs of h.
-    let refine = |(mut ya, mut ha): (f64, f64), mut yb: f64| -> Option<Vector3<f64>> {
-        let mut y = 0.5 * (ya + yb);
-        for _ in 0..400 {
-            let (h, dh, x) = eval(y);
-            if h.abs() <= 2.0 * f64::EPSILON || (yb - ya).abs() <= 2.0 * f64::EPSILON * y.abs().max(1.0) {
-                return Some(x);
-            }
-            if (h > 0.0) == (ha > 0.0) {
-                ya = y;
-                ha = h;
-            } else {
-                yb = y;
-            }
-            let newton = y - h / dh;
-            let (lo, hi) = (ya.min(yb), ya.max(yb));
-            y = if newton.is_finite() && newton > lo && newton < hi {
-                newton
-            } else {
-                0.5 * (ya + yb)
-            };
-        }
-        None
-    };
+    let refine = |(ya, ha): (f64, f64), yb: f64| bracketed_newton(eval, (ya, ha), yb, 0.5 * (ya + yb));
     let mut roots = Vec::new();
     let fold = 0.5 * s[k];
     // h -> -inf as x_k -> 0 (the other components stay near s_j).
@@ -209,15 +206,7 @@ fn nearest_of_all_roots(
     }
     // Beyond the fold h increases: one root iff h(fold) < 0.
     if h_prev < 0.0 {
-        let mut y_hi = s.amax().max(a.cbrt()).max(1.0).ln() + 1.0;
-        let mut n = 0;
-        while eval(y_hi).0 <= 0.0 {
-            y_hi += 2.0;
-            n += 1;
-            if n > 400 {
-                return Err(ProjectionError::NoConvergence);
-            }
-        }
+        let y_hi = raise_until_positive(|y| eval(y).0, s.amax().max(a.cbrt()).max(1.0).ln() + 1.0)?;
         roots.extend(refine((y_prev, h_prev), y_hi));
     }
     roots
@@ -244,35 +233,9 @@ fn solve_in_t(s: &Vector3<f64>, a: f64) -> Result<Vector3<f64>, ProjectionError>
         (h, dh, x)
     };
     let scale = s.amax().max(a.cbrt()).max(f64::MIN_POSITIVE);
-    let mut v_lo = (f64::MIN_POSITIVE * scale * scale).ln();
-    let mut v_hi = (scale * scale).ln() + 1.0;
-    let mut n = 0;
-    while eval(v_hi.exp()).0 <= 0.0 {
-        v_hi += 2.0;
-        n += 1;
-        if n > 400 {
-            return Err(ProjectionError::NoConvergence);
-        }
-    }
-    let mut v = 0.5 * (v_lo + v_hi);
-    for _ in 0..400 {
-        let (h, dh, x) = eval(v.exp());
-        if h.abs() <= 2.0 * f64::EPSILON || v_hi - v_lo <= 2.0 * f64::EPSILON * v.abs().max(1.0) {
-            return Ok(x);
-        }
-        if h > 0.0 {
-            v_hi = v;
-        } else {
-            v_lo = v;
-        }
-        let newton = v - h / dh;
-        v = if newton.is_finite() && newton > v_lo && newton < v_hi {
-            newton
-        } else {
-            0.5 * (v_lo + v_hi)
-        };
-    }
-    Err(ProjectionError::NoConvergence)
+    let v_lo = (f64::MIN_POSITIVE * scale * scale).ln();
+    let v_hi = raise_until_positive(|v| eval(v.exp()).0, (scale * scale).ln() + 1.0)?;
+    bracketed_newton(|v| eval(v.exp()), (v_lo, -1.0), v_hi, 0.5 * (v_lo + v_hi)).ok_or(ProjectionError::NoConvergence)
 }
 
 /// Fast path: Newton on `prod x(x_k) = a` in product form, started at `x_k = s_k` (the answer

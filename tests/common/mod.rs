@@ -55,3 +55,28 @@ pub fn jittered_boxes(
                 .expect("jitter below 0.25 keeps tets valid")
         })
 }
+
+/// A diffsoft scene with one two-tet body `c` (under gravity) in `dir/scene.json`, with
+/// `body_extra` appended to the body object and `top_extra` to the top level.
+pub fn cube_scene(dir: &std::path::Path, body_extra: &str, top_extra: &str) -> std::path::PathBuf {
+    write(
+        dir,
+        "cube.obj",
+        "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nv 1 1 1\nt 0 1 2 3\nt 1 2 3 4\n",
+    );
+    write(
+        dir,
+        "scene.json",
+        &format!(
+            r#"{{
+  "schema": "diffsoft.scene/1",
+  "time_step": 0.01,
+  "gravity": [0, -9.81, 0],
+  "bodies": [{{
+    "name": "c", "mesh": "cube.obj",
+    "material": {{ "youngs_modulus": 1e5, "poisson_ratio": 0.3 }}{body_extra}
+  }}]{top_extra}
+}}"#
+        ),
+    )
+}
