@@ -39,9 +39,11 @@
 #![warn(missing_docs)]
 
 pub mod actuator;
+pub mod alloc;
 pub mod analysis;
 pub mod constraint;
 pub mod contact;
+pub mod diff;
 pub mod fem;
 pub mod mesh;
 pub mod output;

@@ -134,6 +134,50 @@ enum Command {
         #[arg(long, value_name = "NAME=VALUE")]
         activation: Vec<String>,
     },
+    /// Loss and gradient of a simulation with respect to a scalar parameter (reverse mode).
+    Grad {
+        /// Scene file (.json, diffsoft.scene/1 or a paper scene).
+        #[arg(long)]
+        scene: PathBuf,
+        /// Steps to simulate.
+        #[arg(long, default_value_t = 100)]
+        steps: usize,
+        /// Loss: final_com.x|y|z or mean_com.x|y|z.
+        #[arg(long, default_value = "final_com.y")]
+        loss: String,
+        /// Parameters to differentiate (repeatable): youngs_modulus, poisson_ratio, density,
+        /// initial_velocity.x|y|z, gravity.x|y|z.
+        #[arg(long, required = true)]
+        param: Vec<String>,
+        /// Override a parameter first, `NAME=VALUE` (repeatable; same names as --param).
+        #[arg(long, value_name = "NAME=VALUE")]
+        set: Vec<String>,
+        /// Differentiation mode.
+        #[arg(long, value_enum, default_value = "unrolled")]
+        mode: diffsoft::diff::Mode,
+        /// Override the global solver.
+        #[arg(long, value_enum)]
+        solver: Option<diffsoft::solver::SolverKind>,
+        /// Override the local-global iteration cap.
+        #[arg(long)]
+        max_iterations: Option<usize>,
+        /// Override the local-global tolerance (0: always run the cap, a smooth forward).
+        #[arg(long)]
+        tolerance: Option<f64>,
+        /// Write `{loss, gradient}` as JSON here.
+        #[arg(long)]
+        json: Option<PathBuf>,
+    },
+    /// Gradient checks (reverse mode vs finite differences and dual numbers) on the built-in
+    /// cases, writing gradients.json.
+    Gradcheck {
+        /// Steps per case.
+        #[arg(long, default_value_t = 20)]
+        steps: usize,
+        /// Write the JSON report here.
+        #[arg(long, default_value = "reports/gradcheck.json")]
+        json: PathBuf,
+    },
     /// Jacobian checks of the joints and of B = dq/dz against dual numbers and finite differences.
     Jacobians {
         /// Seed of the random configurations.
@@ -196,6 +240,9 @@ impl MeshArgs {
         Ok((loaded.mesh.scaled(self.scale), loaded.info))
     }
 }
+
+#[global_allocator]
+static ALLOC: diffsoft::alloc::Counting = diffsoft::alloc::Counting;
 
 fn main() {
     let cli = Cli::parse();
@@ -347,9 +394,163 @@ fn run(command: Command) -> Result<()> {
                 bail!("some Jacobian checks failed");
             }
         }
+        Command::Grad {
+            scene,
+            steps,
+            loss,
+            param,
+            set,
+            mode,
+            solver,
+            max_iterations,
+            tolerance,
+            json,
+        } => grad(GradArgs {
+            scene,
+            steps,
+            loss,
+            param,
+            set,
+            mode,
+            solver,
+            max_iterations,
+            tolerance,
+            json,
+        })?,
+        Command::Gradcheck { steps, json } => {
+            let root = Path::new("verification");
+            let cases = vec![
+                verify::gradients::free_body(steps)?,
+                verify::gradients::bridgesus(&root.join("paper/bridgesus/bridgesus.json"), steps)?,
+                verify::gradients::ground_contact(steps)?,
+                verify::gradients::actuated(steps)?,
+                verify::gradients::baymax_torques(&root.join("scenes/baymax_skeleton.json"), steps)?,
+            ];
+            let checks = verify::gradients::check_all(&cases, 2021);
+            let mut failed = 0;
+            for c in &checks {
+                match &c.error {
+                    Some(e) => println!("{:<16} FAILS: {e}", c.name),
+                    None => {
+                        for m in &c.modes {
+                            println!(
+                                "{:<16} {:<9} {}  worst {} : analytic {:.10e} fd {:.10e} rel {:.1e}",
+                                c.name,
+                                format!("{:?}", m.mode).to_lowercase(),
+                                match (m.mode, m.passes) {
+                                    (_, true) => "passes",
+                                    (diffsoft::diff::Mode::Implicit, false) =>
+                                        "off (informational: forward not converged)",
+                                    (_, false) => "FAILS ",
+                                },
+                                m.worst.as_deref().unwrap_or("-"),
+                                m.worst_analytic.unwrap_or(f64::NAN),
+                                m.worst_fd.unwrap_or(f64::NAN),
+                                m.worst_rel_error.unwrap_or(f64::NAN),
+                            );
+                        }
+                    }
+                }
+                failed += usize::from(!c.passes);
+            }
+            write_json(&json, &checks)?;
+            println!(
+                "wrote {} ({} of {} cases pass in unrolled mode)",
+                json.display(),
+                checks.len() - failed,
+                checks.len()
+            );
+            if failed > 0 {
+                bail!("{failed} gradient check case(s) failed");
+            }
+        }
         Command::Verify { suite, out } => {
             verify::run_suite(&suite, &out)?;
         }
+    }
+    Ok(())
+}
+
+struct GradArgs {
+    scene: PathBuf,
+    steps: usize,
+    loss: String,
+    param: Vec<String>,
+    set: Vec<String>,
+    mode: diffsoft::diff::Mode,
+    solver: Option<diffsoft::solver::SolverKind>,
+    max_iterations: Option<usize>,
+    tolerance: Option<f64>,
+    json: Option<PathBuf>,
+}
+
+/// `diffsoft grad`: overrides, one forward and one backward pass, the loss and the derivatives.
+fn grad(a: GradArgs) -> Result<()> {
+    use diffsoft::diff::{self, Controls, Options, Param};
+    let mut sc = diffsoft::scene::load(&a.scene, diffsoft::scene::LoadOptions::default())?;
+    if let Some(s) = a.solver {
+        sc.settings.solver = s;
+    }
+    if let Some(m) = a.max_iterations {
+        sc.settings.max_iterations = m;
+    }
+    if let Some(t) = a.tolerance {
+        sc.settings.tolerance = t;
+    }
+    for s in &a.set {
+        let (name, value) = s
+            .split_once('=')
+            .ok_or_else(|| anyhow::anyhow!("--set {s}: expected NAME=VALUE"))?;
+        let p: Param = name.parse()?;
+        let v: f64 = value
+            .trim()
+            .parse()
+            .map_err(|_| anyhow::anyhow!("--set {s}: '{value}' is not a number"))?;
+        p.set(&mut sc.model, v)?;
+    }
+    let params: Vec<Param> = a.param.iter().map(|p| p.parse()).collect::<Result<_, _>>()?;
+    let loss = diff::loss::by_name(&a.loss)?;
+    let g = diff::gradient(
+        &sc.model,
+        &sc.settings,
+        a.steps,
+        &Controls::default(),
+        loss.as_ref(),
+        Options::mode(a.mode),
+    )?;
+    let mut gradient = serde_json::Map::new();
+    let mut values = serde_json::Map::new();
+    println!("loss {} = {:.17e}", a.loss, g.loss);
+    for p in &params {
+        let d = p.derivative(&sc.model, &g);
+        println!(
+            "d loss / d {p} = {d:.17e}   (at {p} = {})",
+            p.get(&sc.model).map_or("-".into(), |v| v.to_string())
+        );
+        gradient.insert(p.to_string(), d.into());
+        if let Ok(v) = p.get(&sc.model) {
+            values.insert(p.to_string(), v.into());
+        }
+    }
+    println!(
+        "forward {:.1} ms, backward {:.1} ms ({:?} mode), {} forward iterations",
+        g.stats.forward_ms, g.stats.backward_ms, a.mode, g.stats.forward_iterations
+    );
+    if let Some(path) = &a.json {
+        let out = serde_json::json!({
+            "schema": "diffsoft.grad/1",
+            "crate_version": diffsoft::report::CRATE_VERSION,
+            "scene": a.scene.display().to_string(),
+            "steps": a.steps,
+            "mode": a.mode,
+            "loss_name": a.loss,
+            "loss": g.loss,
+            "parameters": values,
+            "gradient": gradient,
+            "stats": g.stats,
+        });
+        write_json(path, &out)?;
+        println!("wrote {}", path.display());
     }
     Ok(())
 }

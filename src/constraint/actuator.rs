@@ -514,6 +514,23 @@ pub fn pneumatic_target_dual<D: DualNum<Primitive = f64> + Copy>(
     }
 }
 
+/// A tet's weighted projective-dynamics target `w_rot U V^T + w_vol U X V^T` (corotated plus
+/// volume constraint, METHOD.md section 2) in dual arithmetic: an independent reference for the
+/// local step's linearization in [`crate::diff::local`].
+pub fn tet_target_dual<D: DualNum<Primitive = f64> + Copy>(
+    f: &Matrix3<D>,
+    w_rot: f64,
+    w_vol: f64,
+) -> Result<Matrix3<D>, ActuatorError> {
+    let (u, _, v) = svd_dual(f)?;
+    let rot = Matrix3::from_fn(|i, j| u[i][0] * v[j][0] + u[i][1] * v[j][1] + u[i][2] * v[j][2]);
+    let mut p = rot.map(|z| z * w_rot);
+    if w_vol > 0.0 {
+        p += pneumatic_target_dual(f, D::from(1.0))?.map(|z| z * w_vol);
+    }
+    Ok(p)
+}
+
 /// The muscle target `p = (1 - a) F m / |F m|` in dual arithmetic (independent reference for
 /// [`muscle_jacobian`]).
 pub fn muscle_target_dual<D: DualNum<Primitive = f64> + Copy>(

@@ -243,6 +243,23 @@ struct Work {
     torque: Vec<f64>,
 }
 
+/// One step's local-global iterations, recorded for the backward pass (see [`crate::diff`]).
+#[derive(Debug, Clone, Default)]
+pub struct Recording {
+    /// Keep every iterate (unrolled differentiation); otherwise only the last solve's contacts.
+    pub keep_iterates: bool,
+    /// Free-vertex iterates `x_0 .. x_N`: iteration `k` projects at `x_k` and solves for
+    /// `x_{k+1}`; `x_N` is the step's result.
+    pub iterates: Vec<Vec<Vector3<f64>>>,
+    /// Contact sets in use (one more per contact round that added contacts).
+    pub contact_sets: Vec<Vec<FreeContact>>,
+    /// Per global solve: its contact set (index into `contact_sets`) and the contact impulses
+    /// it ended with (direct solver; empty without contacts).
+    pub solves: Vec<(usize, Vec<Vector3<f64>>)>,
+    /// Whether an iterative global solver handled contacts (no impulses to record).
+    pub iterative_contacts: bool,
+}
+
 /// A running simulation.
 pub struct Simulator {
     model: Model,
@@ -260,6 +277,8 @@ pub struct Simulator {
     anderson: Option<anderson::Anderson>,
     /// Activations set through the API, per actuator group (`None`: follow the schedule).
     activation_override: Vec<Option<f64>>,
+    /// What the steps record for the backward pass (`None`: nothing).
+    recording: Option<Recording>,
 }
 
 impl std::fmt::Debug for Simulator {
@@ -399,6 +418,7 @@ impl Simulator {
         let dofs = skeleton.as_ref().map_or(0, |(sk, _)| sk.dofs);
         let groups = model.actuators.as_ref().map_or(0, |a| a.groups.len());
         Ok(Self {
+            recording: None,
             activation_override: vec![None; groups],
             local: LocalStep::for_model(&model),
             work: Work {
@@ -533,6 +553,27 @@ impl Simulator {
         self.local.actuators.as_ref().map(|a| a.activations.as_slice())
     }
 
+    /// Record every following step's iterations for the backward pass (`keep_iterates`: all
+    /// iterates, for unrolled differentiation; otherwise only the final contacts), or stop
+    /// recording (`None`).
+    pub fn record(&mut self, keep_iterates: Option<bool>) {
+        self.recording = keep_iterates.map(|k| Recording {
+            keep_iterates: k,
+            ..Default::default()
+        });
+    }
+
+    /// What the last step recorded (see [`Simulator::record`]).
+    pub fn recording(&self) -> Option<&Recording> {
+        self.recording.as_ref()
+    }
+
+    /// Set the simulated time and step counter (with [`Simulator::set_state`], to replay a step).
+    pub fn set_clock(&mut self, time: f64, step: usize) {
+        self.state.time = time;
+        self.state.step = step;
+    }
+
     /// The skeleton's current state, if the model has one.
     pub fn skeleton(&self) -> Option<&crate::skeleton::Skeleton> {
         self.skeleton.as_ref().map(|(s, _)| s)
@@ -612,6 +653,12 @@ impl Simulator {
                 }
             }
         }
+        if let Some(r) = self.recording.as_mut() {
+            r.iterates.clear();
+            r.contact_sets.clear();
+            r.solves.clear();
+            r.iterative_contacts = false;
+        }
         let tol = self.settings.tolerance * model.length_scale;
         let mut stats = StepStats {
             step: st.step + 1,
@@ -654,7 +701,15 @@ impl Simulator {
             let mut accelerated = false;
             stats.contact_rounds = round + 1;
             stats.converged = false;
+            if let Some(r) = self.recording.as_mut() {
+                if r.contact_sets.last().map(|c| c.len()) != Some(w.free_contacts.len()) {
+                    r.contact_sets.push(w.free_contacts.clone());
+                }
+            }
             for _ in 0..self.settings.max_iterations {
+                if let Some(r) = self.recording.as_mut().filter(|r| r.keep_iterates) {
+                    r.iterates.push(w.x.clone());
+                }
                 for (k, &v) in sys.free.iter().enumerate() {
                     w.full[v] = w.x[k];
                 }
@@ -749,6 +804,20 @@ impl Simulator {
                     global()?
                 };
                 stats.global_ms += tg.elapsed().as_secs_f64() * 1e3;
+                if let Some(r) = self.recording.as_mut() {
+                    if !r.keep_iterates {
+                        r.solves.clear();
+                    }
+                    let set = r.contact_sets.len() - 1;
+                    let mut impulses = Vec::new();
+                    if !w.free_contacts.is_empty() {
+                        match self.solver.as_direct() {
+                            Some(d) => impulses.extend(d.impulses().map(|(_, l)| l)),
+                            None => r.iterative_contacts = true,
+                        }
+                    }
+                    r.solves.push((set, impulses));
+                }
                 stats.iterations += 1;
                 stats.global_iterations += g.iterations;
                 stats.contact_iterations += g.contact_iterations;
@@ -823,6 +892,9 @@ impl Simulator {
             }
         }
         stats.contacts = w.contacts.len();
+        if let Some(r) = self.recording.as_mut().filter(|r| r.keep_iterates) {
+            r.iterates.push(w.x.clone());
+        }
         for (k, &v) in sys.free.iter().enumerate() {
             w.full[v] = w.x[k];
         }

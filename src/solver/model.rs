@@ -128,6 +128,12 @@ pub struct Body {
     pub material: Material,
     /// Total mass.
     pub mass: f64,
+    /// Density (kg/m^3; for a total-mass body, mass / volume).
+    pub density: f64,
+    /// Whether gravity acts on it.
+    pub gravity: bool,
+    /// Whether its volume constraint is on.
+    pub volume_constraint: bool,
 }
 
 /// For each vertex, the tets that contain it and its local index there (CSR).
@@ -414,6 +420,9 @@ impl ModelBuilder {
                 tets: t0..t0 + b.mesh.num_tets(),
                 material: b.material,
                 mass: body_mass,
+                density: rho,
+                gravity: b.gravity,
+                volume_constraint: b.volume_constraint,
             });
         }
         if fixed.iter().all(|&f| f) {

@@ -4,6 +4,7 @@
 
 pub mod actuators;
 pub mod fd;
+pub mod gradients;
 pub mod jacobians;
 pub mod physics;
 pub mod skeleton;
@@ -727,7 +728,27 @@ pub fn run_suite(suite_path: &Path, out: &Path) -> Result<SuiteBoundsReport> {
     write_json(out.join("actuators.json"), &act)?;
     print!("{}", actuators::table(&act));
     println!(
-        "wrote {}, {}, {}, {}, {}, t_scaling.svg, cantilever.svg, skeleton_*.svg, actuator frames and {} sweep plots in {:.1} s",
+        "\ngradient checks (unrolled reverse mode vs central differences, rtol {:e}):",
+        gradients::RTOL
+    );
+    let gs = &suite.gradients;
+    let grad = gradients::study(
+        &gradients::Inputs {
+            bridgesus: &base.join(&gs.bridgesus),
+            baymax_skeleton: &base.join(&gs.baymax_skeleton),
+            memory_scene: &base.join(&gs.memory_scene),
+            memory_steps: &gs.memory_steps,
+            steps: gs.steps,
+            sysid_steps: gs.sysid_steps,
+        },
+        out,
+    )?;
+    write_json(out.join("gradients.json"), &grad)?;
+    for v in &grad.verdicts {
+        println!("  [{}] {}", if v.holds { "holds" } else { "FAILS" }, v.claim);
+    }
+    println!(
+        "wrote {}, {}, {}, {}, {}, gradients.json, t_scaling.svg, cantilever.svg, skeleton_*.svg, gradient_cost.svg, actuator frames and {} sweep plots in {:.1} s",
         path.display(),
         out.join("jacobians.json").display(),
         out.join("physics.json").display(),

@@ -23,6 +23,26 @@ pub struct Suite {
     pub skeleton: SkeletonSuite,
     /// The actuator study (seed Appendix D).
     pub actuators: ActuatorSuite,
+    /// Gradient checks, system identification, accuracy against cost, memory (METHOD.md 7).
+    pub gradients: GradientSuite,
+}
+
+/// The gradient study.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GradientSuite {
+    /// The bridgesus scene (paper format), relative to the suite file.
+    pub bridgesus: PathBuf,
+    /// The Baymax skeleton scene.
+    pub baymax_skeleton: PathBuf,
+    /// Scene of the memory study.
+    pub memory_scene: PathBuf,
+    /// Horizons of the memory study.
+    pub memory_steps: Vec<usize>,
+    /// Steps of each check.
+    pub steps: usize,
+    /// Steps of the system identification.
+    pub sysid_steps: usize,
 }
 
 /// The actuator study: static checks plus the paper's drone and octopus scenes.

@@ -1,0 +1,208 @@
+//! Derivatives of the contact solve (METHOD.md section 4) for the backward pass.
+//!
+//! The direct solver's global step with contacts returns `x = A^-1 (r + E lambda)`, where the
+//! impulses are the fixed point of the projected Gauss-Seidel:
+//! `lambda_j = Pi_j(x_j - lambda_j / w_j)`, `Pi_j` the Coulomb cone projection
+//! ([`crate::contact::project`]) and `w_j = 1 / (A^-1)_{jj}`. Linearizing at that fixed point,
+//! with `D_j = dPi_j/dx_hat` and `G_j = dPi_j/d anchor` (both 3x3, zero for separating
+//! contacts, `-w I` and `w P_T` for sticking ones) and the Delassus entries
+//! `Delta_ij = (A^-1)_{c_i c_j}`,
+//!
+//! `(I + D/w - D Delta) d lambda = D E^T A^-1 dr + G d anchor`.
+//!
+//! The adjoint of `x` therefore maps to `r_bar = z + A^-1 E D^T mu`, with `z = A^-1 x_bar` and
+//! `mu` the solution of the transposed system `mu_i + D_i^T mu_i / w_i - sum_j Delta_ij D_j^T mu_j = z_{c_i}`,
+//! solved by Gauss-Seidel (with `w_i = 1/Delta_ii` the diagonal terms cancel: for sticking
+//! contacts this is Gauss-Seidel on the SPD Delassus system, the forward PGS's own
+//! convergence); the anchors (start-of-step positions) receive `G_j^T mu_j`.
+//! Plane normals and points are constant; for triangle-mesh obstacles their change with the
+//! closest point is ignored (exact only for planes).
+
+use nalgebra::{Matrix3, Vector3};
+
+use crate::contact::Contact;
+use crate::solver::direct::Direct;
+use crate::solver::global::FreeContact;
+
+use super::DiffError;
+
+/// `(dlambda/dx_hat, dlambda/d anchor)` of the Coulomb cone projection at `x_hat`.
+pub fn project_jacobian(x_hat: &Vector3<f64>, w: f64, c: &Contact) -> (Matrix3<f64>, Matrix3<f64>) {
+    let n = c.normal;
+    let gap = n.dot(&(x_hat - c.point));
+    if gap >= 0.0 {
+        return (Matrix3::zeros(), Matrix3::zeros());
+    }
+    let lambda_n = -w * gap;
+    let p = Matrix3::identity() - n * n.transpose();
+    let stick = -w * (p * (x_hat - c.anchor));
+    let sn = stick.norm();
+    if sn <= c.friction * lambda_n {
+        (-Matrix3::identity() * w, p * w)
+    } else {
+        // lambda = n lambda_n + mu lambda_n u, u = stick / |stick|.
+        let u = stick / sn;
+        let du = (Matrix3::identity() - u * u.transpose()) / sn; // d u / d stick
+        let dln = -w * n.transpose(); // d lambda_n / d x_hat
+        let d = (n + u * c.friction) * dln + du * (c.friction * lambda_n) * (-w * p);
+        let g = du * (c.friction * lambda_n) * (w * p);
+        (d, g)
+    }
+}
+
+/// The adjoint of one global solve with contacts (see the module docs).
+#[derive(Debug, Default)]
+pub struct ContactAdjoint {
+    d: Vec<Matrix3<f64>>,
+    g: Vec<Matrix3<f64>>,
+    mu: Vec<Vector3<f64>>,
+    rhs: Vec<Vector3<f64>>,
+    delta: Vec<f64>,
+    /// Gauss-Seidel sweeps used, summed.
+    pub sweeps: usize,
+    /// Largest final relative residual of the transposed contact system.
+    pub worst_residual: f64,
+}
+
+impl ContactAdjoint {
+    /// Given `z = A^-1 x_bar` (in place, free numbering), the contacts and the impulses they ended
+    /// with and the solution `x` of the solve: turn `z` into `r_bar` and add the anchors'
+    /// adjoints to `anchor_bar` (global vertex numbering).
+    #[allow(clippy::too_many_arguments)]
+    pub fn apply(
+        &mut self,
+        direct: &mut Direct,
+        contacts: &[FreeContact],
+        impulses: &[Vector3<f64>],
+        x: &[Vector3<f64>],
+        z: &mut [Vector3<f64>],
+        anchor_bar: &mut [Vector3<f64>],
+        tolerance: f64,
+        max_sweeps: usize,
+    ) -> Result<(), DiffError> {
+        let m = contacts.len();
+        if m == 0 {
+            return Ok(());
+        }
+        if impulses.len() != m {
+            return Err(DiffError::Unsupported(
+                "contacts were solved by an iterative global solver: gradients with contact need `solver: direct`"
+                    .into(),
+            ));
+        }
+        self.delta.clear();
+        for ci in contacts {
+            let col = direct.inverse_column(ci.index);
+            for cj in contacts {
+                self.delta.push(col[cj.index]);
+            }
+        }
+        self.d.clear();
+        self.g.clear();
+        for (j, (c, l)) in contacts.iter().zip(impulses).enumerate() {
+            let djj = self.delta[j * m + j];
+            let w = 1.0 / djj;
+            let x_hat = x[c.index] - l * djj;
+            let (d, g) = project_jacobian(&x_hat, w, &c.contact);
+            self.d.push(d);
+            self.g.push(g);
+        }
+        self.rhs.clear();
+        self.rhs.extend(contacts.iter().map(|c| z[c.index]));
+        self.mu.clear();
+        self.mu.extend_from_slice(&self.rhs);
+        // v_j = D_j^T mu_j; mu_i = rhs_i + sum_{j != i} Delta_ij v_j (Gauss-Seidel).
+        let scale = self
+            .rhs
+            .iter()
+            .map(|v| v.amax())
+            .fold(0.0, f64::max)
+            .max(f64::MIN_POSITIVE);
+        let mut residual = f64::INFINITY;
+        let mut v: Vec<Vector3<f64>> = self.mu.iter().zip(&self.d).map(|(mu, d)| d.transpose() * mu).collect();
+        let mut sweeps = 0;
+        while sweeps < max_sweeps {
+            sweeps += 1;
+            let mut change = 0.0f64;
+            for i in 0..m {
+                let mut acc = self.rhs[i];
+                let row = &self.delta[i * m..(i + 1) * m];
+                for (j, vj) in v.iter().enumerate() {
+                    if j != i {
+                        acc += vj * row[j];
+                    }
+                }
+                change = change.max((acc - self.mu[i]).amax());
+                self.mu[i] = acc;
+                v[i] = self.d[i].transpose() * acc;
+            }
+            residual = change / scale.max(self.mu.iter().map(|v| v.amax()).fold(0.0, f64::max));
+            if residual <= tolerance {
+                break;
+            }
+        }
+        self.sweeps += sweeps;
+        self.worst_residual = self.worst_residual.max(residual);
+        if !residual.is_finite() {
+            return Err(DiffError::NotDifferentiable(
+                "the linearized contact system diverged".into(),
+            ));
+        }
+        for (j, c) in contacts.iter().enumerate() {
+            anchor_bar[c.contact.vertex] += self.g[j].transpose() * self.mu[j];
+            if v[j] != Vector3::zeros() {
+                let col = direct.inverse_column(c.index);
+                for (zi, a) in z.iter_mut().zip(col) {
+                    *zi += v[j] * *a;
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::contact::project;
+
+    fn contact(mu: f64) -> Contact {
+        Contact {
+            vertex: 0,
+            obstacle: 0,
+            normal: Vector3::new(0.2, 1.0, -0.1).normalize(),
+            point: Vector3::new(0.0, 0.01, 0.0),
+            anchor: Vector3::new(0.03, 0.1, 0.02),
+            friction: mu,
+        }
+    }
+
+    /// Both Jacobians match central differences in the stick and slide states.
+    #[test]
+    fn projection_jacobians_match_differences() {
+        for (x_hat, mu) in [
+            (Vector3::new(0.04, -0.1, 0.01), 0.8), // stick
+            (Vector3::new(0.9, -0.1, 0.3), 0.5),   // slide
+            (Vector3::new(-0.4, -0.02, 0.7), 0.1), // slide
+        ] {
+            let mut c = contact(mu);
+            let w = 2.5;
+            let (d, g) = project_jacobian(&x_hat, w, &c);
+            let e = 1e-7;
+            for k in 0..3 {
+                let mut dx = Vector3::zeros();
+                dx[k] = e;
+                let fd = (project(&(x_hat + dx), w, &c).0 - project(&(x_hat - dx), w, &c).0) / (2.0 * e);
+                assert!((fd - d.column(k)).norm() < 1e-6, "{fd} vs {}", d.column(k));
+                let a0 = c.anchor;
+                c.anchor = a0 + dx;
+                let p = project(&x_hat, w, &c).0;
+                c.anchor = a0 - dx;
+                let m = project(&x_hat, w, &c).0;
+                c.anchor = a0;
+                let fd = (p - m) / (2.0 * e);
+                assert!((fd - g.column(k)).norm() < 1e-6, "{fd} vs {}", g.column(k));
+            }
+        }
+    }
+}

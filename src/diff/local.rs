@@ -1,0 +1,385 @@
+//! Derivatives of the local step (METHOD.md Eq. 3) for the backward pass.
+//!
+//! A tet's weighted projection `p(F) = w_rot U V^T + w_vol U X(sigma) V^T` is an isotropic
+//! matrix function of `F = U diag(sigma) V^T`. Its differential, with `G = U^T dF V`, is
+//! `dp = U H V^T` where `H_ii = w_vol (J dsigma)_i` (`J = dX/dsigma` of the nearest product,
+//! `dsigma = diag G`) and, for `i != j`,
+//! `H_ij = c_sym (G_ij + G_ji)/2 + c_anti (G_ij - G_ji)/2` with
+//! `c_sym = w_vol (x_i - x_j)/(s_i - s_j)`, `c_anti = w_rot 2/(s_i + s_j) + w_vol (x_i + x_j)/(s_i + s_j)`
+//! (the spectral-function differential of Lewis and Sendov). A projection onto a set is the
+//! gradient of `|F|^2/2 - dist(F, C)^2/2`, so `dp/dF` is symmetric: the same routine gives the
+//! Jacobian-vector and the vector-Jacobian product (a unit test checks the symmetry).
+//!
+//! The local step enters the right-hand side as `J p = sum_t p_t a_t` (gathered per vertex), and
+//! `F_t(x) = sum_a x_a a_{t,a}^T`, so the adjoint of `p_t` given the adjoint `y` of the
+//! right-hand side is `F_t(y)`: the backward of one iteration is "deformation gradient of `y`,
+//! apply `dp/dF`, gather", the forward's own data path.
+
+use nalgebra::{Matrix3, Vector3};
+use rayon::prelude::*;
+
+use crate::actuator::ActuatorKind;
+use crate::constraint::actuator::{muscle_jacobian, nearest_product_jacobian, pair_coefficients};
+use crate::constraint::svd::{svd3_warm, svd3_warm_batch, Svd3, LANES};
+use crate::constraint::volume;
+use crate::solver::Model;
+
+use super::DiffError;
+
+/// The derivative of one tet's weighted projection at one `F`.
+#[derive(Debug, Clone, Copy)]
+pub struct TetLinearization {
+    /// Left rotation.
+    pub u: Matrix3<f64>,
+    /// Right rotation.
+    pub v: Matrix3<f64>,
+    /// Diagonal block `w_vol J` (acts on `diag G`).
+    pub diag: Matrix3<f64>,
+    /// `(c_sym, c_anti)` for the pairs (0,1), (0,2), (1,2).
+    pub pairs: [(f64, f64); 3],
+    /// The rotation target `U V^T` (for the `w_rot` gradient).
+    pub rotation: Matrix3<f64>,
+    /// The volume target `U X V^T` (for the `w_vol` gradient; zero without volume constraint).
+    pub volume: Matrix3<f64>,
+}
+
+const PAIRS: [(usize, usize); 3] = [(0, 1), (0, 2), (1, 2)];
+
+impl TetLinearization {
+    /// Linearize `w_rot U V^T + w_vol U X V^T` at the SVD of `F`. Fails where the projection
+    /// is not differentiable (`s_i + s_j = 0`, a volume projection on a branch point).
+    pub fn new(svd: &Svd3, w_rot: f64, w_vol: f64) -> Result<Self, &'static str> {
+        let x = if w_vol > 0.0 {
+            Some(volume::nearest_product(&svd.sigma, 1.0).map_err(|_| "volume projection failed")?)
+        } else {
+            None
+        };
+        Self::with_target(svd, x, w_rot, w_vol)
+    }
+
+    /// [`TetLinearization::new`] with the volume target's singular values `x` already computed
+    /// (`None` without volume constraint).
+    pub fn with_target(svd: &Svd3, x: Option<Vector3<f64>>, w_rot: f64, w_vol: f64) -> Result<Self, &'static str> {
+        let s = svd.sigma;
+        let mut pairs = [(0.0, 0.0); 3];
+        for (k, &(i, j)) in PAIRS.iter().enumerate() {
+            let den = s[i] + s[j];
+            if den == 0.0 || !den.is_finite() {
+                return Err("two singular values sum to zero (rotation not differentiable)");
+            }
+            pairs[k] = (0.0, w_rot * 2.0 / den);
+        }
+        let mut diag = Matrix3::zeros();
+        let mut volume = Matrix3::zeros();
+        if let (true, Some(x)) = (w_vol > 0.0, x) {
+            let (jac, _) =
+                nearest_product_jacobian(&s, &x, 1.0).map_err(|_| "volume projection not differentiable here")?;
+            diag = jac * w_vol;
+            for (k, &(i, j)) in PAIRS.iter().enumerate() {
+                let (cs, ca) = pair_coefficients(x[i], x[j], s[i], s[j])
+                    .map_err(|_| "volume projection not differentiable here")?;
+                pairs[k].0 += w_vol * cs;
+                pairs[k].1 += w_vol * ca;
+            }
+            volume = svd.compose(&x);
+        }
+        Ok(Self {
+            u: svd.u,
+            v: svd.v,
+            diag,
+            pairs,
+            rotation: svd.rotation(),
+            volume,
+        })
+    }
+
+    /// `dp = (dp/dF) dF` (equal to `(dp/dF)^T dF`: the Jacobian is symmetric).
+    #[inline]
+    pub fn apply(&self, df: &Matrix3<f64>) -> Matrix3<f64> {
+        let g = self.u.transpose() * df * self.v;
+        let ds = Vector3::new(g[(0, 0)], g[(1, 1)], g[(2, 2)]);
+        let dd = self.diag * ds;
+        let mut h = Matrix3::from_diagonal(&dd);
+        for (k, &(i, j)) in PAIRS.iter().enumerate() {
+            let (cs, ca) = self.pairs[k];
+            let (sym, anti) = (0.5 * (g[(i, j)] + g[(j, i)]), 0.5 * (g[(i, j)] - g[(j, i)]));
+            h[(i, j)] = cs * sym + ca * anti;
+            h[(j, i)] = cs * sym - ca * anti;
+        }
+        self.u * h * self.v.transpose()
+    }
+}
+
+/// `F_t(x) = sum_a x_a a_{t,a}^T` (the deformation gradient of tet `t`, or the adjoint of its
+/// projection when `x` is an adjoint).
+#[inline]
+pub fn deformation(model: &Model, t: usize, x: &[Vector3<f64>]) -> Matrix3<f64> {
+    let [i0, i1, i2, i3] = model.tets[t];
+    let x0 = x[i0];
+    Matrix3::from_columns(&[x[i1] - x0, x[i2] - x0, x[i3] - x0]) * model.fem.geometry[t].p_inv
+}
+
+/// Per-tet and per-cell buffers of the local step's backward pass.
+#[derive(Debug, Clone)]
+pub struct LocalAdjoint {
+    /// `dp_t` per tet (what is gathered).
+    pub dp: Vec<Matrix3<f64>>,
+    /// Warm start of the SVDs.
+    pub v_warm: Vec<Matrix3<f64>>,
+    /// Cached linearizations (implicit mode: one point, many applications).
+    pub cache: Vec<TetLinearization>,
+    /// `dp` per actuator cell.
+    pub dp_cells: Vec<Matrix3<f64>>,
+    /// Activation adjoint per actuator cell.
+    pub da_cells: Vec<f64>,
+}
+
+impl LocalAdjoint {
+    /// Buffers for `model`.
+    pub fn new(model: &Model) -> Self {
+        let cells = model.actuators.as_ref().map_or(0, |a| a.cells.len());
+        Self {
+            dp: vec![Matrix3::zeros(); model.tets.len()],
+            v_warm: vec![Matrix3::identity(); model.tets.len()],
+            cache: Vec::new(),
+            dp_cells: vec![Matrix3::zeros(); cells],
+            da_cells: vec![0.0; cells],
+        }
+    }
+
+    /// Linearize every tet at `q` into the cache (implicit mode).
+    pub fn linearize(&mut self, model: &Model, q: &[Vector3<f64>]) -> Result<(), DiffError> {
+        let (w_rot, w_vol) = (&model.w_rot, &model.w_vol);
+        let v_warm = &mut self.v_warm;
+        let out: Result<Vec<TetLinearization>, DiffError> = v_warm
+            .par_iter_mut()
+            .enumerate()
+            .with_min_len(64)
+            .map(|(t, vw)| {
+                let svd = svd3_warm(&deformation(model, t, q), vw);
+                *vw = svd.v;
+                TetLinearization::new(&svd, w_rot[t], w_vol[t])
+                    .map_err(|m| DiffError::NotDifferentiable(format!("tet {t}: {m}")))
+            })
+            .collect();
+        self.cache = out?;
+        Ok(())
+    }
+
+    /// The backward of one local step at positions `q` (all vertices): given the adjoint `y` of
+    /// the gathered right-hand side (all vertices, zero at fixed ones), write
+    /// `out = J (dp/dq)^T J^T y` per vertex and add the weights' adjoints
+    /// `<F_t(y), U V^T> - <F_t(y), F_t(x_next)>` to `g_rot[t]` and
+    /// `<F_t(y), U X V^T> - <F_t(y), F_t(x_next)>` to `g_vol[t]` (right-hand side minus matrix
+    /// term of the solve whose solution is `x_next`), and the activations'
+    /// adjoints to `g_act[group]`. With `cached`, uses the linearizations of [`Self::linearize`]
+    /// instead of recomputing them at `q`.
+    #[allow(clippy::too_many_arguments)]
+    pub fn backward(
+        &mut self,
+        model: &Model,
+        q: &[Vector3<f64>],
+        y: &[Vector3<f64>],
+        x_next: &[Vector3<f64>],
+        activations: &[f64],
+        cached: bool,
+        out: &mut [Vector3<f64>],
+        g_rot: &mut [f64],
+        g_vol: &mut [f64],
+        g_act: &mut [f64],
+    ) -> Result<(), DiffError> {
+        let (w_rot, w_vol) = (&model.w_rot, &model.w_vol);
+        let cache = &self.cache;
+        let any_vol = w_vol.iter().any(|&w| w > 0.0);
+        let fail = |t: usize, m: &str| DiffError::NotDifferentiable(format!("tet {t}: {m}"));
+        // LANES tets at a time: batched (AVX2) SVD and volume projection, as the forward.
+        self.dp
+            .par_chunks_mut(LANES)
+            .zip(self.v_warm.par_chunks_mut(LANES))
+            .zip(g_rot.par_chunks_mut(LANES).zip(g_vol.par_chunks_mut(LANES)))
+            .enumerate()
+            .with_min_len(8)
+            .try_for_each(|(chunk, ((dp, vw), (gr, gv)))| {
+                let t0 = chunk * LANES;
+                let len = dp.len();
+                let mut process = |k: usize, lin: &TetLinearization| {
+                    let t = t0 + k;
+                    let fy = deformation(model, t, y);
+                    dp[k] = lin.apply(&fy);
+                    // d(J p)/dw minus dA/dw x_next (L_t = w A_t^T A_t per weight).
+                    let a_term = fy.dot(&deformation(model, t, x_next));
+                    gr[k] += fy.dot(&lin.rotation) - a_term;
+                    gv[k] += fy.dot(&lin.volume) - a_term;
+                };
+                if cached {
+                    for k in 0..len {
+                        process(k, &cache[t0 + k]);
+                    }
+                } else {
+                    let f: [Matrix3<f64>; LANES] = std::array::from_fn(|k| {
+                        if k < len {
+                            deformation(model, t0 + k, q)
+                        } else {
+                            Matrix3::identity()
+                        }
+                    });
+                    let v0: [Matrix3<f64>; LANES] =
+                        std::array::from_fn(|k| if k < len { vw[k] } else { Matrix3::identity() });
+                    if !f.iter().all(|m| m.iter().all(|x| x.is_finite())) {
+                        return Err(fail(t0, "non-finite deformation gradient in this chunk"));
+                    }
+                    let svds = svd3_warm_batch(&f, &v0);
+                    let xs = if any_vol {
+                        let sig: [Vector3<f64>; LANES] = std::array::from_fn(|k| svds[k].sigma);
+                        let mut tw = [0.0; LANES];
+                        Some(
+                            volume::nearest_product_batch_warm(&sig, 1.0, &mut tw)
+                                .map_err(|e| fail(t0, &e.to_string()))?,
+                        )
+                    } else {
+                        None
+                    };
+                    for k in 0..len {
+                        vw[k] = svds[k].v;
+                        let t = t0 + k;
+                        let x = xs.as_ref().filter(|_| w_vol[t] > 0.0).map(|x| x[k]);
+                        let lin =
+                            TetLinearization::with_target(&svds[k], x, w_rot[t], w_vol[t]).map_err(|m| fail(t, m))?;
+                        process(k, &lin);
+                    }
+                }
+                Ok::<(), DiffError>(())
+            })?;
+        if let Some(act) = model.actuators.as_ref() {
+            self.cells_backward(model, act, q, y, activations)?;
+            for (c, dp) in act.cells.iter().zip(&self.dp_cells) {
+                self.dp[c.tet] += dp;
+            }
+            for (c, da) in act.cells.iter().zip(&self.da_cells) {
+                g_act[c.group] += da;
+            }
+        }
+        gather(model, &self.dp, out);
+        Ok(())
+    }
+
+    fn cells_backward(
+        &mut self,
+        model: &Model,
+        act: &crate::actuator::Actuators,
+        q: &[Vector3<f64>],
+        y: &[Vector3<f64>],
+        activations: &[f64],
+    ) -> Result<(), DiffError> {
+        self.dp_cells
+            .par_iter_mut()
+            .zip(self.da_cells.par_iter_mut())
+            .zip(act.cells.par_iter())
+            .with_min_len(64)
+            .try_for_each(|((dp, da), c)| {
+                let group = &act.groups[c.group];
+                let a = activations[c.group];
+                let fail = |e: crate::constraint::actuator::ActuatorError| {
+                    DiffError::NotDifferentiable(format!("actuator '{}', tet {}: {e}", group.name, c.tet))
+                };
+                let f = deformation(model, c.tet, q);
+                let fy = deformation(model, c.tet, y);
+                match group.kind {
+                    ActuatorKind::Pneumatic => {
+                        // The pneumatic target is the volume projection with product `a`.
+                        let svd = crate::constraint::svd::svd3(&f);
+                        let x = volume::nearest_product(&svd.sigma, a).map_err(|e| {
+                            DiffError::NotDifferentiable(format!("actuator '{}', tet {}: {e}", group.name, c.tet))
+                        })?;
+                        let (jac, dxda) = nearest_product_jacobian(&svd.sigma, &x, a).map_err(fail)?;
+                        let mut pairs = [(0.0, 0.0); 3];
+                        for (k, &(i, j)) in PAIRS.iter().enumerate() {
+                            let (cs, ca) = pair_coefficients(x[i], x[j], svd.sigma[i], svd.sigma[j]).map_err(fail)?;
+                            pairs[k] = (c.weight * cs, c.weight * ca);
+                        }
+                        let lin = TetLinearization {
+                            u: svd.u,
+                            v: svd.v,
+                            diag: jac * c.weight,
+                            pairs,
+                            rotation: Matrix3::zeros(),
+                            volume: Matrix3::zeros(),
+                        };
+                        *dp = lin.apply(&fy);
+                        *da = c.weight * fy.dot(&svd.compose(&dxda));
+                    }
+                    ActuatorKind::Muscle => {
+                        // p m^T w with p = (1 - a) F m / |F m|; dp/dF is symmetric in the
+                        // Frobenius product (a projection onto a sphere), so J^T = J.
+                        let m = c.direction;
+                        let jac = muscle_jacobian(&f, &m, a).map_err(fail)?;
+                        let dfm = fy * m;
+                        let l = (f * m).norm();
+                        let n = (f * m) / l;
+                        let dpv = (dfm - n * n.dot(&dfm)) * ((1.0 - a) / l);
+                        *dp = dpv * m.transpose() * c.weight;
+                        *da = c.weight * dfm.dot(&jac.wrt_a);
+                    }
+                }
+                Ok(())
+            })
+    }
+}
+
+/// `out[v] = sum over tets t of v: dp_t a_{t, corner(v)}`.
+pub fn gather(model: &Model, dp: &[Matrix3<f64>], out: &mut [Vector3<f64>]) {
+    let geo = &model.fem.geometry;
+    let adj = &model.vertex_tets;
+    out.par_iter_mut().enumerate().with_min_len(256).for_each(|(v, r)| {
+        let mut s = Vector3::zeros();
+        for &(t, a) in adj.of(v) {
+            s += dp[t as usize] * geo[t as usize].grads[a as usize];
+        }
+        *r = s;
+    });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::constraint::svd::svd3;
+
+    fn mat(seed: u64) -> Matrix3<f64> {
+        let mut s = seed;
+        Matrix3::from_fn(|_, _| {
+            s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            ((s >> 11) as f64 / (1u64 << 53) as f64) - 0.5
+        })
+    }
+
+    /// The projection's Jacobian is symmetric: <J a, b> = <a, J b>.
+    #[test]
+    fn linearization_is_symmetric() {
+        for k in 0..50 {
+            let f = Matrix3::identity() + mat(k) * 0.8;
+            let lin = TetLinearization::new(&svd3(&f), 2.0, 0.7).unwrap();
+            let (a, b) = (mat(1000 + k), mat(2000 + k));
+            let (l, r) = (lin.apply(&a).dot(&b), a.dot(&lin.apply(&b)));
+            assert!((l - r).abs() <= 1e-12 * (l.abs() + r.abs() + 1.0), "{l} vs {r}");
+        }
+    }
+
+    /// The linearization matches central differences of the projection.
+    #[test]
+    fn linearization_matches_differences() {
+        let target = |f: &Matrix3<f64>| {
+            let s = svd3(f);
+            let x = volume::nearest_product(&s.sigma, 1.0).unwrap();
+            s.rotation() * 2.0 + s.compose(&x) * 0.7
+        };
+        for k in 0..20 {
+            let f = Matrix3::identity() + mat(k) * 0.6;
+            let d = mat(500 + k);
+            let lin = TetLinearization::new(&svd3(&f), 2.0, 0.7).unwrap();
+            let e = 1e-6;
+            let fd = (target(&(f + d * e)) - target(&(f - d * e))) / (2.0 * e);
+            let an = lin.apply(&d);
+            assert!((fd - an).norm() <= 1e-7 * (1.0 + an.norm()), "{fd} vs {an}");
+        }
+    }
+}

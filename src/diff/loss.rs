@@ -1,0 +1,262 @@
+//! Scalar losses of a trajectory, composable: every loss is a sum of per-step terms of the
+//! state after each step `n = 1..=N`, with their gradients.
+
+use nalgebra::Vector3;
+
+use crate::solver::Model;
+
+use super::DiffError;
+
+/// Gradients a loss term writes (added to, never overwritten).
+#[derive(Debug)]
+pub struct LossGrad<'a> {
+    /// `dL/dq` per vertex.
+    pub q: &'a mut [Vector3<f64>],
+    /// `dL/dv` per vertex.
+    pub v: &'a mut [Vector3<f64>],
+    /// `dL/dm` per vertex (losses weighted by mass, such as the centre of mass).
+    pub mass: &'a mut [f64],
+}
+
+/// A scalar loss of a trajectory.
+pub trait Loss: Send + Sync {
+    /// The term of step `n` of `steps` (state `q`, `v` after the step) with its gradient added
+    /// to `grad`.
+    fn term(
+        &self,
+        model: &Model,
+        n: usize,
+        steps: usize,
+        q: &[Vector3<f64>],
+        v: &[Vector3<f64>],
+        grad: LossGrad<'_>,
+    ) -> f64;
+
+    /// A short name for reports.
+    fn name(&self) -> String;
+}
+
+/// Centre of mass: of the final state, or averaged over steps `1..=N`.
+#[derive(Debug, Clone)]
+pub struct CenterOfMass {
+    /// Component (0, 1, 2) or `None` for the weighted sum `direction . com`.
+    pub direction: Vector3<f64>,
+    /// Average over all steps instead of the final state.
+    pub time_average: bool,
+    /// Restrict to these vertices (`None`: all).
+    pub vertices: Option<Vec<usize>>,
+}
+
+impl Loss for CenterOfMass {
+    fn term(
+        &self,
+        model: &Model,
+        n: usize,
+        steps: usize,
+        q: &[Vector3<f64>],
+        _v: &[Vector3<f64>],
+        g: LossGrad<'_>,
+    ) -> f64 {
+        let weight = if self.time_average {
+            1.0 / steps as f64
+        } else if n == steps {
+            1.0
+        } else {
+            return 0.0;
+        };
+        let all: Vec<usize>;
+        let verts = match &self.vertices {
+            Some(v) => v.as_slice(),
+            None => {
+                all = (0..q.len()).collect();
+                &all
+            }
+        };
+        let total: f64 = verts.iter().map(|&i| model.mass[i]).sum();
+        let com: Vector3<f64> = verts.iter().map(|&i| q[i] * model.mass[i]).sum::<Vector3<f64>>() / total;
+        let value = self.direction.dot(&com);
+        for &i in verts {
+            g.q[i] += self.direction * (weight * model.mass[i] / total);
+            g.mass[i] += weight * self.direction.dot(&(q[i] - com)) / total;
+        }
+        weight * value
+    }
+
+    fn name(&self) -> String {
+        format!(
+            "{}_com{}",
+            if self.time_average { "mean" } else { "final" },
+            axis_suffix(&self.direction)
+        )
+    }
+}
+
+fn axis_suffix(d: &Vector3<f64>) -> String {
+    for (k, s) in [".x", ".y", ".z"].iter().enumerate() {
+        if *d == Vector3::ith(k, 1.0) {
+            return s.to_string();
+        }
+    }
+    format!("[{},{},{}]", d.x, d.y, d.z)
+}
+
+/// `sum_i c_i . q_i` over chosen vertices of the final state (positions of chosen vertices).
+#[derive(Debug, Clone)]
+pub struct VertexPositions {
+    /// `(vertex, weight vector)` pairs.
+    pub terms: Vec<(usize, Vector3<f64>)>,
+}
+
+impl Loss for VertexPositions {
+    fn term(
+        &self,
+        _m: &Model,
+        n: usize,
+        steps: usize,
+        q: &[Vector3<f64>],
+        _v: &[Vector3<f64>],
+        g: LossGrad<'_>,
+    ) -> f64 {
+        if n != steps {
+            return 0.0;
+        }
+        let mut s = 0.0;
+        for (i, c) in &self.terms {
+            s += c.dot(&q[*i]);
+            g.q[*i] += c;
+        }
+        s
+    }
+
+    fn name(&self) -> String {
+        "vertex_positions".into()
+    }
+}
+
+/// `1/2 sum_i |q_i - target_i|^2` over chosen vertices of the final state.
+#[derive(Debug, Clone)]
+pub struct TargetDistance {
+    /// `(vertex, target)` pairs.
+    pub targets: Vec<(usize, Vector3<f64>)>,
+}
+
+impl Loss for TargetDistance {
+    fn term(
+        &self,
+        _m: &Model,
+        n: usize,
+        steps: usize,
+        q: &[Vector3<f64>],
+        _v: &[Vector3<f64>],
+        g: LossGrad<'_>,
+    ) -> f64 {
+        if n != steps {
+            return 0.0;
+        }
+        let mut s = 0.0;
+        for (i, t) in &self.targets {
+            let d = q[*i] - t;
+            s += 0.5 * d.norm_squared();
+            g.q[*i] += d;
+        }
+        s
+    }
+
+    fn name(&self) -> String {
+        "target_distance".into()
+    }
+}
+
+/// A weighted sum of losses.
+#[derive(Default)]
+pub struct Sum {
+    /// `(weight, loss)` pairs.
+    pub terms: Vec<(f64, Box<dyn Loss>)>,
+}
+
+impl Sum {
+    /// Add `weight x loss`.
+    pub fn add(mut self, weight: f64, loss: impl Loss + 'static) -> Self {
+        self.terms.push((weight, Box::new(loss)));
+        self
+    }
+}
+
+impl Loss for Sum {
+    fn term(
+        &self,
+        model: &Model,
+        n: usize,
+        steps: usize,
+        q: &[Vector3<f64>],
+        v: &[Vector3<f64>],
+        g: LossGrad<'_>,
+    ) -> f64 {
+        let mut total = 0.0;
+        let (mut gq, mut gv, mut gm) = (
+            vec![Vector3::zeros(); q.len()],
+            vec![Vector3::zeros(); q.len()],
+            vec![0.0; q.len()],
+        );
+        for (w, l) in &self.terms {
+            gq.iter_mut().for_each(|x| *x = Vector3::zeros());
+            gv.iter_mut().for_each(|x| *x = Vector3::zeros());
+            gm.iter_mut().for_each(|x| *x = 0.0);
+            total += w * l.term(
+                model,
+                n,
+                steps,
+                q,
+                v,
+                LossGrad {
+                    q: &mut gq,
+                    v: &mut gv,
+                    mass: &mut gm,
+                },
+            );
+            for i in 0..q.len() {
+                g.q[i] += gq[i] * *w;
+                g.v[i] += gv[i] * *w;
+                g.mass[i] += gm[i] * *w;
+            }
+        }
+        total
+    }
+
+    fn name(&self) -> String {
+        self.terms
+            .iter()
+            .map(|(w, l)| format!("{w}*{}", l.name()))
+            .collect::<Vec<_>>()
+            .join("+")
+    }
+}
+
+/// A loss by name: `final_com.x|y|z`, `mean_com.x|y|z`.
+pub fn by_name(name: &str) -> Result<Box<dyn Loss>, DiffError> {
+    let (kind, axis) = name.split_once('.').ok_or_else(|| {
+        DiffError::Input(format!(
+            "unknown loss '{name}' (expected final_com.x|y|z or mean_com.x|y|z)"
+        ))
+    })?;
+    let k = match axis {
+        "x" => 0,
+        "y" => 1,
+        "z" => 2,
+        _ => return Err(DiffError::Input(format!("loss '{name}': axis must be x, y or z"))),
+    };
+    let time_average = match kind {
+        "final_com" => false,
+        "mean_com" => true,
+        _ => {
+            return Err(DiffError::Input(format!(
+                "unknown loss '{name}' (expected final_com.x|y|z or mean_com.x|y|z)"
+            )))
+        }
+    };
+    Ok(Box::new(CenterOfMass {
+        direction: Vector3::ith(k, 1.0),
+        time_average,
+        vertices: None,
+    }))
+}

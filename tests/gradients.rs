@@ -1,0 +1,222 @@
+//! Reverse-mode gradients of whole simulations against finite differences, the CLI's gradient
+//! against finite differences taken from outside through `--set`, and the implicit mode at
+//! convergence.
+
+mod common;
+
+use std::process::Command;
+
+use diffsoft::diff::{self, loss, Controls, DiffError, Mode, Options, Param};
+use diffsoft::verify::gradients::{self, check_case, Case};
+
+fn assert_passes(case: &Case) {
+    let c = check_case(case, 7);
+    assert!(c.error.is_none(), "{}: {:?}", c.name, c.error);
+    let m = &c.modes[0];
+    assert_eq!(m.mode, Mode::Unrolled);
+    for g in &m.groups {
+        assert!(
+            g.passes,
+            "{} / {}: analytic {:e}, best fd {:e} (step {:e}), rel {:e}",
+            c.name, g.group, g.analytic, g.fd_best, g.step_best, g.rel_error_best
+        );
+    }
+    let d = c.dual.as_ref().expect("dual check ran");
+    assert!(d.max_rel_error < 1e-8, "{}: dual check {:e}", c.name, d.max_rel_error);
+    assert!(d.tets > 0, "{}: the dual check skipped every tet", c.name);
+}
+
+#[test]
+fn free_body_gradients_match_finite_differences() {
+    assert_passes(&gradients::free_body(4).unwrap());
+}
+
+#[test]
+fn contact_gradients_match_finite_differences() {
+    assert_passes(&gradients::ground_contact(8).unwrap());
+}
+
+#[test]
+fn actuator_and_attachment_gradients_match_finite_differences() {
+    assert_passes(&gradients::actuated(4).unwrap());
+}
+
+#[test]
+fn bridgesus_material_gradients_match_finite_differences() {
+    let mut case =
+        gradients::bridgesus(&common::root().join("verification/paper/bridgesus/bridgesus.json"), 3).unwrap();
+    case.settings.max_iterations = 10;
+    assert_passes(&case);
+}
+
+/// With the forward converged, the implicit and the unrolled gradients agree.
+#[test]
+fn implicit_matches_unrolled_at_convergence() {
+    let mut case = gradients::free_body(3).unwrap();
+    case.settings.tolerance = 1e-14;
+    case.settings.max_iterations = 500;
+    let run = |mode| {
+        diff::gradient(
+            &case.model,
+            &case.settings,
+            case.steps,
+            &case.controls,
+            case.loss.as_ref(),
+            Options::mode(mode),
+        )
+        .unwrap()
+    };
+    let (u, i) = (run(Mode::Unrolled), run(Mode::Implicit));
+    for p in [
+        Param::YoungsModulus,
+        Param::PoissonRatio,
+        Param::Density,
+        Param::Gravity(1),
+    ] {
+        let (a, b) = (p.derivative(&case.model, &u), p.derivative(&case.model, &i));
+        assert!(
+            (a - b).abs() <= 1e-7 * a.abs().max(b.abs()),
+            "{p}: unrolled {a:e} implicit {b:e}"
+        );
+    }
+    // And they differ when the forward is truncated hard (so the test can tell them apart).
+    let mut short = case.settings.clone();
+    short.tolerance = 0.0;
+    short.max_iterations = 2;
+    let gu = diff::gradient(
+        &case.model,
+        &short,
+        3,
+        &case.controls,
+        case.loss.as_ref(),
+        Options::mode(Mode::Unrolled),
+    )
+    .unwrap();
+    let gi = diff::gradient(
+        &case.model,
+        &short,
+        3,
+        &case.controls,
+        case.loss.as_ref(),
+        Options::mode(Mode::Implicit),
+    )
+    .unwrap();
+    let (a, b) = (
+        Param::YoungsModulus.derivative(&case.model, &gu),
+        Param::YoungsModulus.derivative(&case.model, &gi),
+    );
+    assert!(
+        (a - b).abs() > 1e-6 * a.abs(),
+        "truncated: unrolled {a:e} implicit {b:e}"
+    );
+}
+
+/// Skeletons are not differentiated yet: a clear error, no wrong numbers.
+#[test]
+fn skeleton_scenes_are_refused_clearly() {
+    let case = gradients::baymax_torques(&common::root().join("verification/scenes/baymax_skeleton.json"), 2).unwrap();
+    let r = diff::gradient(
+        &case.model,
+        &case.settings,
+        2,
+        &Controls::default(),
+        case.loss.as_ref(),
+        Options::default(),
+    );
+    match r {
+        Err(DiffError::Unsupported(m)) => assert!(m.contains("skeleton"), "{m}"),
+        other => panic!("expected Unsupported, got {:?}", other.map(|g| g.loss)),
+    }
+}
+
+#[test]
+fn bad_losses_and_parameters_are_rejected() {
+    assert!(matches!(loss::by_name("final_com.w"), Err(DiffError::Input(_))));
+    assert!(matches!(loss::by_name("com"), Err(DiffError::Input(_))));
+    assert!(matches!("stiffness".parse::<Param>(), Err(DiffError::Input(_))));
+    let mut case = gradients::free_body(1).unwrap();
+    assert!(Param::PoissonRatio.set(&mut case.model, 0.5).is_err());
+    assert!(Param::Density.set(&mut case.model, -1.0).is_err());
+    assert!(Param::YoungsModulus.set(&mut case.model, f64::NAN).is_err());
+}
+
+fn grad_cli(scene: &std::path::Path, set: Option<f64>, json: &std::path::Path) -> (f64, f64) {
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_diffsoft"));
+    cmd.args(["--threads", "1", "grad", "--scene"])
+        .arg(scene)
+        .args([
+            "--steps",
+            "5",
+            "--loss",
+            "final_com.y",
+            "--param",
+            "youngs_modulus",
+            "--tolerance",
+            "0",
+        ])
+        .args(["--max-iterations", "10", "--json"])
+        .arg(json);
+    if let Some(e) = set {
+        cmd.arg("--set").arg(format!("youngs_modulus={e:.17e}"));
+    }
+    let out = cmd.output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(json).unwrap()).unwrap();
+    (
+        v["loss"].as_f64().unwrap(),
+        v["gradient"]["youngs_modulus"].as_f64().unwrap(),
+    )
+}
+
+/// `diffsoft grad` against central differences of its own loss taken through `--set`.
+#[test]
+fn grad_cli_agrees_with_outside_finite_differences() {
+    let dir = common::tmp_dir("grad-cli");
+    let scene = common::root().join("verification/paper/bridgesus/bridgesus.json");
+    let json = dir.join("g.json");
+    let (_, g) = grad_cli(&scene, None, &json);
+    let e0 = 2e5;
+    let mut best = f64::INFINITY;
+    for k in 2..8 {
+        let h = e0 * 10f64.powi(-k);
+        let (lp, _) = grad_cli(&scene, Some(e0 + h), &json);
+        let (lm, _) = grad_cli(&scene, Some(e0 - h), &json);
+        let fd = (lp - lm) / (2.0 * h);
+        best = best.min((fd - g).abs() / fd.abs());
+    }
+    assert!(best < 1e-6, "best relative difference {best:e} (gradient {g:e})");
+}
+
+/// Losses compose: the gradient of a weighted sum is the weighted sum of gradients.
+#[test]
+fn losses_compose_linearly() {
+    let case = gradients::free_body(2).unwrap();
+    let a = loss::by_name("final_com.y").unwrap();
+    let b = loss::by_name("mean_com.x").unwrap();
+    let sum = loss::Sum::default()
+        .add(
+            2.0,
+            loss::CenterOfMass {
+                direction: nalgebra::Vector3::y(),
+                time_average: false,
+                vertices: None,
+            },
+        )
+        .add(
+            -0.5,
+            loss::CenterOfMass {
+                direction: nalgebra::Vector3::x(),
+                time_average: true,
+                vertices: None,
+            },
+        );
+    let g = |l: &dyn loss::Loss| {
+        diff::gradient(&case.model, &case.settings, 2, &case.controls, l, Options::default()).unwrap()
+    };
+    let (ga, gb, gs) = (g(a.as_ref()), g(b.as_ref()), g(&sum));
+    assert!((gs.loss - (2.0 * ga.loss - 0.5 * gb.loss)).abs() < 1e-12);
+    for i in 0..case.model.n() {
+        let want = ga.v0[i] * 2.0 - gb.v0[i] * 0.5;
+        assert!((gs.v0[i] - want).norm() < 1e-10 * (1.0 + want.norm()));
+    }
+}
