@@ -93,7 +93,7 @@ impl Default for Options {
         Self {
             mode: Mode::Unrolled,
             implicit_tolerance: 1e-12,
-            implicit_max_iterations: 1000,
+            implicit_max_iterations: 300,
             contact_tolerance: 1e-14,
             contact_max_sweeps: 100_000,
         }
@@ -546,11 +546,24 @@ impl<'a> Backward<'a> {
                 self.local.linearize(model, q_next)?;
                 self.xn_full.copy_from_slice(q_next);
                 let xbar0 = self.xbar.clone();
+                // Without contacts (A - K) r = x_bar is symmetric: conjugate gradients
+                // preconditioned by the factored A. Falls back to the fixed point below if the
+                // step's Hessian A - K is not positive definite along a search direction.
+                let mut done = false;
+                if contacts.is_empty() {
+                    if let Some((r, iters, res)) = self.implicit_cg(model, q_next, activations, &xbar0)? {
+                        self.z.copy_from_slice(&r);
+                        g.stats.backward_iterations += iters;
+                        g.stats.implicit_residual = g.stats.implicit_residual.max(res);
+                        self.anchor_scratch.iter_mut().for_each(|a| *a = Vector3::zeros());
+                        done = true;
+                    }
+                }
                 // r = A^-T (x_bar + K r), from r = A^-T x_bar.
                 let mut prev = vec![Vector3::zeros(); self.nf];
                 let mut residual;
                 let mut it = 0;
-                loop {
+                while !done {
                     self.anchor_scratch.iter_mut().for_each(|a| *a = Vector3::zeros());
                     let mut anchors = std::mem::take(&mut self.anchor_scratch);
                     let r = self.solve_adjoint(contacts, impulses, &x_star, None, &mut anchors);
@@ -565,6 +578,8 @@ impl<'a> Backward<'a> {
                     residual = if s > 0.0 { d / s } else { 0.0 };
                     prev.copy_from_slice(&self.z);
                     if residual <= self.opts.implicit_tolerance || it >= self.opts.implicit_max_iterations {
+                        g.stats.backward_iterations += it;
+                        g.stats.implicit_residual = g.stats.implicit_residual.max(residual);
                         break;
                     }
                     Self::scatter(&self.sys, model, &self.z, &mut self.y_full, true);
@@ -585,8 +600,6 @@ impl<'a> Backward<'a> {
                         self.xbar[k] = xbar0[k] + self.out_full[v];
                     }
                 }
-                g.stats.backward_iterations += it;
-                g.stats.implicit_residual = g.stats.implicit_residual.max(residual);
                 for (q, a) in qbar.iter_mut().zip(&self.anchor_scratch) {
                     *q += a;
                 }
@@ -624,6 +637,78 @@ impl<'a> Backward<'a> {
             }
         }
         Ok(())
+    }
+
+    /// `(A - K) r = b` by conjugate gradients preconditioned with `A^-1` (`K` the cached local
+    /// linearization): the solution, iterations and final relative residual, or `None` if a
+    /// direction of non-positive curvature appears (the caller then iterates the fixed point).
+    #[allow(clippy::type_complexity)]
+    fn implicit_cg(
+        &mut self,
+        model: &Model,
+        q_next: &[Vector3<f64>],
+        activations: &[f64],
+        b: &[Vector3<f64>],
+    ) -> Result<Option<(Vec<Vector3<f64>>, usize, f64)>, DiffError> {
+        let nf = self.nf;
+        let dot = |a: &[Vector3<f64>], b: &[Vector3<f64>]| a.iter().zip(b).map(|(x, y)| x.dot(y)).sum::<f64>();
+        let bnorm = dot(b, b).sqrt();
+        if bnorm == 0.0 {
+            return Ok(Some((vec![Vector3::zeros(); nf], 0, 0.0)));
+        }
+        let mut x = vec![Vector3::zeros(); nf];
+        let mut r = b.to_vec();
+        let mut z = vec![Vector3::zeros(); nf];
+        self.direct.solve_free(&r, &mut z)?;
+        let mut p = z.clone();
+        let mut rz = dot(&r, &z);
+        let mut hp = vec![Vector3::zeros(); nf];
+        let mut ap = vec![Vector3::zeros(); nf];
+        let mut it = 0;
+        let mut res = 1.0;
+        while it < self.opts.implicit_max_iterations {
+            it += 1;
+            // hp = A p - K p.
+            self.sys.apply(&p, &mut ap);
+            Self::scatter(&self.sys, model, &p, &mut self.y_full, true);
+            self.scratch_act.iter_mut().for_each(|a| *a = 0.0);
+            self.local.backward(
+                model,
+                q_next,
+                &self.y_full,
+                &self.xn_full,
+                activations,
+                true,
+                &mut self.out_full,
+                &mut self.scratch_rot,
+                &mut self.scratch_vol,
+                &mut self.scratch_act,
+            )?;
+            for (k, &v) in self.sys.free.iter().enumerate() {
+                hp[k] = ap[k] - self.out_full[v];
+            }
+            let php = dot(&p, &hp);
+            if !(php > 0.0) {
+                return Ok(None);
+            }
+            let alpha = rz / php;
+            for k in 0..nf {
+                x[k] += p[k] * alpha;
+                r[k] -= hp[k] * alpha;
+            }
+            res = dot(&r, &r).sqrt() / bnorm;
+            if res <= self.opts.implicit_tolerance {
+                break;
+            }
+            self.direct.solve_free(&r, &mut z)?;
+            let rz_new = dot(&r, &z);
+            let beta = rz_new / rz;
+            rz = rz_new;
+            for k in 0..nf {
+                p[k] = z[k] + p[k] * beta;
+            }
+        }
+        Ok(Some((x, it, res)))
     }
 
     /// After `z` became the adjoint of one solve's right-hand side (solution `x_next`):
