@@ -563,41 +563,43 @@ impl<'a> Backward<'a> {
                 let mut prev = vec![Vector3::zeros(); self.nf];
                 let mut residual;
                 let mut it = 0;
-                while !done {
-                    self.anchor_scratch.iter_mut().for_each(|a| *a = Vector3::zeros());
-                    let mut anchors = std::mem::take(&mut self.anchor_scratch);
-                    let r = self.solve_adjoint(contacts, impulses, &x_star, None, &mut anchors);
-                    self.anchor_scratch = anchors;
-                    r?;
-                    it += 1;
-                    let (mut d, mut s) = (0.0f64, 0.0f64);
-                    for (a, b) in self.z.iter().zip(&prev) {
-                        d = d.max((a - b).amax());
-                        s = s.max(a.amax());
-                    }
-                    residual = if s > 0.0 { d / s } else { 0.0 };
-                    prev.copy_from_slice(&self.z);
-                    if residual <= self.opts.implicit_tolerance || it >= self.opts.implicit_max_iterations {
-                        g.stats.backward_iterations += it;
-                        g.stats.implicit_residual = g.stats.implicit_residual.max(residual);
-                        break;
-                    }
-                    Self::scatter(&self.sys, model, &self.z, &mut self.y_full, true);
-                    self.scratch_act.iter_mut().for_each(|a| *a = 0.0);
-                    self.local.backward(
-                        model,
-                        q_next,
-                        &self.y_full,
-                        &self.xn_full,
-                        activations,
-                        true,
-                        &mut self.out_full,
-                        &mut self.scratch_rot,
-                        &mut self.scratch_vol,
-                        &mut self.scratch_act,
-                    )?;
-                    for (k, &v) in self.sys.free.iter().enumerate() {
-                        self.xbar[k] = xbar0[k] + self.out_full[v];
+                if !done {
+                    loop {
+                        self.anchor_scratch.iter_mut().for_each(|a| *a = Vector3::zeros());
+                        let mut anchors = std::mem::take(&mut self.anchor_scratch);
+                        let r = self.solve_adjoint(contacts, impulses, &x_star, None, &mut anchors);
+                        self.anchor_scratch = anchors;
+                        r?;
+                        it += 1;
+                        let (mut d, mut s) = (0.0f64, 0.0f64);
+                        for (a, b) in self.z.iter().zip(&prev) {
+                            d = d.max((a - b).amax());
+                            s = s.max(a.amax());
+                        }
+                        residual = if s > 0.0 { d / s } else { 0.0 };
+                        prev.copy_from_slice(&self.z);
+                        if residual <= self.opts.implicit_tolerance || it >= self.opts.implicit_max_iterations {
+                            g.stats.backward_iterations += it;
+                            g.stats.implicit_residual = g.stats.implicit_residual.max(residual);
+                            break;
+                        }
+                        Self::scatter(&self.sys, model, &self.z, &mut self.y_full, true);
+                        self.scratch_act.iter_mut().for_each(|a| *a = 0.0);
+                        self.local.backward(
+                            model,
+                            q_next,
+                            &self.y_full,
+                            &self.xn_full,
+                            activations,
+                            true,
+                            &mut self.out_full,
+                            &mut self.scratch_rot,
+                            &mut self.scratch_vol,
+                            &mut self.scratch_act,
+                        )?;
+                        for (k, &v) in self.sys.free.iter().enumerate() {
+                            self.xbar[k] = xbar0[k] + self.out_full[v];
+                        }
                     }
                 }
                 for (q, a) in qbar.iter_mut().zip(&self.anchor_scratch) {
@@ -688,7 +690,7 @@ impl<'a> Backward<'a> {
                 hp[k] = ap[k] - self.out_full[v];
             }
             let php = dot(&p, &hp);
-            if !(php > 0.0) {
+            if php.is_nan() || php <= 0.0 {
                 return Ok(None);
             }
             let alpha = rz / php;
