@@ -14,9 +14,10 @@
 //!   contact correction of [`contact`]), `x_bar_k = J (dp/dq)(x_k)^T J^T r_bar` ([`local`]). It
 //!   is the exact derivative of what the truncated solver computed.
 //! * [`Mode::Implicit`] differentiates the converged step by the implicit function theorem at the
-//!   stored next state, solving `r_bar = A^-T (x_bar + K r_bar)` (`K` the local step's
-//!   linearization) by the same fixed-point iteration with the prefactored `A` (DiffPD's
-//!   approach): cheap, and exact only where the forward converged.
+//!   stored next state, solving `(A - K) r_bar = x_bar` (`K` the local step's linearization,
+//!   symmetric) by conjugate gradients preconditioned with the prefactored `A` (DiffPD's
+//!   approach), or with contacts by the fixed point `r_bar = A^-T (x_bar + K r_bar)`: cheap, and
+//!   exact only where the forward converged.
 //!
 //! The weights enter `A = M/h^2 + L(w)` too: each solve contributes
 //! `dL/dw_t = <F_t(r_bar), P_t(x_k)/w_t> - <F_t(r_bar), F_t(x_{k+1})>` and each mass
@@ -817,24 +818,22 @@ pub fn gradient(
             },
         );
         if let Some(sim) = replayer.as_mut() {
-            {
-                sim.set_state(fwd.q[step].clone(), fwd.v[step].clone())?;
-                sim.set_clock(fwd.time[step], step);
-                if let Some(act) = &model.actuators {
-                    for (grp, a) in act.groups.iter().zip(&fwd.activations[step]) {
-                        sim.set_activation(&grp.name, *a)?;
-                    }
+            sim.set_state(fwd.q[step].clone(), fwd.v[step].clone())?;
+            sim.set_clock(fwd.time[step], step);
+            if let Some(act) = &model.actuators {
+                for (grp, a) in act.groups.iter().zip(&fwd.activations[step]) {
+                    sim.set_activation(&grp.name, *a)?;
                 }
-                sim.step()?;
-                let dev = sim
-                    .state()
-                    .q
-                    .iter()
-                    .zip(&fwd.q[step + 1])
-                    .map(|(a, b)| (a - b).amax())
-                    .fold(0.0, f64::max);
-                g.stats.replay_deviation = g.stats.replay_deviation.max(dev);
             }
+            sim.step()?;
+            let dev = sim
+                .state()
+                .q
+                .iter()
+                .zip(&fwd.q[step + 1])
+                .map(|(a, b)| (a - b).amax())
+                .fold(0.0, f64::max);
+            g.stats.replay_deviation = g.stats.replay_deviation.max(dev);
         }
         let rec = replayer.as_ref().and_then(|s| s.recording());
         bw.step(
