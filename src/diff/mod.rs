@@ -584,20 +584,10 @@ impl<'a> Backward<'a> {
                             g.stats.implicit_residual = g.stats.implicit_residual.max(residual);
                             break;
                         }
-                        Self::scatter(&self.sys, model, &self.z, &mut self.y_full, true);
-                        self.scratch_act.iter_mut().for_each(|a| *a = 0.0);
-                        self.local.backward(
-                            model,
-                            q_next,
-                            &self.y_full,
-                            &self.xn_full,
-                            activations,
-                            true,
-                            &mut self.out_full,
-                            &mut self.scratch_rot,
-                            &mut self.scratch_vol,
-                            &mut self.scratch_act,
-                        )?;
+                        let z = std::mem::take(&mut self.z);
+                        let r = self.apply_k(model, q_next, activations, &z);
+                        self.z = z;
+                        r?;
                         for (k, &v) in self.sys.free.iter().enumerate() {
                             self.xbar[k] = xbar0[k] + self.out_full[v];
                         }
@@ -642,6 +632,31 @@ impl<'a> Backward<'a> {
         Ok(())
     }
 
+    /// `out_full = K y` (all vertices) for free-numbered `y`, with the linearization cached at
+    /// `q_next`; the parameter adjoints it also produces are discarded.
+    fn apply_k(
+        &mut self,
+        model: &Model,
+        q_next: &[Vector3<f64>],
+        activations: &[f64],
+        y: &[Vector3<f64>],
+    ) -> Result<(), DiffError> {
+        Self::scatter(&self.sys, model, y, &mut self.y_full, true);
+        self.scratch_act.iter_mut().for_each(|a| *a = 0.0);
+        self.local.backward(
+            model,
+            q_next,
+            &self.y_full,
+            &self.xn_full,
+            activations,
+            true,
+            &mut self.out_full,
+            &mut self.scratch_rot,
+            &mut self.scratch_vol,
+            &mut self.scratch_act,
+        )
+    }
+
     /// `(A - K) r = b` by conjugate gradients preconditioned with `A^-1` (`K` the cached local
     /// linearization): the solution, iterations and final relative residual, or `None` if a
     /// direction of non-positive curvature appears (the caller then iterates the fixed point).
@@ -673,20 +688,7 @@ impl<'a> Backward<'a> {
             it += 1;
             // hp = A p - K p.
             self.sys.apply(&p, &mut ap);
-            Self::scatter(&self.sys, model, &p, &mut self.y_full, true);
-            self.scratch_act.iter_mut().for_each(|a| *a = 0.0);
-            self.local.backward(
-                model,
-                q_next,
-                &self.y_full,
-                &self.xn_full,
-                activations,
-                true,
-                &mut self.out_full,
-                &mut self.scratch_rot,
-                &mut self.scratch_vol,
-                &mut self.scratch_act,
-            )?;
+            self.apply_k(model, q_next, activations, &p)?;
             for (k, &v) in self.sys.free.iter().enumerate() {
                 hp[k] = ap[k] - self.out_full[v];
             }
