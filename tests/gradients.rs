@@ -111,22 +111,105 @@ fn implicit_matches_unrolled_at_convergence() {
     );
 }
 
-/// Skeletons are not differentiated yet: a clear error, no wrong numbers.
+/// What the skeleton's backward pass does not cover is refused with a clear error, and bad
+/// skeleton controls and losses are rejected.
 #[test]
-fn skeleton_scenes_are_refused_clearly() {
-    let case = gradients::baymax_torques(&common::root().join("verification/scenes/baymax_skeleton.json"), 2).unwrap();
-    let r = diff::gradient(
-        &case.model,
-        &case.settings,
-        2,
-        &Controls::default(),
-        case.loss.as_ref(),
-        Options::default(),
-    );
-    match r {
+fn skeleton_limits_of_the_backward_pass_are_refused_clearly() {
+    let path = common::root().join("verification/scenes/baymax_skeleton.json");
+    let case = gradients::baymax_torques(&path, 2).unwrap();
+    let run = |model: &diffsoft::solver::Model, controls: &Controls, l: &dyn loss::Loss, mode| {
+        diff::gradient(model, &case.settings, 2, controls, l, Options::mode(mode)).map(|g| g.loss)
+    };
+    // Implicit mode with a skeleton.
+    match run(&case.model, &case.controls, case.loss.as_ref(), Mode::Implicit) {
         Err(DiffError::Unsupported(m)) => assert!(m.contains("skeleton"), "{m}"),
-        other => panic!("expected Unsupported, got {:?}", other.map(|g| g.loss)),
+        other => panic!("expected Unsupported, got {other:?}"),
     }
+    // Ground contact with a skeleton (the built-in scene keeps its ground).
+    let with_ground = diffsoft::scene::load(&path, diffsoft::scene::LoadOptions::default()).unwrap();
+    match run(&with_ground.model, &case.controls, case.loss.as_ref(), Mode::Unrolled) {
+        Err(DiffError::Unsupported(m)) => assert!(m.contains("contact"), "{m}"),
+        other => panic!("expected Unsupported, got {other:?}"),
+    }
+    // A torque on the free root, a short torque row, a joint loss on a bone that does not exist.
+    let mut t = case.controls.torques.clone().unwrap();
+    t[0][0] = 1.0;
+    let bad = Controls {
+        torques: Some(t),
+        ..Controls::default()
+    };
+    assert!(
+        matches!(run(&case.model, &bad, case.loss.as_ref(), Mode::Unrolled), Err(DiffError::Input(m)) if m.contains("one-DoF"))
+    );
+    let mut t = case.controls.torques.clone().unwrap();
+    t[1].pop();
+    let bad = Controls {
+        torques: Some(t),
+        ..Controls::default()
+    };
+    assert!(matches!(
+        run(&case.model, &bad, case.loss.as_ref(), Mode::Unrolled),
+        Err(DiffError::Input(_))
+    ));
+    let l = loss::by_name("joint_angle.tail").unwrap();
+    assert!(
+        matches!(run(&case.model, &case.controls, l.as_ref(), Mode::Unrolled), Err(DiffError::Input(m)) if m.contains("tail"))
+    );
+}
+
+/// Through active joint limits: strong shoulder torques drive both arms onto their limits
+/// within the first steps, and the gradient with respect to the torques and the initial state
+/// still matches finite differences (the limits enter as equality constraints of the reduced
+/// step, Eqs. 17-18).
+#[test]
+fn skeleton_gradients_through_active_joint_limits() {
+    let path = common::root().join("verification/scenes/baymax_skeleton.json");
+    let mut case = gradients::baymax_torques(&path, 6).unwrap();
+    let dofs = case.model.skeleton.as_ref().unwrap().dofs;
+    let sk = case.model.skeleton.as_ref().unwrap();
+    let (l, r) = (
+        sk.scalar_dof("left_shoulder").unwrap(),
+        sk.scalar_dof("right_shoulder").unwrap(),
+    );
+    let mut rows = vec![vec![0.0; dofs]; case.steps];
+    for row in &mut rows {
+        row[l] = -400.0;
+        row[r] = 400.0;
+    }
+    case.controls.torques = Some(rows);
+    case.groups = vec![
+        gradients::Group::Torques,
+        gradients::Group::InitialVelocities,
+        gradients::Group::Scalar(Param::YoungsModulus),
+    ];
+    // The limits are active at the end of the run.
+    let mut sim = diffsoft::solver::Simulator::new(case.model.clone(), case.settings.clone()).unwrap();
+    for _ in 0..case.steps {
+        sim.set_torque("left_shoulder", Some(-400.0)).unwrap();
+        sim.set_torque("right_shoulder", Some(400.0)).unwrap();
+        sim.step().unwrap();
+    }
+    let coords = sim.skeleton().unwrap().coordinates();
+    let angle = |name: &str| coords.iter().find(|c| c.0 == name).unwrap().1[0];
+    eprintln!("shoulders {} {}", angle("left_shoulder"), angle("right_shoulder"));
+    let c = check_case(&case, 11);
+    for g in &c.modes[0].groups {
+        eprintln!(
+            "{}: analytic {:e}, best fd {:e} (step {:e}), rel {:e}",
+            g.group, g.analytic, g.fd_best, g.step_best, g.rel_error_best
+        );
+    }
+    assert!(
+        (angle("left_shoulder") + 1.2).abs() < 1e-9,
+        "left shoulder at {}",
+        angle("left_shoulder")
+    );
+    assert!(
+        (angle("right_shoulder") - 1.2).abs() < 1e-9,
+        "right shoulder at {}",
+        angle("right_shoulder")
+    );
+    assert_passes(&case);
 }
 
 #[test]
@@ -219,4 +302,19 @@ fn losses_compose_linearly() {
         let want = ga.v0[i] * 2.0 - gb.v0[i] * 0.5;
         assert!((gs.v0[i] - want).norm() < 1e-10 * (1.0 + want.norm()));
     }
+}
+
+/// Baymax with its skeleton: torques, initial state and material through the reduced step.
+#[test]
+fn skeleton_gradients_match_finite_differences() {
+    let case = gradients::baymax_torques(&common::root().join("verification/scenes/baymax_skeleton.json"), 4).unwrap();
+    let c = check_case(&case, 7);
+    for g in &c.modes[0].groups {
+        eprintln!(
+            "{} / {}: analytic {:e}, best fd {:e} (step {:e}), rel {:e}, slope {:?}",
+            c.name, g.group, g.analytic, g.fd_best, g.step_best, g.rel_error_best, g.truncation_slope
+        );
+    }
+    assert!(c.implicit_unsupported.is_some());
+    assert_passes(&case);
 }

@@ -173,14 +173,15 @@ impl LocalAdjoint {
     /// `<F_t(y), U X V^T> - <F_t(y), F_t(x_next)>` to `g_vol[t]` (right-hand side minus matrix
     /// term of the solve whose solution is `x_next`), and the activations'
     /// adjoints to `g_act[group]`. With `cached`, uses the linearizations of [`Self::linearize`]
-    /// instead of recomputing them at `q`.
+    /// instead of recomputing them at `q`. Without `x_next` the matrix term is left out (the
+    /// caller adds it with [`LocalAdjoint::matrix_terms`]).
     #[allow(clippy::too_many_arguments)]
     pub fn backward(
         &mut self,
         model: &Model,
         q: &[Vector3<f64>],
         y: &[Vector3<f64>],
-        x_next: &[Vector3<f64>],
+        x_next: Option<&[Vector3<f64>]>,
         activations: &[f64],
         cached: bool,
         out: &mut [Vector3<f64>],
@@ -207,7 +208,7 @@ impl LocalAdjoint {
                     let fy = deformation(model, t, y);
                     dp[k] = lin.apply(&fy);
                     // d(J p)/dw minus dA/dw x_next (L_t = w A_t^T A_t per weight).
-                    let a_term = fy.dot(&deformation(model, t, x_next));
+                    let a_term = x_next.map_or(0.0, |x| fy.dot(&deformation(model, t, x)));
                     gr[k] += fy.dot(&lin.rotation) - a_term;
                     gv[k] += fy.dot(&lin.volume) - a_term;
                 };
@@ -323,6 +324,29 @@ impl LocalAdjoint {
                 }
                 Ok(())
             })
+    }
+}
+
+/// A pair of per-vertex vectors `(a, b)` of a matrix term `a^T (dL/dw) b`.
+pub type VectorPair<'a> = (&'a [Vector3<f64>], &'a [Vector3<f64>]);
+
+impl LocalAdjoint {
+    /// Subtract the matrix terms `sum_pairs <F_t(a), F_t(b)>` from both weight adjoints of every
+    /// tet (`L_t = w A_t^T A_t`, so `a^T (dL/dw_t) b = <F_t(a), F_t(b)>` per unit weight).
+    pub fn matrix_terms(model: &Model, pairs: &[VectorPair<'_>], g_rot: &mut [f64], g_vol: &mut [f64]) {
+        g_rot
+            .par_iter_mut()
+            .zip(g_vol.par_iter_mut())
+            .enumerate()
+            .with_min_len(64)
+            .for_each(|(t, (gr, gv))| {
+                let mut s = 0.0;
+                for (a, b) in pairs {
+                    s += deformation(model, t, a).dot(&deformation(model, t, b));
+                }
+                *gr -= s;
+                *gv -= s;
+            });
     }
 }
 

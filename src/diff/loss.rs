@@ -32,6 +32,18 @@ pub trait Loss: Send + Sync {
         grad: LossGrad<'_>,
     ) -> f64;
 
+    /// The term of step `n` that depends on the joints: `joints` holds the one-DoF joints'
+    /// coordinates per reduced coordinate (angles or extensions; 0 elsewhere, empty without a
+    /// skeleton); the gradient is added to `grad` (same layout). Zero by default.
+    fn joint_term(&self, _model: &Model, _n: usize, _steps: usize, _joints: &[f64], _grad: &mut [f64]) -> f64 {
+        0.0
+    }
+
+    /// Check the loss against the model (vertex indices, bone names) before a run.
+    fn validate(&self, _model: &Model) -> Result<(), DiffError> {
+        Ok(())
+    }
+
     /// A short name for reports.
     fn name(&self) -> String;
 }
@@ -82,6 +94,22 @@ impl Loss for CenterOfMass {
         weight * value
     }
 
+    fn validate(&self, model: &Model) -> Result<(), DiffError> {
+        if !self.direction.iter().all(|x| x.is_finite()) {
+            return Err(DiffError::Input(format!(
+                "loss {}: direction must be finite",
+                self.name()
+            )));
+        }
+        if let Some(v) = &self.vertices {
+            if v.is_empty() {
+                return Err(DiffError::Input(format!("loss {}: empty vertex set", self.name())));
+            }
+            check_vertices(&self.name(), model, v.iter().copied())?;
+        }
+        Ok(())
+    }
+
     fn name(&self) -> String {
         format!(
             "{}_com{}",
@@ -89,6 +117,18 @@ impl Loss for CenterOfMass {
             axis_suffix(&self.direction)
         )
     }
+}
+
+fn check_vertices(name: &str, model: &Model, verts: impl Iterator<Item = usize>) -> Result<(), DiffError> {
+    for i in verts {
+        if i >= model.n() {
+            return Err(DiffError::Input(format!(
+                "loss {name}: vertex {i} out of range ({} vertices)",
+                model.n()
+            )));
+        }
+    }
+    Ok(())
 }
 
 fn axis_suffix(d: &Vector3<f64>) -> String {
@@ -128,6 +168,10 @@ impl Loss for VertexPositions {
         s
     }
 
+    fn validate(&self, model: &Model) -> Result<(), DiffError> {
+        check_vertices(&self.name(), model, self.terms.iter().map(|t| t.0))
+    }
+
     fn name(&self) -> String {
         "vertex_positions".into()
     }
@@ -162,6 +206,10 @@ impl Loss for TargetDistance {
         s
     }
 
+    fn validate(&self, model: &Model) -> Result<(), DiffError> {
+        check_vertices(&self.name(), model, self.targets.iter().map(|t| t.0))
+    }
+
     fn name(&self) -> String {
         "target_distance".into()
     }
@@ -179,6 +227,85 @@ impl Sum {
     pub fn add(mut self, weight: f64, loss: impl Loss + 'static) -> Self {
         self.terms.push((weight, Box::new(loss)));
         self
+    }
+}
+
+/// A joint's coordinate (angle or extension) of a one-DoF joint: its final value, its average
+/// over the steps, or half its squared distance to a target at the final step.
+#[derive(Debug, Clone)]
+pub struct JointAngle {
+    /// Bone whose joint is measured.
+    pub bone: String,
+    /// `Some(target)`: `1/2 (theta - target)^2`; `None`: `theta` itself.
+    pub target: Option<f64>,
+    /// Average over all steps instead of the final state.
+    pub time_average: bool,
+}
+
+impl JointAngle {
+    fn dof(&self, model: &Model) -> Result<usize, DiffError> {
+        let sk = model
+            .skeleton
+            .as_ref()
+            .ok_or_else(|| DiffError::Input(format!("loss joint_angle.{}: the model has no skeleton", self.bone)))?;
+        sk.scalar_dof(&self.bone)
+            .map_err(|e| DiffError::Input(format!("loss joint_angle.{}: {e}", self.bone)))
+    }
+}
+
+impl Loss for JointAngle {
+    fn term(
+        &self,
+        _m: &Model,
+        _n: usize,
+        _steps: usize,
+        _q: &[Vector3<f64>],
+        _v: &[Vector3<f64>],
+        _g: LossGrad<'_>,
+    ) -> f64 {
+        0.0
+    }
+
+    fn joint_term(&self, model: &Model, n: usize, steps: usize, joints: &[f64], grad: &mut [f64]) -> f64 {
+        let weight = if self.time_average {
+            1.0 / steps as f64
+        } else if n == steps {
+            1.0
+        } else {
+            return 0.0;
+        };
+        let Ok(k) = self.dof(model) else {
+            return f64::NAN;
+        };
+        match self.target {
+            Some(t) => {
+                let d = joints[k] - t;
+                grad[k] += weight * d;
+                weight * 0.5 * d * d
+            }
+            None => {
+                grad[k] += weight;
+                weight * joints[k]
+            }
+        }
+    }
+
+    fn validate(&self, model: &Model) -> Result<(), DiffError> {
+        if self.target.is_some_and(|t| !t.is_finite()) {
+            return Err(DiffError::Input(format!(
+                "loss joint_angle.{}: target must be finite",
+                self.bone
+            )));
+        }
+        self.dof(model).map(|_| ())
+    }
+
+    fn name(&self) -> String {
+        format!(
+            "{}joint_angle.{}",
+            if self.time_average { "mean_" } else { "" },
+            self.bone
+        )
     }
 }
 
@@ -223,6 +350,28 @@ impl Loss for Sum {
         total
     }
 
+    fn joint_term(&self, model: &Model, n: usize, steps: usize, joints: &[f64], grad: &mut [f64]) -> f64 {
+        let mut total = 0.0;
+        let mut g = vec![0.0; grad.len()];
+        for (w, l) in &self.terms {
+            g.iter_mut().for_each(|x| *x = 0.0);
+            total += w * l.joint_term(model, n, steps, joints, &mut g);
+            for (a, b) in grad.iter_mut().zip(&g) {
+                *a += w * b;
+            }
+        }
+        total
+    }
+
+    fn validate(&self, model: &Model) -> Result<(), DiffError> {
+        self.terms.iter().try_for_each(|(w, l)| {
+            if !w.is_finite() {
+                return Err(DiffError::Input(format!("loss {}: weight must be finite", l.name())));
+            }
+            l.validate(model)
+        })
+    }
+
     fn name(&self) -> String {
         self.terms
             .iter()
@@ -232,13 +381,21 @@ impl Loss for Sum {
     }
 }
 
-/// A loss by name: `final_com.x|y|z`, `mean_com.x|y|z`.
+/// A loss by name: `final_com.x|y|z`, `mean_com.x|y|z`, `joint_angle.BONE`,
+/// `mean_joint_angle.BONE`.
 pub fn by_name(name: &str) -> Result<Box<dyn Loss>, DiffError> {
     let (kind, axis) = name.split_once('.').ok_or_else(|| {
         DiffError::Input(format!(
-            "unknown loss '{name}' (expected final_com.x|y|z or mean_com.x|y|z)"
+            "unknown loss '{name}' (expected final_com.x|y|z, mean_com.x|y|z, joint_angle.BONE or mean_joint_angle.BONE)"
         ))
     })?;
+    if kind == "joint_angle" || kind == "mean_joint_angle" {
+        return Ok(Box::new(JointAngle {
+            bone: axis.to_string(),
+            target: None,
+            time_average: kind == "mean_joint_angle",
+        }));
+    }
     let k = match axis {
         "x" => 0,
         "y" => 1,

@@ -31,6 +31,7 @@ pub mod local;
 pub mod loss;
 pub mod optim;
 pub mod params;
+mod skeletal;
 
 use std::time::Instant;
 
@@ -44,6 +45,7 @@ use crate::solver::{Model, Settings, Simulator, SolverError, SolverKind};
 use contact::ContactAdjoint;
 use local::LocalAdjoint;
 use loss::{Loss, LossGrad};
+use skeletal::SkeletalAdjoint;
 
 pub use params::Param;
 
@@ -123,6 +125,9 @@ pub struct Controls {
     pub initial: Option<InitialState>,
     /// Activation of each actuator group at each step (`None`: follow the schedules).
     pub activations: Option<Vec<Vec<f64>>>,
+    /// Joint torque on each reduced coordinate at each step (`[step][coordinate]`, overriding
+    /// the bones' schedules; entries of coordinates that are not one-DoF joints must be 0).
+    pub torques: Option<Vec<Vec<f64>>>,
 }
 
 /// Cost and accuracy figures of one gradient evaluation.
@@ -171,6 +176,13 @@ pub struct Gradient {
     pub attachment_targets: Vec<Vector3<f64>>,
     /// `dL/d activation`, `[step][group]`.
     pub activations: Vec<Vec<f64>>,
+    /// `dL/d tau`, the joint torques (generalized forces) per step and reduced coordinate,
+    /// `[step][coordinate]` (empty without a skeleton; a free root's entries are the
+    /// derivatives with respect to generalized forces on its chart coordinates).
+    pub torques: Vec<Vec<f64>>,
+    /// `dL/dz_0`, the initial joint state in the joints' charts (angles, extensions; a free
+    /// root's rotation vector and translation increments); empty without a skeleton.
+    pub joints0: Vec<f64>,
     /// Cost and accuracy figures.
     pub stats: DiffStats,
 }
@@ -234,6 +246,10 @@ struct Forward {
     v: Vec<Vec<Vector3<f64>>>,
     time: Vec<f64>,
     activations: Vec<Vec<f64>>,
+    /// Raw joint state after each step (and before the first), with a skeleton.
+    skeleton: Vec<Vec<f64>>,
+    /// The one-DoF joints' coordinates after each step (for joint losses).
+    joints: Vec<Vec<f64>>,
     /// Implicit mode with contacts: each step's final contact set and impulses.
     contacts: Vec<(Vec<FreeContact>, Vec<Vector3<f64>>)>,
     iterations: usize,
@@ -242,9 +258,17 @@ struct Forward {
 
 fn check_supported(model: &Model, settings: &Settings, mode: Mode) -> Result<(), DiffError> {
     if model.skeleton.is_some() {
-        return Err(DiffError::Unsupported(
-            "the scene has a skeleton; the reduced step (Eqs. 17-18) is not differentiated yet".into(),
-        ));
+        if mode == Mode::Implicit {
+            return Err(DiffError::Unsupported(
+                "implicit mode with a skeleton (the reduced step, Eqs. 17-18, is differentiated in unrolled mode)"
+                    .into(),
+            ));
+        }
+        if !model.obstacles.is_empty() {
+            return Err(DiffError::Unsupported(
+                "contacts with a skeleton are not differentiated yet (remove the obstacles)".into(),
+            ));
+        }
     }
     if mode == Mode::Unrolled && settings.anderson > 0 {
         return Err(DiffError::Unsupported(
@@ -280,24 +304,78 @@ fn set_controls(sim: &mut Simulator, model: &Model, controls: &Controls, step: u
             sim.set_activation(&g.name, *a)?;
         }
     }
+    if let Some(torques) = &controls.torques {
+        let sk = model
+            .skeleton
+            .as_ref()
+            .ok_or_else(|| DiffError::Input("torques given, but the model has no skeleton".into()))?;
+        let row = torques.get(step).ok_or_else(|| {
+            DiffError::Input(format!(
+                "torques given for {} steps, step {} needs one",
+                torques.len(),
+                step + 1
+            ))
+        })?;
+        if row.len() != sk.dofs {
+            return Err(DiffError::Input(format!(
+                "step {}: {} torques for {} joint coordinates",
+                step + 1,
+                row.len(),
+                sk.dofs
+            )));
+        }
+        for b in &sk.bones {
+            let n = b.joint.dofs();
+            let vals = &row[b.dof_offset..b.dof_offset + n];
+            if n == 1 {
+                sim.set_torque_dof(b.dof_offset, Some(vals[0]))?;
+            } else if vals.iter().any(|&t| t != 0.0) {
+                return Err(DiffError::Input(format!(
+                    "step {}: bone '{}' has a {} joint; torques act on one-DoF joints",
+                    step + 1,
+                    b.name,
+                    b.joint.kind()
+                )));
+            }
+        }
+    }
     Ok(())
 }
 
-fn loss_term(model: &Model, loss: &dyn Loss, n: usize, steps: usize, q: &[Vector3<f64>], v: &[Vector3<f64>]) -> f64 {
+/// The one-DoF joints' coordinates of a simulator's skeleton (empty without one).
+fn joint_scalars(sim: &Simulator) -> Vec<f64> {
+    sim.skeleton().map_or(Vec::new(), |sk| {
+        let mut c = vec![0.0; sk.dofs];
+        sk.scalars(&mut c);
+        c
+    })
+}
+
+fn loss_term(
+    model: &Model,
+    loss: &dyn Loss,
+    n: usize,
+    steps: usize,
+    q: &[Vector3<f64>],
+    v: &[Vector3<f64>],
+    joints: &[f64],
+) -> f64 {
     let k = q.len();
     let (mut a, mut b, mut c) = (vec![Vector3::zeros(); k], vec![Vector3::zeros(); k], vec![0.0; k]);
-    loss.term(
-        model,
-        n,
-        steps,
-        q,
-        v,
-        LossGrad {
-            q: &mut a,
-            v: &mut b,
-            mass: &mut c,
-        },
-    )
+    let mut gj = vec![0.0; joints.len()];
+    loss.joint_term(model, n, steps, joints, &mut gj)
+        + loss.term(
+            model,
+            n,
+            steps,
+            q,
+            v,
+            LossGrad {
+                q: &mut a,
+                v: &mut b,
+                mass: &mut c,
+            },
+        )
 }
 
 fn forward(
@@ -309,6 +387,7 @@ fn forward(
     keep: bool,
     record_contacts: bool,
 ) -> Result<Forward, DiffError> {
+    loss.validate(model)?;
     let mut sim = Simulator::new(model.clone(), settings.clone())?;
     if let Some((q, v)) = &controls.initial {
         sim.set_state(q.clone(), v.clone())?;
@@ -316,12 +395,15 @@ fn forward(
     if record_contacts {
         sim.record(Some(false));
     }
+    let skel0 = sim.skeleton_state();
     let mut f = Forward {
         loss: 0.0,
         q: vec![sim.state().q.clone()],
         v: vec![sim.state().v.clone()],
         time: vec![0.0],
         activations: Vec::with_capacity(steps),
+        skeleton: skel0.into_iter().collect(),
+        joints: Vec::new(),
         contacts: Vec::new(),
         iterations: 0,
         unconverged: 0,
@@ -331,13 +413,18 @@ fn forward(
         let st = sim.step()?;
         f.iterations += st.iterations;
         f.unconverged += usize::from(!st.converged);
+        let joints = joint_scalars(&sim);
         let s = sim.state();
-        f.loss += loss_term(model, loss, n + 1, steps, &s.q, &s.v);
+        f.loss += loss_term(model, loss, n + 1, steps, &s.q, &s.v, &joints);
         f.activations.push(sim.activations().map_or(Vec::new(), |a| a.to_vec()));
         if keep {
             f.q.push(s.q.clone());
             f.v.push(s.v.clone());
             f.time.push(s.time);
+            if let Some(st) = sim.skeleton_state() {
+                f.skeleton.push(st);
+            }
+            f.joints.push(joints);
         }
         if record_contacts {
             let r = sim.recording().expect("recording enabled");
@@ -390,6 +477,8 @@ struct Backward<'a> {
     scratch_rot: Vec<f64>,
     scratch_vol: Vec<f64>,
     scratch_act: Vec<f64>,
+    /// The skeleton's backward buffers (`None` without a skeleton).
+    skel: Option<SkeletalAdjoint>,
 }
 
 impl<'a> Backward<'a> {
@@ -404,7 +493,8 @@ impl<'a> Backward<'a> {
         )?;
         let (n, nf) = (model.n(), sys.n());
         let groups = model.actuators.as_ref().map_or(0, |a| a.groups.len());
-        Ok(Self {
+        let mut b = Self {
+            skel: None,
             local: LocalAdjoint::new(model),
             contact: ContactAdjoint::default(),
             xbar: vec![Vector3::zeros(); nf],
@@ -425,7 +515,9 @@ impl<'a> Backward<'a> {
             opts,
             n,
             nf,
-        })
+        };
+        b.skel = SkeletalAdjoint::new(model, &b);
+        Ok(b)
     }
 
     /// Scatter free values into a full vector whose other entries are `fill(vertex)`.
@@ -493,6 +585,12 @@ impl<'a> Backward<'a> {
             self.xbar[k] = qbar[v] + vbar[v] * c;
             self.base_acc[k] = Vector3::zeros();
         }
+        if let Some(sa) = self.skel.as_mut() {
+            // Bone vertices after the step sit at q_R(z_{n+1}).
+            for (r, &v) in self.sys.rigid.iter().enumerate() {
+                sa.q_r_bar_in[r] = qbar[v] + vbar[v] * c;
+            }
+        }
         // q_{n+1} = x_N on free vertices; v_{n+1} = c (q_{n+1} - q_n) everywhere.
         for i in 0..self.n {
             qbar[i] = -vbar[i] * c;
@@ -501,6 +599,9 @@ impl<'a> Backward<'a> {
         let empty = (Vec::new(), Vec::new());
         let mut act_grad = std::mem::take(&mut g.activations[step]);
         match (self.opts.mode, replay) {
+            (Mode::Unrolled, Some(rec)) if self.skel.is_some() => {
+                self.skeletal_step(h, q_n, rec, activations, qbar, vbar, g, step, &mut act_grad)?;
+            }
             (Mode::Unrolled, Some(rec)) => {
                 let iters = rec.solves.len();
                 if rec.iterates.len() != iters + 1 {
@@ -519,7 +620,7 @@ impl<'a> Backward<'a> {
                         model,
                         &self.q_full,
                         &self.y_full,
-                        &self.xn_full,
+                        Some(&self.xn_full),
                         activations,
                         false,
                         &mut self.out_full,
@@ -603,7 +704,7 @@ impl<'a> Backward<'a> {
                     model,
                     q_next,
                     &self.y_full,
-                    &self.xn_full,
+                    Some(&self.xn_full),
                     activations,
                     true,
                     &mut self.out_full,
@@ -647,7 +748,7 @@ impl<'a> Backward<'a> {
             model,
             q_next,
             &self.y_full,
-            &self.xn_full,
+            Some(&self.xn_full),
             activations,
             true,
             &mut self.out_full,
@@ -771,6 +872,7 @@ pub fn gradient(
     let t1 = Instant::now();
     let n = model.n();
     let groups = model.actuators.as_ref().map_or(0, |a| a.groups.len());
+    let dofs = model.skeleton.as_ref().map_or(0, |s| s.dofs);
     let mut g = Gradient {
         loss: fwd.loss,
         q0: vec![Vector3::zeros(); n],
@@ -781,6 +883,8 @@ pub fn gradient(
         accel: vec![Vector3::zeros(); n],
         attachment_targets: vec![Vector3::zeros(); model.attachments.len()],
         activations: vec![vec![0.0; groups]; steps],
+        torques: vec![vec![0.0; dofs]; if dofs > 0 { steps } else { 0 }],
+        joints0: vec![0.0; dofs],
         stats: DiffStats {
             forward_ms,
             forward_iterations: fwd.iterations,
@@ -790,6 +894,12 @@ pub fn gradient(
     };
     g.stats.checkpoint_bytes = (fwd.q.len() + fwd.v.len()) * n * std::mem::size_of::<Vector3<f64>>()
         + fwd.activations.iter().map(|a| a.len() * 8).sum::<usize>()
+        + fwd
+            .skeleton
+            .iter()
+            .chain(&fwd.joints)
+            .map(|a| a.len() * 8)
+            .sum::<usize>()
         + fwd
             .contacts
             .iter()
@@ -807,6 +917,9 @@ pub fn gradient(
     for step in (0..steps).rev() {
         // The loss term of the state after this step.
         let (qs, vs) = (&fwd.q[step + 1], &fwd.v[step + 1]);
+        if let (Some(sa), Some(j)) = (bw.skel.as_mut(), fwd.joints.get(step)) {
+            loss.joint_term(model, step + 1, steps, j, &mut sa.z_bar);
+        }
         loss.term(
             model,
             step + 1,
@@ -821,6 +934,10 @@ pub fn gradient(
         );
         if let Some(sim) = replayer.as_mut() {
             sim.set_state(fwd.q[step].clone(), fwd.v[step].clone())?;
+            if let Some(st) = fwd.skeleton.get(step) {
+                sim.set_skeleton_state(st)?;
+            }
+            set_controls(sim, model, controls, step)?;
             sim.set_clock(fwd.time[step], step);
             if let Some(act) = &model.actuators {
                 for (grp, a) in act.groups.iter().zip(&fwd.activations[step]) {
@@ -854,6 +971,9 @@ pub fn gradient(
     }
     g.q0 = qbar;
     g.v0 = vbar;
+    if let Some(sa) = bw.skel.as_ref() {
+        g.joints0.copy_from_slice(&sa.z_bar);
+    }
     g.stats.backward_ms = t1.elapsed().as_secs_f64() * 1e3;
     Ok(g)
 }

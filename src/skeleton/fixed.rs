@@ -33,6 +33,15 @@ impl Joint for Fixed {
         Vec::new()
     }
     fn set_coordinates(&mut self, _c: &[f64]) {}
+    fn state_len(&self) -> usize {
+        0
+    }
+    fn write_state(&self, _out: &mut [f64]) {}
+    fn read_state(&mut self, _s: &[f64]) {}
+    fn derivative_dual(&self, _z: &[Dual64], k: usize) -> Matrix4<Dual64> {
+        unreachable!("a fixed joint has no coordinate {k}")
+    }
+    fn update_jacobians(&self, _dz: &[f64], _jz: &mut [f64], _jdz: &mut [f64]) {}
     fn boxed_clone(&self) -> Box<dyn Joint> {
         Box::new(self.clone())
     }

@@ -37,8 +37,30 @@ pub trait Joint: std::fmt::Debug + Send + Sync {
     fn increment_bounds(&self) -> Option<(f64, f64)> {
         None
     }
+    /// `d bound / d coordinate` of an active increment bound of [`Joint::increment_bounds`]
+    /// whose value is `bound` (`-(1 + bound^2)` for a rotational joint, whose bound is
+    /// `tan(limit - angle)`; `-1` for a prismatic one); 0 without limits.
+    fn increment_bound_derivative(&self, _bound: f64) -> f64 {
+        0.0
+    }
     /// Set the coordinates (same layout as [`Joint::coordinates`]).
     fn set_coordinates(&mut self, c: &[f64]);
+    /// Length of the raw state of [`Joint::write_state`] (12 for a free root: rotation and
+    /// translation; 1 for rotational and prismatic joints; 0 for fixed ones).
+    fn state_len(&self) -> usize;
+    /// Write the raw state (exact, for checkpoints of the backward pass).
+    fn write_state(&self, out: &mut [f64]);
+    /// Restore a raw state written by [`Joint::write_state`].
+    fn read_state(&mut self, s: &[f64]);
+    /// `dA / dz_k` at the state moved by the increment `z` (the chart of [`Joint::transform_dual`]),
+    /// in dual numbers: its derivative gives the second derivatives of `A` that the backward pass
+    /// contracts with the adjoint of `B` (Eqs. 12-16).
+    fn derivative_dual(&self, z: &[num_dual::Dual64], k: usize) -> Matrix4<num_dual::Dual64>;
+    /// Jacobians of the update rule (Eqs. 10, 35, 38) at the current state and increment `dz`,
+    /// in the charts of [`Joint::transform_dual`] before and after the update: row-major
+    /// `dofs x dofs` blocks `(d z_after / d z_before, d z_after / d dz)`, written into `jz` and
+    /// `jdz` (each of length `dofs^2`). Zero where a limit clamps the update.
+    fn update_jacobians(&self, dz: &[f64], jz: &mut [f64], jdz: &mut [f64]);
     /// A boxed copy.
     fn boxed_clone(&self) -> Box<dyn Joint>;
 }

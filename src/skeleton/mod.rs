@@ -133,6 +133,9 @@ pub struct Skeleton {
     pub dofs: usize,
     /// All bone vertices (global numbering), bone by bone.
     pub rigid: Vec<usize>,
+    /// Torques set through the API per coordinate (`None`: the bone's schedule); see
+    /// [`Skeleton::set_torque`].
+    pub torque_override: Vec<Option<f64>>,
 }
 
 impl Skeleton {
@@ -219,7 +222,12 @@ impl Skeleton {
                 torque: s.torque,
             });
         }
-        Ok(Self { bones, dofs, rigid })
+        Ok(Self {
+            bones,
+            dofs,
+            rigid,
+            torque_override: vec![None; dofs],
+        })
     }
 
     /// World transform `T_b` of every bone (Eq. 11).
@@ -331,12 +339,186 @@ impl Skeleton {
         }
     }
 
-    /// Joint torques at time `t` (one entry per coordinate; zero where none).
+    /// Joint torques at time `t` (one entry per coordinate; zero where none); an override
+    /// set by [`Skeleton::set_torque`] replaces the schedule.
     pub fn torques(&self, t: f64, out: &mut [f64]) {
         out.fill(0.0);
         for b in &self.bones {
             if let Some(s) = &b.torque {
                 out[b.dof_offset] = s.at(t);
+            }
+        }
+        for (o, v) in out.iter_mut().zip(&self.torque_override) {
+            if let Some(v) = v {
+                *o = *v;
+            }
+        }
+    }
+
+    /// Set (or with `None` release) the torque on coordinate `dof`, which must belong to a
+    /// one-DoF joint, overriding its schedule.
+    pub fn set_torque(&mut self, dof: usize, value: Option<f64>) -> Result<(), SolverError> {
+        let b = self
+            .bones
+            .iter()
+            .find(|b| dof >= b.dof_offset && dof < b.dof_offset + b.joint.dofs())
+            .ok_or_else(|| {
+                SolverError::Input(format!("coordinate {dof} does not exist ({} coordinates)", self.dofs))
+            })?;
+        if b.joint.dofs() != 1 {
+            return Err(SolverError::Input(format!(
+                "bone '{}': torques act on one-DoF joints, this one is {}",
+                b.name,
+                b.joint.kind()
+            )));
+        }
+        if value.is_some_and(|v| !v.is_finite()) {
+            return Err(SolverError::Input(format!("bone '{}': torque must be finite", b.name)));
+        }
+        self.torque_override[dof] = value;
+        Ok(())
+    }
+
+    /// The coordinate of the one-DoF joint of bone `name`.
+    pub fn scalar_dof(&self, name: &str) -> Result<usize, SolverError> {
+        let b = self
+            .bones
+            .iter()
+            .find(|b| b.name == name)
+            .ok_or_else(|| SolverError::Input(format!("no bone named '{name}'")))?;
+        if b.joint.dofs() != 1 {
+            return Err(SolverError::Input(format!(
+                "bone '{name}': a {} joint has no single coordinate",
+                b.joint.kind()
+            )));
+        }
+        Ok(b.dof_offset)
+    }
+
+    /// Length of the raw joint state ([`Skeleton::save_state`]).
+    pub fn state_len(&self) -> usize {
+        self.bones.iter().map(|b| b.joint.state_len()).sum()
+    }
+
+    /// The raw joint state of every bone, exactly (checkpoints of the backward pass).
+    pub fn save_state(&self, out: &mut Vec<f64>) {
+        out.clear();
+        out.resize(self.state_len(), 0.0);
+        let mut k = 0;
+        for b in &self.bones {
+            let n = b.joint.state_len();
+            b.joint.write_state(&mut out[k..k + n]);
+            k += n;
+        }
+    }
+
+    /// Restore a state written by [`Skeleton::save_state`].
+    pub fn load_state(&mut self, s: &[f64]) -> Result<(), SolverError> {
+        if s.len() != self.state_len() || !s.iter().all(|v| v.is_finite()) {
+            return Err(SolverError::Input(format!(
+                "skeleton state: expected {} finite numbers, got {}",
+                self.state_len(),
+                s.len()
+            )));
+        }
+        let mut k = 0;
+        for b in &mut self.bones {
+            let n = b.joint.state_len();
+            b.joint.read_state(&s[k..k + n]);
+            k += n;
+        }
+        Ok(())
+    }
+
+    /// The one-DoF joints' coordinates per coordinate index (0 for other coordinates).
+    pub fn scalars(&self, out: &mut [f64]) {
+        out.fill(0.0);
+        for b in &self.bones {
+            if let Some(x) = b.joint.scalar() {
+                out[b.dof_offset] = x;
+            }
+        }
+    }
+
+    /// `out[l] += sum_ij B_bar_ij dB_ij / dz_l`: the adjoint of the state through `B`
+    /// (Eqs. 12-16), by forward-mode dual numbers along each chart direction `l` (the increment
+    /// of [`Joint::transform_dual`]). `b_bar` has the layout of [`Skeleton::jacobian`].
+    pub fn contract_jacobian_derivative(&self, b_bar: &DMatrix<f64>, out: &mut [f64]) {
+        let zero = Dual64::from(0.0);
+        let nb = self.bones.len();
+        let mut world: Vec<Matrix4<Dual64>> = Vec::with_capacity(nb);
+        let mut local: Vec<Matrix4<Dual64>> = Vec::with_capacity(nb);
+        let mut z = Vec::with_capacity(6);
+        for l in 0..self.dofs {
+            world.clear();
+            local.clear();
+            for b in &self.bones {
+                z.clear();
+                z.resize(b.joint.dofs(), zero);
+                if l >= b.dof_offset && l < b.dof_offset + b.joint.dofs() {
+                    z[l - b.dof_offset] = zero.derivative();
+                }
+                let a = b.joint.transform_dual(&z);
+                let parent = b.parent.map_or(Matrix4::identity(), |p| world[p]);
+                world.push(parent * a);
+                local.push(a);
+            }
+            let mut acc = 0.0;
+            let mut row0 = 0;
+            for (bi, b) in self.bones.iter().enumerate() {
+                let mut suffix: Matrix4<Dual64> = Matrix4::identity();
+                let mut v = bi;
+                loop {
+                    let joint = &self.bones[v];
+                    let prefix = joint.parent.map_or(Matrix4::identity(), |p| world[p]);
+                    z.clear();
+                    z.resize(joint.joint.dofs(), zero);
+                    if l >= joint.dof_offset && l < joint.dof_offset + joint.joint.dofs() {
+                        z[l - joint.dof_offset] = zero.derivative();
+                    }
+                    for k in 0..joint.joint.dofs() {
+                        let g = prefix * joint.joint.derivative_dual(&z, k) * suffix;
+                        let col = joint.dof_offset + k;
+                        for (j, x) in b.rest.iter().enumerate() {
+                            let d = g * x.map(Dual64::from);
+                            for a in 0..3 {
+                                acc += b_bar[(row0 + 3 * j + a, col)] * d[a].eps;
+                            }
+                        }
+                    }
+                    suffix = local[v] * suffix;
+                    match joint.parent {
+                        Some(p) => v = p,
+                        None => break,
+                    }
+                }
+                row0 += 3 * b.rest.len();
+            }
+            out[l] += acc;
+        }
+    }
+
+    /// The adjoint of [`Skeleton::update`]: given the adjoint `after` of the state after the
+    /// increment `dz` (in the charts of [`Joint::transform_dual`]), write the adjoint of the
+    /// state before it into `before` and that of `dz` into `dz_bar` (both overwritten).
+    pub fn update_adjoint(&self, dz: &[f64], after: &[f64], before: &mut [f64], dz_bar: &mut [f64]) {
+        let mut jz = [0.0; 36];
+        let mut jdz = [0.0; 36];
+        for b in &self.bones {
+            let (o, n) = (b.dof_offset, b.joint.dofs());
+            if n == 0 {
+                continue;
+            }
+            b.joint
+                .update_jacobians(&dz[o..o + n], &mut jz[..n * n], &mut jdz[..n * n]);
+            for c in 0..n {
+                let (mut s1, mut s2) = (0.0, 0.0);
+                for r in 0..n {
+                    s1 += jz[r * n + c] * after[o + r];
+                    s2 += jdz[r * n + c] * after[o + r];
+                }
+                before[o + c] = s1;
+                dz_bar[o + c] = s2;
             }
         }
     }

@@ -69,8 +69,30 @@ impl Joint for Prismatic {
     fn scalar(&self) -> Option<f64> {
         Some(self.extension)
     }
+    fn increment_bound_derivative(&self, _bound: f64) -> f64 {
+        -1.0
+    }
     fn set_coordinates(&mut self, c: &[f64]) {
         self.extension = c[0];
+    }
+    fn state_len(&self) -> usize {
+        1
+    }
+    fn write_state(&self, out: &mut [f64]) {
+        out[0] = self.extension;
+    }
+    fn read_state(&mut self, s: &[f64]) {
+        self.extension = s[0];
+    }
+    fn derivative_dual(&self, _z: &[Dual64], _k: usize) -> Matrix4<Dual64> {
+        super::joint::dual_matrix4(&self.derivative(0))
+    }
+    fn update_jacobians(&self, dz: &[f64], jz: &mut [f64], jdz: &mut [f64]) {
+        let raw = self.extension + dz[0];
+        let clamped = self.limits.is_some_and(|(lo, hi)| raw < lo || raw > hi);
+        let d = if clamped { 0.0 } else { 1.0 };
+        jz[0] = d;
+        jdz[0] = d;
     }
     fn boxed_clone(&self) -> Box<dyn Joint> {
         Box::new(self.clone())

@@ -110,8 +110,38 @@ impl Joint for Rotational {
         };
         Some((lower, upper))
     }
+    fn increment_bound_derivative(&self, bound: f64) -> f64 {
+        -(1.0 + bound * bound)
+    }
     fn set_coordinates(&mut self, c: &[f64]) {
         self.angle = Self::updated_angle(c[0], 0.0);
+    }
+    fn state_len(&self) -> usize {
+        1
+    }
+    fn write_state(&self, out: &mut [f64]) {
+        out[0] = self.angle;
+    }
+    fn read_state(&mut self, s: &[f64]) {
+        self.angle = s[0];
+    }
+    fn derivative_dual(&self, z: &[Dual64], _k: usize) -> Matrix4<Dual64> {
+        let n = self.axis.map(Dual64::from);
+        let p = self.position.map(Dual64::from);
+        let dr = rodrigues_derivative(&n, Dual64::from(self.angle) + z[0]);
+        homogeneous_derivative(&dr, &(-dr * p))
+    }
+    fn update_jacobians(&self, dz: &[f64], jz: &mut [f64], jdz: &mut [f64]) {
+        // Eq. 35 adds atan(dz): d/d angle = 1, d/d dz = 1 / (1 + dz^2); a clamp makes both 0.
+        let raw = Self::updated_angle(self.angle, dz[0]);
+        let clamped = self.limits.is_some_and(|(lo, hi)| raw < lo || raw > hi);
+        if clamped {
+            jz[0] = 0.0;
+            jdz[0] = 0.0;
+        } else {
+            jz[0] = 1.0;
+            jdz[0] = 1.0 / (1.0 + dz[0] * dz[0]);
+        }
     }
     fn boxed_clone(&self) -> Box<dyn Joint> {
         Box::new(self.clone())

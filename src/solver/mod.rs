@@ -258,6 +258,41 @@ pub struct Recording {
     pub solves: Vec<(usize, Vec<Vector3<f64>>)>,
     /// Whether an iterative global solver handled contacts (no impulses to record).
     pub iterative_contacts: bool,
+    /// With a skeleton and `keep_iterates`: the raw joint state at every iterate (aligned with
+    /// `iterates`, see [`crate::skeleton::Skeleton::save_state`]).
+    pub skeleton_states: Vec<Vec<f64>>,
+    /// Per reduced solve: the joint increment `dz`.
+    pub increments: Vec<Vec<f64>>,
+    /// Per reduced solve: the residual `g - Sigma q_R` per bone vertex.
+    pub residuals: Vec<Vec<Vector3<f64>>>,
+    /// Per reduced solve: active joint limits `(coordinate, multiplier)`.
+    pub active_limits: Vec<Vec<(usize, f64)>>,
+    /// Reduced solves that had contacts on bone vertices.
+    pub rigid_contact_solves: usize,
+}
+
+impl Recording {
+    fn clear(&mut self) {
+        self.iterates.clear();
+        self.contact_sets.clear();
+        self.solves.clear();
+        self.iterative_contacts = false;
+        self.skeleton_states.clear();
+        self.increments.clear();
+        self.residuals.clear();
+        self.active_limits.clear();
+        self.rigid_contact_solves = 0;
+    }
+
+    /// Record the iterate `x` (and the skeleton's state).
+    fn push_iterate(&mut self, x: &[Vector3<f64>], skeleton: Option<&crate::skeleton::Skeleton>) {
+        self.iterates.push(x.to_vec());
+        if let Some(sk) = skeleton {
+            let mut s = Vec::new();
+            sk.save_state(&mut s);
+            self.skeleton_states.push(s);
+        }
+    }
 }
 
 /// A running simulation.
@@ -574,6 +609,46 @@ impl Simulator {
         self.state.step = step;
     }
 
+    /// The raw joint state of the skeleton (see [`crate::skeleton::Skeleton::save_state`]), if
+    /// the model has one.
+    pub fn skeleton_state(&self) -> Option<Vec<f64>> {
+        self.skeleton.as_ref().map(|(sk, _)| {
+            let mut s = Vec::new();
+            sk.save_state(&mut s);
+            s
+        })
+    }
+
+    /// Restore a joint state saved by [`Simulator::skeleton_state`]; the bone vertices' positions
+    /// are set separately with [`Simulator::set_state`].
+    pub fn set_skeleton_state(&mut self, s: &[f64]) -> Result<(), SolverError> {
+        let (sk, _) = self
+            .skeleton
+            .as_mut()
+            .ok_or_else(|| SolverError::Input("the model has no skeleton".into()))?;
+        sk.load_state(s)
+    }
+
+    /// Set the torque on the one-DoF joint of bone `bone` from the next step on (`None`: follow
+    /// its schedule again).
+    pub fn set_torque(&mut self, bone: &str, value: Option<f64>) -> Result<(), SolverError> {
+        let (sk, _) = self
+            .skeleton
+            .as_mut()
+            .ok_or_else(|| SolverError::Input("the model has no skeleton".into()))?;
+        let dof = sk.scalar_dof(bone)?;
+        sk.set_torque(dof, value)
+    }
+
+    /// Set the torque on reduced coordinate `dof` (a one-DoF joint's) from the next step on.
+    pub fn set_torque_dof(&mut self, dof: usize, value: Option<f64>) -> Result<(), SolverError> {
+        let (sk, _) = self
+            .skeleton
+            .as_mut()
+            .ok_or_else(|| SolverError::Input("the model has no skeleton".into()))?;
+        sk.set_torque(dof, value)
+    }
+
     /// The skeleton's current state, if the model has one.
     pub fn skeleton(&self) -> Option<&crate::skeleton::Skeleton> {
         self.skeleton.as_ref().map(|(s, _)| s)
@@ -654,10 +729,7 @@ impl Simulator {
             }
         }
         if let Some(r) = self.recording.as_mut() {
-            r.iterates.clear();
-            r.contact_sets.clear();
-            r.solves.clear();
-            r.iterative_contacts = false;
+            r.clear();
         }
         let tol = self.settings.tolerance * model.length_scale;
         let mut stats = StepStats {
@@ -708,7 +780,7 @@ impl Simulator {
             }
             for _ in 0..self.settings.max_iterations {
                 if let Some(r) = self.recording.as_mut().filter(|r| r.keep_iterates) {
-                    r.iterates.push(w.x.clone());
+                    r.push_iterate(&w.x, self.skeleton.as_ref().map(|(sk, _)| sk));
                 }
                 for (k, &v) in sys.free.iter().enumerate() {
                     w.full[v] = w.x[k];
@@ -817,6 +889,12 @@ impl Simulator {
                         }
                     }
                     r.solves.push((set, impulses));
+                    if let (true, Some((_, sp))) = (r.keep_iterates, self.skeleton.as_ref()) {
+                        r.increments.push(sp.last_increment().to_vec());
+                        r.residuals.push(sp.last_residual().to_vec());
+                        r.active_limits.push(sp.active_limits().collect());
+                        r.rigid_contact_solves += usize::from(!w.rigid_contacts.is_empty());
+                    }
                 }
                 stats.iterations += 1;
                 stats.global_iterations += g.iterations;
@@ -893,7 +971,7 @@ impl Simulator {
         }
         stats.contacts = w.contacts.len();
         if let Some(r) = self.recording.as_mut().filter(|r| r.keep_iterates) {
-            r.iterates.push(w.x.clone());
+            r.push_iterate(&w.x, self.skeleton.as_ref().map(|(sk, _)| sk));
         }
         for (k, &v) in sys.free.iter().enumerate() {
             w.full[v] = w.x[k];

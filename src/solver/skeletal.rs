@@ -115,6 +115,36 @@ impl Skeletal {
         }
     }
 
+    /// `W = A_FF^-1 A_FR` (`n_F x n_R`).
+    pub fn w(&self) -> &DMatrix<f64> {
+        &self.w
+    }
+
+    /// The Schur complement `Sigma = A_RR - A_RF W` (`n_R x n_R`).
+    pub fn sigma(&self) -> &DMatrix<f64> {
+        &self.sigma
+    }
+
+    /// The joint increment of the last [`Skeletal::solve`] (after limits and contacts).
+    pub fn last_increment(&self) -> &[f64] {
+        self.dz.as_slice()
+    }
+
+    /// The residual `g - Sigma q_R` of the last solve, per bone vertex.
+    pub fn last_residual(&self) -> &[Vector3<f64>] {
+        &self.resid
+    }
+
+    /// Joint limits active in the last solve: `(coordinate, multiplier)` with a nonzero
+    /// multiplier.
+    pub fn active_limits(&self) -> impl Iterator<Item = (usize, f64)> + '_ {
+        self.limits
+            .iter()
+            .zip(&self.c_mu)
+            .filter(|(_, &mu)| mu != 0.0)
+            .map(|(&(k, _, _), &mu)| (k, mu))
+    }
+
     /// Forget contact impulses (at the start of a step).
     pub fn reset_impulses(&mut self) {
         self.impulses.clear();

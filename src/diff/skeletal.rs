@@ -1,0 +1,434 @@
+//! The backward pass of the reduced skeleton step (paper Eqs. 7-8, 17-18; see
+//! [`crate::solver::skeletal`]).
+//!
+//! One local-global iteration with a skeleton maps the free positions `x_k` and the joint state
+//! `z_k` (a point on the joints' manifold: rotation and translation of a free root, angles,
+//! extensions) to `(x_{k+1}, z_{k+1})`:
+//!
+//! ```text
+//! b = [b_F; b_R]            right-hand side: M s / h^2 + J p(q_k) + couplings, q_k = (x_k, q_R(z_k))
+//! y0 = A_FF^-1 b_F,         g = b_R - A_RF y0,        r = g - Sigma q_R(z_k)
+//! S = B^T Sigma B,          dz = S^-1 (B^T r + tau)   (with active joint limits: E^T dz = d(z_k))
+//! z_{k+1} = U(z_k, dz)      (the joints' update rules, Eqs. 10, 35, 38)
+//! x_{k+1} = y0 - W q_R(z_{k+1}),   W = A_FF^-1 A_FR
+//! ```
+//!
+//! Its adjoint, with adjoints in the joints' tangent charts (so `d q_R / d z = B` itself):
+//!
+//! ```text
+//! z_bar' = z_bar + B(z_{k+1})^T (-W^T x_bar),     y0_bar = x_bar
+//! (z_bar, dz_bar) = U'(z_k, dz)^T z_bar'
+//! [S E; E^T 0] [u; v] = [dz_bar; 0]                tau_bar += u,   beta = B u
+//! B_bar = (r - Sigma B dz) u^T - (Sigma B u) dz^T  z_bar += (dB/dz) : B_bar + B^T (-Sigma beta) + (dd/dz) v
+//! y0_bar -= A_FR beta,   b_F_bar = A_FF^-1 y0_bar, b_R_bar = beta
+//! ```
+//!
+//! and then the local step's adjoint at `q_k` with `y = (b_F_bar, b_R_bar)`, whose bone-vertex
+//! part flows into `z_bar` through `B(z_k)^T` (or into `q_n` for the step's first iteration,
+//! which starts from the stored positions). The weights and masses enter through `A`: with
+//! `alpha = (-W beta, beta)`, `gamma = (y0 - W c, c)`, `c = q_R(z_k) + B dz` (the linearized
+//! solution), `y~ = A_FF^-1 x_bar = b_F_bar + W beta` and `q' = (x_{k+1}, q_R(z_{k+1}))`, the
+//! matrix terms are `-alpha^T dA gamma - y~^T dA q'` (fixed vertices at their rest positions,
+//! which also differentiates the constant couplings).
+
+use nalgebra::{DMatrix, DVector, Vector3};
+
+use super::local::LocalAdjoint;
+use super::{Backward, DiffError, Gradient};
+use crate::skeleton::Skeleton;
+use crate::solver::skeletal::Skeletal;
+use crate::solver::{Model, Recording};
+
+/// Buffers of the skeleton's backward pass.
+#[derive(Debug, Clone)]
+pub(super) struct SkeletalAdjoint {
+    /// `W` and `Sigma`.
+    skeletal: Skeletal,
+    /// A copy of the skeleton whose state is loaded per iterate.
+    work: Skeleton,
+    /// `B` at `z_k` and at `z_{k+1}` (`3 n_R x dofs`).
+    b: DMatrix<f64>,
+    b_next: DMatrix<f64>,
+    /// `(Sigma (x) I3) B`.
+    sb: DMatrix<f64>,
+    b_bar: DMatrix<f64>,
+    q_r: Vec<Vector3<f64>>,
+    q_r_next: Vec<Vector3<f64>>,
+    beta: Vec<Vector3<f64>>,
+    tmp_r: Vec<Vector3<f64>>,
+    /// The adjoint of the joint state (chart at the current iterate), carried across steps.
+    pub(super) z_bar: Vec<f64>,
+    z_after: Vec<f64>,
+    dz_bar: Vec<f64>,
+    /// Adjoint of the bone vertices' positions after the step (set by the caller).
+    pub(super) q_r_bar_in: Vec<Vector3<f64>>,
+    /// Right-hand side adjoint accumulated on bone vertices over a step.
+    base_acc: Vec<Vector3<f64>>,
+    /// Free-numbered scratch: `W beta`, `W (q_R' - c)`.
+    w_beta: Vec<Vector3<f64>>,
+    w_shift: Vec<Vector3<f64>>,
+    /// Full-numbered vectors of the matrix terms.
+    alpha: Vec<Vector3<f64>>,
+    gamma: Vec<Vector3<f64>>,
+    y_tilde: Vec<Vector3<f64>>,
+    q_prime: Vec<Vector3<f64>>,
+}
+
+impl SkeletalAdjoint {
+    /// Buffers for `model` (which has a skeleton), with `W` and `Sigma` from the factored system.
+    pub(super) fn new(model: &Model, b: &Backward<'_>) -> Option<Self> {
+        let sk = model.skeleton.as_ref()?;
+        let (nr, nf, n, dofs) = (b.sys.rigid.len(), b.nf, b.n, sk.dofs);
+        Some(Self {
+            skeletal: Skeletal::new(&b.sys, &b.direct, sk),
+            work: sk.clone(),
+            b: DMatrix::zeros(3 * nr, dofs),
+            b_next: DMatrix::zeros(3 * nr, dofs),
+            sb: DMatrix::zeros(3 * nr, dofs),
+            b_bar: DMatrix::zeros(3 * nr, dofs),
+            q_r: vec![Vector3::zeros(); nr],
+            q_r_next: vec![Vector3::zeros(); nr],
+            beta: vec![Vector3::zeros(); nr],
+            tmp_r: vec![Vector3::zeros(); nr],
+            z_bar: vec![0.0; dofs],
+            z_after: vec![0.0; dofs],
+            dz_bar: vec![0.0; dofs],
+            q_r_bar_in: vec![Vector3::zeros(); nr],
+            base_acc: vec![Vector3::zeros(); nr],
+            w_beta: vec![Vector3::zeros(); nf],
+            w_shift: vec![Vector3::zeros(); nf],
+            alpha: vec![Vector3::zeros(); n],
+            gamma: vec![Vector3::zeros(); n],
+            y_tilde: vec![Vector3::zeros(); n],
+            q_prime: vec![Vector3::zeros(); n],
+        })
+    }
+
+    /// Load joint state `s`; bone-vertex positions into `q` and `B` into `b`.
+    fn load(work: &mut Skeleton, s: &[f64], q: &mut [Vector3<f64>], b: &mut DMatrix<f64>) -> Result<(), DiffError> {
+        work.load_state(s)?;
+        work.positions(q);
+        work.jacobian(b);
+        Ok(())
+    }
+
+    /// `z_bar += B^T v` (per bone vertex `v`).
+    fn add_bt(b: &DMatrix<f64>, v: &[Vector3<f64>], z_bar: &mut [f64]) {
+        for (k, zb) in z_bar.iter_mut().enumerate() {
+            let col = b.column(k);
+            let mut s = 0.0;
+            for (r, x) in v.iter().enumerate() {
+                s += col[3 * r] * x.x + col[3 * r + 1] * x.y + col[3 * r + 2] * x.z;
+            }
+            *zb += s;
+        }
+    }
+
+    /// `out = W v` (free numbering), `W` column-major `n_F x n_R`.
+    fn w_times(w: &DMatrix<f64>, v: &[Vector3<f64>], out: &mut [Vector3<f64>]) {
+        out.iter_mut().for_each(|o| *o = Vector3::zeros());
+        let nf = out.len();
+        for (r, col) in w.as_slice().chunks_exact(nf.max(1)).enumerate() {
+            let x = v[r];
+            for (o, &wv) in out.iter_mut().zip(col) {
+                *o += x * wv;
+            }
+        }
+    }
+}
+
+impl Backward<'_> {
+    /// The unrolled backward of one step with a skeleton (see the module docs). On entry `qbar`,
+    /// `vbar` are the adjoints of `(q_{n+1}, v_{n+1})` and the skeleton adjoint holds that of
+    /// `z_{n+1}`; on exit those of `(q_n, v_n)` and `z_n`.
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn skeletal_step(
+        &mut self,
+        h: f64,
+        q_n: &[Vector3<f64>],
+        rec: &Recording,
+        activations: &[f64],
+        qbar: &mut [Vector3<f64>],
+        vbar: &mut [Vector3<f64>],
+        g: &mut Gradient,
+        step: usize,
+        act_grad: &mut [f64],
+    ) -> Result<(), DiffError> {
+        let model = self.model;
+        let ih2 = 1.0 / (h * h);
+        let mut sa = self
+            .skel
+            .take()
+            .ok_or_else(|| DiffError::Unsupported("skeleton buffers missing".into()))?;
+        let r = self.skeletal_iterations(&mut sa, h, q_n, rec, activations, qbar, g, step, act_grad);
+        if r.is_ok() {
+            // x_0 = s on free vertices (done by the caller's pattern), and s enters b_R on bones.
+            for (k, &v) in self.sys.free.iter().enumerate() {
+                let sbar = self.xbar[k] + self.base_acc[k] * (model.mass[v] * ih2);
+                self.add_s_adjoint(v, sbar, h, qbar, vbar, g);
+            }
+            for (r, &v) in self.sys.rigid.iter().enumerate() {
+                let sbar = sa.base_acc[r] * (model.mass[v] * ih2);
+                self.add_s_adjoint(v, sbar, h, qbar, vbar, g);
+                g.mass[v] += sa.base_acc[r].dot(&self.s[v]) * ih2;
+            }
+            for (a, t) in model.attachments.iter().zip(g.attachment_targets.iter_mut()) {
+                let r = self.sys.rigid_index[a.vertex];
+                if r != usize::MAX {
+                    *t += sa.base_acc[r] * a.weight;
+                }
+            }
+        }
+        self.skel = Some(sa);
+        r
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn skeletal_iterations(
+        &mut self,
+        sa: &mut SkeletalAdjoint,
+        h: f64,
+        q_n: &[Vector3<f64>],
+        rec: &Recording,
+        activations: &[f64],
+        qbar: &mut [Vector3<f64>],
+        g: &mut Gradient,
+        step: usize,
+        act_grad: &mut [f64],
+    ) -> Result<(), DiffError> {
+        let model = self.model;
+        let ih2 = 1.0 / (h * h);
+        let iters = rec.solves.len();
+        if rec.iterates.len() != iters + 1
+            || rec.skeleton_states.len() != iters + 1
+            || rec.increments.len() != iters
+            || rec.residuals.len() != iters
+        {
+            return Err(DiffError::Unsupported(
+                "the replay recorded no skeleton iterates".into(),
+            ));
+        }
+        if rec.rigid_contact_solves > 0 {
+            return Err(DiffError::Unsupported(format!(
+                "step {}: contacts on bone vertices (projected Gauss-Seidel in the reduced coordinates) are not differentiated yet",
+                step + 1
+            )));
+        }
+        if rec.solves.iter().any(|(_, imp)| !imp.is_empty()) {
+            return Err(DiffError::Unsupported(format!(
+                "step {}: contacts with a skeleton are not differentiated yet",
+                step + 1
+            )));
+        }
+        let dofs = sa.work.dofs;
+        let nf = self.nf;
+        sa.base_acc.iter_mut().for_each(|b| *b = Vector3::zeros());
+        // z_bar_N += B(z_N)^T q_R_bar.
+        SkeletalAdjoint::load(&mut sa.work, &rec.skeleton_states[iters], &mut sa.q_r, &mut sa.b)?;
+        SkeletalAdjoint::add_bt(&sa.b, &sa.q_r_bar_in, &mut sa.z_bar);
+        let mut torque_acc = vec![0.0; dofs];
+        let sigma = sa.skeletal.sigma().clone();
+        for k in (0..iters).rev() {
+            let x_next = &rec.iterates[k + 1];
+            let dz = &rec.increments[k];
+            let resid = &rec.residuals[k];
+            // 1. x_{k+1} = y0 - W q_R(z_{k+1}).
+            SkeletalAdjoint::load(
+                &mut sa.work,
+                &rec.skeleton_states[k + 1],
+                &mut sa.q_r_next,
+                &mut sa.b_next,
+            )?;
+            {
+                let w = sa.skeletal.w();
+                for (r, col) in w.as_slice().chunks_exact(nf.max(1)).enumerate() {
+                    let mut acc = Vector3::zeros();
+                    for (x, &wv) in self.xbar.iter().zip(col) {
+                        acc += x * wv;
+                    }
+                    sa.tmp_r[r] = -acc;
+                }
+            }
+            sa.z_after.copy_from_slice(&sa.z_bar);
+            SkeletalAdjoint::add_bt(&sa.b_next, &sa.tmp_r, &mut sa.z_after);
+            // 2. z_{k+1} = U(z_k, dz).
+            SkeletalAdjoint::load(&mut sa.work, &rec.skeleton_states[k], &mut sa.q_r, &mut sa.b)?;
+            sa.work.update_adjoint(dz, &sa.z_after, &mut sa.z_bar, &mut sa.dz_bar);
+            // 3. dz = S^-1 (B^T r + tau) under the active limits.
+            let nr = sa.q_r.len();
+            for kk in 0..dofs {
+                for rr in 0..nr {
+                    for a in 0..3 {
+                        let mut acc = 0.0;
+                        for c in 0..nr {
+                            acc += sigma[(rr, c)] * sa.b[(3 * c + a, kk)];
+                        }
+                        sa.sb[(3 * rr + a, kk)] = acc;
+                    }
+                }
+            }
+            let mut s = sa.b.transpose() * &sa.sb;
+            let scale = (0..dofs)
+                .map(|i| s[(i, i)].abs())
+                .fold(0.0, f64::max)
+                .max(f64::MIN_POSITIVE);
+            for i in 0..dofs {
+                s[(i, i)] += 1e-14 * scale;
+            }
+            let s = (&s + s.transpose()) * 0.5;
+            let chol = s.cholesky().ok_or_else(|| {
+                DiffError::NotDifferentiable(format!("step {}: B^T Sigma B is not positive definite", step + 1))
+            })?;
+            let mut u = chol.solve(&DVector::from_column_slice(&sa.dz_bar));
+            let limits = &rec.active_limits[k];
+            let mut v = DVector::zeros(limits.len());
+            if !limits.is_empty() {
+                // v = (E^T S^-1 E)^-1 E^T S^-1 dz_bar, u = S^-1 (dz_bar - E v).
+                let m = limits.len();
+                let mut e = DMatrix::zeros(dofs, m);
+                for (l, &(kk, _)) in limits.iter().enumerate() {
+                    e[(kk, l)] = 1.0;
+                }
+                let sie = chol.solve(&e);
+                let schur = e.transpose() * &sie;
+                let rhs = e.transpose() * &u;
+                v = schur.lu().solve(&rhs).ok_or_else(|| {
+                    DiffError::NotDifferentiable(format!("step {}: active joint limits are dependent", step + 1))
+                })?;
+                u -= &sie * &v;
+            }
+            for (t, x) in torque_acc.iter_mut().zip(u.iter()) {
+                *t += x;
+            }
+            // beta = B u; B_bar = (r - SB dz) u^T - (SB u) dz^T.
+            let dzv = DVector::from_column_slice(dz);
+            let sb_dz = &sa.sb * &dzv;
+            let sb_u = &sa.sb * &u;
+            for rr in 0..nr {
+                let mut bu = Vector3::zeros();
+                for a in 0..3 {
+                    bu[a] = (0..dofs).map(|kk| sa.b[(3 * rr + a, kk)] * u[kk]).sum::<f64>();
+                }
+                sa.beta[rr] = bu;
+            }
+            for kk in 0..dofs {
+                for i in 0..3 * nr {
+                    sa.b_bar[(i, kk)] = (resid[i / 3][i % 3] - sb_dz[i]) * u[kk] - sb_u[i] * dz[kk];
+                }
+            }
+            sa.work.contract_jacobian_derivative(&sa.b_bar, &mut sa.z_bar);
+            for (l, &(kk, _)) in limits.iter().enumerate() {
+                let bone = sa
+                    .work
+                    .bones
+                    .iter()
+                    .find(|b| kk >= b.dof_offset && kk < b.dof_offset + b.joint.dofs())
+                    .ok_or_else(|| DiffError::Input(format!("limit on unknown coordinate {kk}")))?;
+                sa.z_bar[kk] += v[l] * bone.joint.increment_bound_derivative(dz[kk]);
+            }
+            // r = g - Sigma q_R(z_k): q_R's adjoint is -Sigma beta.
+            for rr in 0..nr {
+                let mut acc = Vector3::zeros();
+                for c in 0..nr {
+                    acc += sa.beta[c] * sigma[(rr, c)];
+                }
+                sa.tmp_r[rr] = -acc;
+            }
+            SkeletalAdjoint::add_bt(&sa.b, &sa.tmp_r, &mut sa.z_bar);
+            // g = b_R - A_RF y0, y0 = A_FF^-1 b_F.
+            for (rr, list) in self.sys.l_rf.iter().enumerate() {
+                for &(f, val) in list {
+                    self.xbar[f] -= sa.beta[rr] * val;
+                }
+            }
+            self.direct.solve_free(&self.xbar, &mut self.z)?;
+            for (b, z) in self.base_acc.iter_mut().zip(&self.z) {
+                *b += z;
+            }
+            for (b, x) in sa.base_acc.iter_mut().zip(&sa.beta) {
+                *b += x;
+            }
+            // Matrix terms: -alpha^T dA gamma - y~^T dA q'.
+            let w = sa.skeletal.w();
+            SkeletalAdjoint::w_times(w, &sa.beta, &mut sa.w_beta);
+            for rr in 0..nr {
+                let mut bdz = Vector3::zeros();
+                for a in 0..3 {
+                    bdz[a] = (0..dofs).map(|kk| sa.b[(3 * rr + a, kk)] * dz[kk]).sum::<f64>();
+                }
+                // tmp_r = q_R' - c, c = q_R + B dz.
+                sa.tmp_r[rr] = sa.q_r_next[rr] - (sa.q_r[rr] + bdz);
+            }
+            SkeletalAdjoint::w_times(w, &sa.tmp_r, &mut sa.w_shift);
+            for i in 0..self.n {
+                let fixed = model.fixed[i];
+                let rest = if fixed { model.rest[i] } else { Vector3::zeros() };
+                sa.alpha[i] = Vector3::zeros();
+                sa.y_tilde[i] = Vector3::zeros();
+                sa.gamma[i] = rest;
+                sa.q_prime[i] = rest;
+            }
+            for (f, &v) in self.sys.free.iter().enumerate() {
+                sa.alpha[v] = -sa.w_beta[f];
+                sa.gamma[v] = x_next[f] + sa.w_shift[f];
+                sa.y_tilde[v] = self.z[f] + sa.w_beta[f];
+                sa.q_prime[v] = x_next[f];
+            }
+            for (rr, &v) in self.sys.rigid.iter().enumerate() {
+                sa.alpha[v] = sa.beta[rr];
+                sa.gamma[v] = sa.q_r_next[rr] - sa.tmp_r[rr];
+                sa.q_prime[v] = sa.q_r_next[rr];
+            }
+            LocalAdjoint::matrix_terms(
+                model,
+                &[(&sa.alpha, &sa.gamma), (&sa.y_tilde, &sa.q_prime)],
+                &mut g.w_rot,
+                &mut g.w_vol,
+            );
+            for i in 0..self.n {
+                if !model.fixed[i] {
+                    g.mass[i] -= (sa.alpha[i].dot(&sa.gamma[i]) + sa.y_tilde[i].dot(&sa.q_prime[i])) * ih2;
+                }
+            }
+            // The local step at q_k = (x_k, q_R(z_k)) (the stored positions at k = 0).
+            Self::scatter(&self.sys, model, &rec.iterates[k], &mut self.q_full, false);
+            Self::scatter(&self.sys, model, &self.z, &mut self.y_full, true);
+            for (rr, &v) in self.sys.rigid.iter().enumerate() {
+                self.q_full[v] = if k == 0 { q_n[v] } else { sa.q_r[rr] };
+                self.y_full[v] = sa.beta[rr];
+            }
+            self.local.backward(
+                model,
+                &self.q_full,
+                &self.y_full,
+                None,
+                activations,
+                false,
+                &mut self.out_full,
+                &mut g.w_rot,
+                &mut g.w_vol,
+                act_grad,
+            )?;
+            for (f, &v) in self.sys.free.iter().enumerate() {
+                self.xbar[f] = self.out_full[v];
+            }
+            for (rr, &v) in self.sys.rigid.iter().enumerate() {
+                sa.tmp_r[rr] = self.out_full[v];
+            }
+            if k == 0 {
+                for (rr, &v) in self.sys.rigid.iter().enumerate() {
+                    qbar[v] += sa.tmp_r[rr];
+                }
+            } else {
+                SkeletalAdjoint::add_bt(&sa.b, &sa.tmp_r, &mut sa.z_bar);
+            }
+            g.stats.backward_iterations += 1;
+        }
+        if let Some(tg) = g.torques.get_mut(step) {
+            for (a, b) in tg.iter_mut().zip(&torque_acc) {
+                *a += b;
+            }
+        }
+        Ok(())
+    }
+}
