@@ -2,11 +2,14 @@
 //! Baymax, 100 steps at dt 1/100, on 1 and 2 threads:
 //!
 //! * `baymax_free_fall`: the paper mesh falling (no obstacles);
-//! * `baymax_on_ground`: dropped onto the ground (frictional contact from the first step).
+//! * `baymax_on_ground`: dropped onto the ground (frictional contact from the first step);
+//! * `baymax_skeleton`: the paper's skeleton scene (free torso, 4 rotational joints, shoulder
+//!   torques; no ground), through the reduced step.
 //!
 //! For each: the forward alone (`diff::loss_value`), and the forward plus backward of the
-//! unrolled and implicit modes (`diff::gradient`). Backward / forward is the ratio of the
-//! medians: (gradient - forward) / forward.
+//! unrolled mode with pure checkpointing (`unrolled`), with the forward's recordings kept within
+//! 64 MB (`unrolled_store`), and the implicit mode (not with a skeleton). Backward / forward is
+//! the ratio of the medians: (gradient - forward) / forward.
 //! For scale, the paper's operator-overloading AD needs 2.2 s per step backward for Baymax with
 //! its skeleton and 18 s (11 GB) per step for Baymax in ground contact.
 
@@ -17,13 +20,16 @@ use diffsoft::diff::{self, loss, Controls, Mode, Options};
 use diffsoft::scene::{self, LoadOptions};
 use diffsoft::solver::{Model, Settings, SolverKind};
 
-fn baymax(ground: bool) -> (Model, Settings) {
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("verification/scenes/baymax_ground.json");
+fn baymax(file: &str, ground: bool) -> (Model, Settings) {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("verification/scenes")
+        .join(file);
     let mut sc = scene::load(path, LoadOptions::default()).expect("scene loads");
     if !ground {
         sc.model.obstacles.clear();
     }
     sc.settings.solver = SolverKind::Direct;
+    sc.settings.anderson = 0;
     (sc.model, sc.settings)
 }
 
@@ -37,33 +43,45 @@ fn bench(c: &mut Criterion) {
             .num_threads(threads)
             .build()
             .expect("pool");
-        for (name, ground) in [("free_fall", false), ("on_ground", true)] {
-            let (model, settings) = baymax(ground);
+        for (name, file, ground) in [
+            ("free_fall", "baymax_ground.json", false),
+            ("on_ground", "baymax_ground.json", true),
+            ("skeleton", "baymax_skeleton.json", false),
+        ] {
+            let (model, settings) = baymax(file, ground);
             g.bench_function(BenchmarkId::new(format!("{name}/forward"), threads), |b| {
                 b.iter(|| {
                     pool.install(|| diff::loss_value(&model, &settings, steps, &Controls::default(), l.as_ref()))
                         .expect("forward")
                 })
             });
-            for mode in [Mode::Unrolled, Mode::Implicit] {
-                g.bench_function(
-                    BenchmarkId::new(format!("{name}/gradient_{mode:?}").to_lowercase(), threads),
-                    |b| {
-                        b.iter(|| {
-                            pool.install(|| {
-                                diff::gradient(
-                                    &model,
-                                    &settings,
-                                    steps,
-                                    &Controls::default(),
-                                    l.as_ref(),
-                                    Options::mode(mode),
-                                )
-                            })
-                            .expect("gradient")
+            let skeleton = model.skeleton.is_some();
+            for (label, mode, store_bytes) in [
+                ("unrolled", Mode::Unrolled, 0),
+                ("unrolled_store", Mode::Unrolled, 64_000_000),
+                ("implicit", Mode::Implicit, 0),
+            ] {
+                if skeleton && mode == Mode::Implicit {
+                    continue;
+                }
+                g.bench_function(BenchmarkId::new(format!("{name}/gradient_{label}"), threads), |b| {
+                    b.iter(|| {
+                        pool.install(|| {
+                            diff::gradient(
+                                &model,
+                                &settings,
+                                steps,
+                                &Controls::default(),
+                                l.as_ref(),
+                                Options {
+                                    store_bytes,
+                                    ..Options::mode(mode)
+                                },
+                            )
                         })
-                    },
-                );
+                        .expect("gradient")
+                    })
+                });
             }
         }
     }

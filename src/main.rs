@@ -135,39 +135,7 @@ enum Command {
         activation: Vec<String>,
     },
     /// Loss and gradient of a simulation with respect to a scalar parameter (reverse mode).
-    Grad {
-        /// Scene file (.json, diffsoft.scene/1 or a paper scene).
-        #[arg(long)]
-        scene: PathBuf,
-        /// Steps to simulate.
-        #[arg(long, default_value_t = 100)]
-        steps: usize,
-        /// Loss: final_com.x|y|z or mean_com.x|y|z.
-        #[arg(long, default_value = "final_com.y")]
-        loss: String,
-        /// Parameters to differentiate (repeatable): youngs_modulus, poisson_ratio, density,
-        /// initial_velocity.x|y|z, gravity.x|y|z.
-        #[arg(long, required = true)]
-        param: Vec<String>,
-        /// Override a parameter first, `NAME=VALUE` (repeatable; same names as --param).
-        #[arg(long, value_name = "NAME=VALUE")]
-        set: Vec<String>,
-        /// Differentiation mode.
-        #[arg(long, value_enum, default_value = "unrolled")]
-        mode: diffsoft::diff::Mode,
-        /// Override the global solver.
-        #[arg(long, value_enum)]
-        solver: Option<diffsoft::solver::SolverKind>,
-        /// Override the local-global iteration cap.
-        #[arg(long)]
-        max_iterations: Option<usize>,
-        /// Override the local-global tolerance (0: always run the cap, a smooth forward).
-        #[arg(long)]
-        tolerance: Option<f64>,
-        /// Write `{loss, gradient}` as JSON here.
-        #[arg(long)]
-        json: Option<PathBuf>,
-    },
+    Grad(GradArgs),
     /// Gradient checks (reverse mode vs finite differences and dual numbers) on the built-in
     /// cases, writing gradients.json.
     Gradcheck {
@@ -394,29 +362,7 @@ fn run(command: Command) -> Result<()> {
                 bail!("some Jacobian checks failed");
             }
         }
-        Command::Grad {
-            scene,
-            steps,
-            loss,
-            param,
-            set,
-            mode,
-            solver,
-            max_iterations,
-            tolerance,
-            json,
-        } => grad(GradArgs {
-            scene,
-            steps,
-            loss,
-            param,
-            set,
-            mode,
-            solver,
-            max_iterations,
-            tolerance,
-            json,
-        })?,
+        Command::Grad(a) => grad(a)?,
         Command::Gradcheck { steps, json } => {
             let root = Path::new("verification");
             let cases = vec![
@@ -471,17 +417,51 @@ fn run(command: Command) -> Result<()> {
     Ok(())
 }
 
+#[derive(clap::Args)]
 struct GradArgs {
+    /// Scene file (.json, diffsoft.scene/1 or a paper scene).
+    #[arg(long)]
     scene: PathBuf,
+    /// Steps to simulate.
+    #[arg(long, default_value_t = 100)]
     steps: usize,
+    /// Loss: final_com.x|y|z, mean_com.x|y|z, joint_angle.BONE or mean_joint_angle.BONE.
+    #[arg(long, default_value = "final_com.y")]
     loss: String,
+    /// Parameters to differentiate (repeatable): youngs_modulus, poisson_ratio, density,
+    /// initial_velocity.x|y|z, gravity.x|y|z.
+    #[arg(long, required = true)]
     param: Vec<String>,
+    /// Override a parameter first, `NAME=VALUE` (repeatable; same names as --param).
+    #[arg(long, value_name = "NAME=VALUE")]
     set: Vec<String>,
+    /// Differentiation mode.
+    #[arg(long, value_enum, default_value = "unrolled")]
     mode: diffsoft::diff::Mode,
+    /// Override the global solver.
+    #[arg(long, value_enum)]
     solver: Option<diffsoft::solver::SolverKind>,
+    /// Override the local-global iteration cap.
+    #[arg(long)]
     max_iterations: Option<usize>,
+    /// Override the local-global tolerance (0: always run the cap, a smooth forward).
+    #[arg(long)]
     tolerance: Option<f64>,
+    /// Write `{loss, gradient}` as JSON here.
+    #[arg(long)]
     json: Option<PathBuf>,
+    /// Unrolled mode: keep whole steps' recordings from the forward pass up to this many MB
+    /// instead of replaying them from checkpoints (0: pure checkpointing).
+    #[arg(long, default_value_t = 0.0)]
+    store_mb: f64,
+}
+
+/// A memory budget in MB as bytes.
+fn store_bytes(mb: f64) -> Result<usize> {
+    if !(mb.is_finite() && mb >= 0.0) {
+        anyhow::bail!("--store-mb must be finite and >= 0, got {mb}");
+    }
+    Ok((mb * 1e6) as usize)
 }
 
 /// `diffsoft grad`: overrides, one forward and one backward pass, the loss and the derivatives.
@@ -516,7 +496,10 @@ fn grad(a: GradArgs) -> Result<()> {
         a.steps,
         &Controls::default(),
         loss.as_ref(),
-        Options::mode(a.mode),
+        Options {
+            store_bytes: store_bytes(a.store_mb)?,
+            ..Options::mode(a.mode)
+        },
     )?;
     let mut gradient = serde_json::Map::new();
     let mut values = serde_json::Map::new();

@@ -318,3 +318,45 @@ fn skeleton_gradients_match_finite_differences() {
     assert!(c.implicit_unsupported.is_some());
     assert_passes(&case);
 }
+
+/// Keeping the forward's recordings (all steps, or the first few within a budget) gives the
+/// replayed gradient to round-off (a replay warm-starts its decompositions differently).
+#[test]
+fn stored_recordings_give_the_replayed_gradient() {
+    let case = gradients::ground_contact(8).unwrap();
+    let run = |store_bytes| {
+        diff::gradient(
+            &case.model,
+            &case.settings,
+            case.steps,
+            &case.controls,
+            case.loss.as_ref(),
+            Options {
+                store_bytes,
+                ..Options::default()
+            },
+        )
+        .unwrap()
+    };
+    let replayed = run(0);
+    assert_eq!(replayed.stats.stored_steps, 0);
+    let all = run(usize::MAX);
+    assert_eq!(all.stats.stored_steps, case.steps);
+    let per_step = all.stats.stored_bytes / case.steps;
+    let some = run(3 * per_step + per_step / 2);
+    assert!(
+        some.stats.stored_steps > 0 && some.stats.stored_steps < case.steps,
+        "{}",
+        some.stats.stored_steps
+    );
+    for g in [&all, &some] {
+        for (a, b) in g.v0.iter().chain(&g.q0).zip(replayed.v0.iter().chain(&replayed.q0)) {
+            assert!((a - b).norm() <= 1e-8 * (1.0 + b.norm()), "{a} vs {b}");
+        }
+        let (a, b) = (
+            Param::YoungsModulus.derivative(&case.model, g),
+            Param::YoungsModulus.derivative(&case.model, &replayed),
+        );
+        assert!((a - b).abs() <= 1e-8 * b.abs(), "{a} vs {b}");
+    }
+}

@@ -119,6 +119,17 @@ pub fn deformation(model: &Model, t: usize, x: &[Vector3<f64>]) -> Matrix3<f64> 
     Matrix3::from_columns(&[x[i1] - x0, x[i2] - x0, x[i3] - x0]) * model.fem.geometry[t].p_inv
 }
 
+/// Where the backward of a local step gets each tet's linearization.
+#[derive(Debug, Clone, Copy)]
+pub enum Linearize<'a> {
+    /// Decompose `F` again at the given positions.
+    Recompute,
+    /// The cache of [`LocalAdjoint::linearize`].
+    Cached,
+    /// The decompositions the forward recorded at these positions.
+    Recorded(&'a [crate::solver::local::TetSvd]),
+}
+
 /// Per-tet and per-cell buffers of the local step's backward pass.
 #[derive(Debug, Clone)]
 pub struct LocalAdjoint {
@@ -172,8 +183,7 @@ impl LocalAdjoint {
     /// `<F_t(y), U V^T> - <F_t(y), F_t(x_next)>` to `g_rot[t]` and
     /// `<F_t(y), U X V^T> - <F_t(y), F_t(x_next)>` to `g_vol[t]` (right-hand side minus matrix
     /// term of the solve whose solution is `x_next`), and the activations'
-    /// adjoints to `g_act[group]`. With `cached`, uses the linearizations of [`Self::linearize`]
-    /// instead of recomputing them at `q`. Without `x_next` the matrix term is left out (the
+    /// adjoints to `g_act[group]`. `lin` says where the tets' linearizations at `q` come from. Without `x_next` the matrix term is left out (the
     /// caller adds it with [`LocalAdjoint::matrix_terms`]).
     #[allow(clippy::too_many_arguments)]
     pub fn backward(
@@ -183,7 +193,7 @@ impl LocalAdjoint {
         y: &[Vector3<f64>],
         x_next: Option<&[Vector3<f64>]>,
         activations: &[f64],
-        cached: bool,
+        lin: Linearize<'_>,
         out: &mut [Vector3<f64>],
         g_rot: &mut [f64],
         g_vol: &mut [f64],
@@ -212,9 +222,18 @@ impl LocalAdjoint {
                     gr[k] += fy.dot(&lin.rotation) - a_term;
                     gv[k] += fy.dot(&lin.volume) - a_term;
                 };
-                if cached {
+                if let Linearize::Cached = lin {
                     for k in 0..len {
                         process(k, &cache[t0 + k]);
+                    }
+                } else if let Linearize::Recorded(rec) = lin {
+                    for k in 0..len {
+                        let t = t0 + k;
+                        let r = rec.get(t).ok_or_else(|| fail(t, "no recorded decomposition"))?;
+                        let x = (w_vol[t] > 0.0).then_some(r.target);
+                        let lin =
+                            TetLinearization::with_target(&r.svd, x, w_rot[t], w_vol[t]).map_err(|m| fail(t, m))?;
+                        process(k, &lin);
                     }
                 } else {
                     let f: [Matrix3<f64>; LANES] = std::array::from_fn(|k| {

@@ -43,7 +43,7 @@ use crate::solver::global::{FreeContact, GlobalSystem, InnerControl};
 use crate::solver::{Model, Settings, Simulator, SolverError, SolverKind};
 
 use contact::ContactAdjoint;
-use local::LocalAdjoint;
+use local::{Linearize, LocalAdjoint};
 use loss::{Loss, LossGrad};
 use skeletal::SkeletalAdjoint;
 
@@ -89,6 +89,11 @@ pub struct Options {
     pub contact_tolerance: f64,
     /// Sweep cap of the linearized contact systems.
     pub contact_max_sweeps: usize,
+    /// Unrolled mode: keep the forward pass's recordings of whole steps (iterates and
+    /// decompositions) up to this many bytes, so those steps need no replay in the backward
+    /// pass; the steps beyond it are replayed from their checkpoints. 0: pure checkpointing, as
+    /// the paper (memory: one state per step).
+    pub store_bytes: usize,
 }
 
 impl Default for Options {
@@ -99,6 +104,7 @@ impl Default for Options {
             implicit_max_iterations: 300,
             contact_tolerance: 1e-14,
             contact_max_sweeps: 100_000,
+            store_bytes: 0,
         }
     }
 }
@@ -137,6 +143,10 @@ pub struct DiffStats {
     pub forward_ms: f64,
     /// Backward pass wall time (ms), replays included.
     pub backward_ms: f64,
+    /// Of which replaying steps from their checkpoints (unrolled mode, ms).
+    pub replay_ms: f64,
+    /// Of which in the adjoints of the contact solves (ms).
+    pub contact_ms: f64,
     /// Local-global iterations of the forward pass.
     pub forward_iterations: usize,
     /// Adjoint iterations of the backward pass.
@@ -153,6 +163,10 @@ pub struct DiffStats {
     pub replay_deviation: f64,
     /// Bytes of stored checkpoints (states, activations, final contacts).
     pub checkpoint_bytes: usize,
+    /// Bytes of whole-step recordings kept from the forward pass (see [`Options::store_bytes`]).
+    pub stored_bytes: usize,
+    /// Steps whose recording was kept (not replayed).
+    pub stored_steps: usize,
 }
 
 /// The loss and its gradient with respect to everything differentiable.
@@ -252,6 +266,9 @@ struct Forward {
     joints: Vec<Vec<f64>>,
     /// Implicit mode with contacts: each step's final contact set and impulses.
     contacts: Vec<(Vec<FreeContact>, Vec<Vector3<f64>>)>,
+    /// Unrolled mode: steps' recordings kept within the store budget (`None`: replay).
+    stored: Vec<Option<crate::solver::Recording>>,
+    stored_bytes: usize,
     iterations: usize,
     unconverged: usize,
 }
@@ -378,15 +395,30 @@ fn loss_term(
         )
 }
 
+/// What a forward pass keeps for the backward pass.
+#[derive(Debug, Clone, Copy, Default)]
+struct Keep {
+    /// Every step's state (checkpoints).
+    states: bool,
+    /// Every step's final contacts (implicit mode).
+    contacts: bool,
+    /// Whole steps' recordings within this budget (unrolled mode, see [`Options::store_bytes`]).
+    store_bytes: usize,
+}
+
 fn forward(
     model: &Model,
     settings: &Settings,
     steps: usize,
     controls: &Controls,
     loss: &dyn Loss,
-    keep: bool,
-    record_contacts: bool,
+    keep: Keep,
 ) -> Result<Forward, DiffError> {
+    let Keep {
+        states: keep,
+        contacts: record_contacts,
+        store_bytes,
+    } = keep;
     loss.validate(model)?;
     let mut sim = Simulator::new(model.clone(), settings.clone())?;
     if let Some((q, v)) = &controls.initial {
@@ -394,6 +426,13 @@ fn forward(
     }
     if record_contacts {
         sim.record(Some(false));
+    }
+    let mut storing = keep && !record_contacts && store_bytes > 0;
+    if storing {
+        // Iterates only: decompositions are ~200 bytes per tet and iteration, and the backward
+        // pass redoes them at a fraction of a replay's cost.
+        sim.record(Some(true));
+        sim.record_decompositions(false);
     }
     let skel0 = sim.skeleton_state();
     let mut f = Forward {
@@ -405,6 +444,8 @@ fn forward(
         skeleton: skel0.into_iter().collect(),
         joints: Vec::new(),
         contacts: Vec::new(),
+        stored: Vec::new(),
+        stored_bytes: 0,
         iterations: 0,
         unconverged: 0,
     };
@@ -425,6 +466,17 @@ fn forward(
                 f.skeleton.push(st);
             }
             f.joints.push(joints);
+        }
+        if storing {
+            let r = sim.recording().expect("recording enabled");
+            let b = r.bytes();
+            if f.stored_bytes + b <= store_bytes {
+                f.stored_bytes += b;
+                f.stored.push(Some(r.snapshot()));
+            } else {
+                storing = false;
+                sim.record(None);
+            }
         }
         if record_contacts {
             let r = sim.recording().expect("recording enabled");
@@ -450,7 +502,7 @@ pub fn loss_value(
     controls: &Controls,
     loss: &dyn Loss,
 ) -> Result<f64, DiffError> {
-    Ok(forward(model, settings, steps, controls, loss, false, false)?.loss)
+    Ok(forward(model, settings, steps, controls, loss, Keep::default())?.loss)
 }
 
 /// Buffers of the backward pass.
@@ -479,6 +531,8 @@ struct Backward<'a> {
     scratch_act: Vec<f64>,
     /// The skeleton's backward buffers (`None` without a skeleton).
     skel: Option<SkeletalAdjoint>,
+    /// Time in contact adjoints (ms).
+    contact_ms: f64,
 }
 
 impl<'a> Backward<'a> {
@@ -495,6 +549,7 @@ impl<'a> Backward<'a> {
         let groups = model.actuators.as_ref().map_or(0, |a| a.groups.len());
         let mut b = Self {
             skel: None,
+            contact_ms: 0.0,
             local: LocalAdjoint::new(model),
             contact: ContactAdjoint::default(),
             xbar: vec![Vector3::zeros(); nf],
@@ -541,7 +596,11 @@ impl<'a> Backward<'a> {
     ) -> Result<(), DiffError> {
         let src = input.unwrap_or(&self.xbar);
         self.direct.solve_free(src, &mut self.z)?;
-        self.contact.apply(
+        if contacts.is_empty() {
+            return Ok(());
+        }
+        let t = Instant::now();
+        let r = self.contact.apply(
             &mut self.direct,
             contacts,
             impulses,
@@ -550,7 +609,9 @@ impl<'a> Backward<'a> {
             anchor_bar,
             self.opts.contact_tolerance,
             self.opts.contact_max_sweeps,
-        )
+        );
+        self.contact_ms += t.elapsed().as_secs_f64() * 1e3;
+        r
     }
 
     /// One step's adjoint: `qbar`, `vbar` hold the adjoints of `(q_{n+1}, v_{n+1})` on entry and
@@ -622,7 +683,7 @@ impl<'a> Backward<'a> {
                         &self.y_full,
                         Some(&self.xn_full),
                         activations,
-                        false,
+                        rec.svds.get(k).map_or(Linearize::Recompute, |s| Linearize::Recorded(s)),
                         &mut self.out_full,
                         &mut g.w_rot,
                         &mut g.w_vol,
@@ -706,7 +767,7 @@ impl<'a> Backward<'a> {
                     &self.y_full,
                     Some(&self.xn_full),
                     activations,
-                    true,
+                    Linearize::Cached,
                     &mut self.out_full,
                     &mut g.w_rot,
                     &mut g.w_vol,
@@ -750,7 +811,7 @@ impl<'a> Backward<'a> {
             &self.y_full,
             Some(&self.xn_full),
             activations,
-            true,
+            Linearize::Cached,
             &mut self.out_full,
             &mut self.scratch_rot,
             &mut self.scratch_vol,
@@ -865,8 +926,11 @@ pub fn gradient(
         steps,
         controls,
         loss,
-        true,
-        implicit && !model.obstacles.is_empty(),
+        Keep {
+            states: true,
+            contacts: implicit && !model.obstacles.is_empty(),
+            store_bytes: if implicit { 0 } else { opts.store_bytes },
+        },
     )?;
     let forward_ms = t0.elapsed().as_secs_f64() * 1e3;
     let t1 = Instant::now();
@@ -892,6 +956,8 @@ pub fn gradient(
             ..Default::default()
         },
     };
+    g.stats.stored_bytes = fwd.stored_bytes;
+    g.stats.stored_steps = fwd.stored.iter().filter(|r| r.is_some()).count();
     g.stats.checkpoint_bytes = (fwd.q.len() + fwd.v.len()) * n * std::mem::size_of::<Vector3<f64>>()
         + fwd.activations.iter().map(|a| a.len() * 8).sum::<usize>()
         + fwd
@@ -932,7 +998,9 @@ pub fn gradient(
                 mass: &mut g.mass,
             },
         );
-        if let Some(sim) = replayer.as_mut() {
+        let tr = Instant::now();
+        let stored = fwd.stored.get(step).and_then(|r| r.as_ref());
+        if let (Some(sim), None) = (replayer.as_mut(), stored) {
             sim.set_state(fwd.q[step].clone(), fwd.v[step].clone())?;
             if let Some(st) = fwd.skeleton.get(step) {
                 sim.set_skeleton_state(st)?;
@@ -954,7 +1022,8 @@ pub fn gradient(
                 .fold(0.0, f64::max);
             g.stats.replay_deviation = g.stats.replay_deviation.max(dev);
         }
-        let rec = replayer.as_ref().and_then(|s| s.recording());
+        g.stats.replay_ms += tr.elapsed().as_secs_f64() * 1e3;
+        let rec = stored.or_else(|| replayer.as_ref().and_then(|s| s.recording()));
         bw.step(
             settings,
             &fwd.q[step],
@@ -975,5 +1044,6 @@ pub fn gradient(
         g.joints0.copy_from_slice(&sa.z_bar);
     }
     g.stats.backward_ms = t1.elapsed().as_secs_f64() * 1e3;
+    g.stats.contact_ms = bw.contact_ms;
     Ok(g)
 }

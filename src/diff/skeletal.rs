@@ -33,7 +33,7 @@
 
 use nalgebra::{DMatrix, DVector, Vector3};
 
-use super::local::LocalAdjoint;
+use super::local::{Linearize, LocalAdjoint};
 use super::{Backward, DiffError, Gradient};
 use crate::skeleton::Skeleton;
 use crate::solver::skeletal::Skeletal;
@@ -403,7 +403,7 @@ impl Backward<'_> {
                 &self.y_full,
                 None,
                 activations,
-                false,
+                rec.svds.get(k).map_or(Linearize::Recompute, |s| Linearize::Recorded(s)),
                 &mut self.out_full,
                 &mut g.w_rot,
                 &mut g.w_vol,

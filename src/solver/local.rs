@@ -13,6 +13,30 @@ use crate::constraint::actuator::{muscle_target, pneumatic_target};
 use crate::constraint::svd::{self, LANES};
 use crate::constraint::{volume, ProjectionError};
 
+/// One tet's decomposition at a local step: the SVD of `F` and the volume projection's target
+/// singular values (zero where the tet has no volume constraint). Recorded for the backward pass,
+/// which linearizes the projection at the same point.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TetSvd {
+    /// `F = U diag(sigma) V^T`.
+    pub svd: svd::Svd3,
+    /// Target singular values of the volume constraint.
+    pub target: Vector3<f64>,
+}
+
+impl Default for TetSvd {
+    fn default() -> Self {
+        Self {
+            svd: svd::Svd3 {
+                u: Matrix3::identity(),
+                sigma: Vector3::repeat(1.0),
+                v: Matrix3::identity(),
+            },
+            target: Vector3::zeros(),
+        }
+    }
+}
+
 /// Per-tet buffers of the local step.
 #[derive(Debug, Clone)]
 pub struct LocalStep {
@@ -130,41 +154,74 @@ impl LocalStep {
     /// Tets are decomposed `LANES` at a time by one fused kernel (SVD, volume projection,
     /// composition), chunks in parallel.
     pub fn project(&mut self, model: &Model, q: &[Vector3<f64>]) -> Result<f64, SolverError> {
+        self.project_recording(model, q, None)
+    }
+
+    /// [`LocalStep::project`], also writing every tet's decomposition into `record` (one entry
+    /// per tet) when given.
+    pub fn project_recording(
+        &mut self,
+        model: &Model,
+        q: &[Vector3<f64>],
+        record: Option<&mut [TetSvd]>,
+    ) -> Result<f64, SolverError> {
         let tets = &model.tets;
+        if record.as_ref().is_some_and(|r| r.len() != tets.len()) {
+            return Err(SolverError::Input(format!(
+                "local step record has {} entries for {} tets",
+                record.map_or(0, |r| r.len()),
+                tets.len()
+            )));
+        }
         let geo = &model.fem.geometry;
         let (w_rot, w_vol) = (&model.w_rot, &model.w_vol);
-        self.weighted
+        type Bufs<'b> = (
+            ((&'b mut [Matrix3<f64>], &'b mut [Matrix3<f64>]), &'b mut [f64]),
+            &'b mut [f64],
+        );
+        let body = |chunk: usize, (((out, v), e), tw): Bufs<'_>, svd_out: Option<&mut [TetSvd]>| {
+            let t0 = chunk * LANES;
+            let len = out.len();
+            let f: [Matrix3<f64>; LANES] = std::array::from_fn(|k| {
+                if k < len {
+                    let [i0, i1, i2, i3] = tets[t0 + k];
+                    let x0 = q[i0];
+                    Matrix3::from_columns(&[q[i1] - x0, q[i2] - x0, q[i3] - x0]) * geo[t0 + k].p_inv
+                } else {
+                    Matrix3::identity()
+                }
+            });
+            let chunk = Chunk {
+                w_rot: &w_rot[t0..t0 + len],
+                w_vol: &w_vol[t0..t0 + len],
+                v_warm: v,
+                t_warm: tw,
+                out,
+                energy: e,
+                svd_out,
+            };
+            project_chunk(&f, chunk).map_err(|(k, err)| match err {
+                Some(source) => SolverError::Projection { tet: t0 + k, source },
+                None => SolverError::NonFinite(format!("tet {}: deformation gradient is not finite", t0 + k)),
+            })
+        };
+        let bufs = self
+            .weighted
             .par_chunks_mut(LANES)
             .zip(self.v_warm.par_chunks_mut(LANES))
             .zip(self.energy.par_chunks_mut(LANES))
-            .zip(self.t_warm.par_chunks_mut(LANES))
-            .enumerate()
-            .with_min_len(32)
-            .try_for_each(|(chunk, (((out, v), e), tw))| {
-                let t0 = chunk * LANES;
-                let len = out.len();
-                let f: [Matrix3<f64>; LANES] = std::array::from_fn(|k| {
-                    if k < len {
-                        let [i0, i1, i2, i3] = tets[t0 + k];
-                        let x0 = q[i0];
-                        Matrix3::from_columns(&[q[i1] - x0, q[i2] - x0, q[i3] - x0]) * geo[t0 + k].p_inv
-                    } else {
-                        Matrix3::identity()
-                    }
-                });
-                let chunk = Chunk {
-                    w_rot: &w_rot[t0..t0 + len],
-                    w_vol: &w_vol[t0..t0 + len],
-                    v_warm: v,
-                    t_warm: tw,
-                    out,
-                    energy: e,
-                };
-                project_chunk(&f, chunk).map_err(|(k, err)| match err {
-                    Some(source) => SolverError::Projection { tet: t0 + k, source },
-                    None => SolverError::NonFinite(format!("tet {}: deformation gradient is not finite", t0 + k)),
-                })
-            })?;
+            .zip(self.t_warm.par_chunks_mut(LANES));
+        match record {
+            Some(rec) => bufs
+                .zip(rec.par_chunks_mut(LANES))
+                .enumerate()
+                .with_min_len(32)
+                .try_for_each(|(chunk, (b, r))| body(chunk, b, Some(r)))?,
+            None => bufs
+                .enumerate()
+                .with_min_len(32)
+                .try_for_each(|(chunk, b)| body(chunk, b, None))?,
+        }
         let mut energy: f64 = self.energy.iter().sum();
         if let Some(act) = self.actuators.as_mut() {
             energy += act.project(model, q, &mut self.weighted)?;
@@ -194,6 +251,7 @@ struct Chunk<'a> {
     t_warm: &'a mut [f64],
     out: &'a mut [Matrix3<f64>],
     energy: &'a mut [f64],
+    svd_out: Option<&'a mut [TetSvd]>,
 }
 
 /// A failed tet of a chunk: its lane and the projection error (`None`: non-finite `F`).
@@ -223,7 +281,7 @@ unsafe fn chunk_avx2(f: &[Matrix3<f64>; LANES], c: Chunk<'_>) -> Result<(), Chun
 /// Everything is inlined into one function so the AVX2 build covers all of it and the
 /// per-lane arrays stay in registers or on this frame.
 #[inline(always)]
-fn chunk_kernel(f: &[Matrix3<f64>; LANES], c: Chunk<'_>) -> Result<(), ChunkError> {
+fn chunk_kernel(f: &[Matrix3<f64>; LANES], mut c: Chunk<'_>) -> Result<(), ChunkError> {
     let len = c.out.len();
     let v0: [Matrix3<f64>; LANES] = std::array::from_fn(|k| if k < len { c.v_warm[k] } else { Matrix3::identity() });
     let svds = svd::batch_generic(f, &v0);
@@ -253,6 +311,15 @@ fn chunk_kernel(f: &[Matrix3<f64>; LANES], c: Chunk<'_>) -> Result<(), ChunkErro
         }
         c.out[k] = svd.compose(&diag);
         c.energy[k] = en;
+        if let Some(rec) = c.svd_out.as_deref_mut() {
+            rec[k] = TetSvd {
+                svd: *svd,
+                target: match (&targets, c.w_vol[k] > 0.0) {
+                    (Some(x), true) => x[k],
+                    _ => Vector3::zeros(),
+                },
+            };
+        }
     }
     Ok(())
 }

@@ -269,9 +269,61 @@ pub struct Recording {
     pub active_limits: Vec<Vec<(usize, f64)>>,
     /// Reduced solves that had contacts on bone vertices.
     pub rigid_contact_solves: usize,
+    /// With `keep_iterates`: every tet's decomposition at each iterate's local step (aligned
+    /// with `iterates`, one fewer), so the backward pass need not decompose again.
+    pub svds: Vec<Vec<local::TetSvd>>,
+    /// Buffers of `svds` kept for reuse.
+    svd_pool: Vec<Vec<local::TetSvd>>,
+    /// Whether `svds` are recorded (with `keep_iterates`).
+    pub keep_decompositions: bool,
 }
 
 impl Recording {
+    /// A copy without the reuse pool (to keep a step's recording).
+    pub fn snapshot(&self) -> Recording {
+        Recording {
+            keep_iterates: self.keep_iterates,
+            iterates: self.iterates.clone(),
+            contact_sets: self.contact_sets.clone(),
+            solves: self.solves.clone(),
+            iterative_contacts: self.iterative_contacts,
+            skeleton_states: self.skeleton_states.clone(),
+            increments: self.increments.clone(),
+            residuals: self.residuals.clone(),
+            active_limits: self.active_limits.clone(),
+            rigid_contact_solves: self.rigid_contact_solves,
+            svds: self.svds.clone(),
+            svd_pool: Vec::new(),
+            keep_decompositions: self.keep_decompositions,
+        }
+    }
+
+    /// Approximate heap size of the recorded data (bytes).
+    pub fn bytes(&self) -> usize {
+        use std::mem::size_of;
+        let v3 = size_of::<Vector3<f64>>();
+        self.iterates.iter().map(|x| x.len() * v3).sum::<usize>()
+            + self
+                .contact_sets
+                .iter()
+                .map(|c| c.len() * size_of::<FreeContact>())
+                .sum::<usize>()
+            + self.solves.iter().map(|(_, l)| l.len() * v3 + 8).sum::<usize>()
+            + self
+                .skeleton_states
+                .iter()
+                .chain(&self.increments)
+                .map(|x| x.len() * 8)
+                .sum::<usize>()
+            + self.residuals.iter().map(|x| x.len() * v3).sum::<usize>()
+            + self.active_limits.iter().map(|x| x.len() * 16).sum::<usize>()
+            + self
+                .svds
+                .iter()
+                .map(|x| x.len() * size_of::<local::TetSvd>())
+                .sum::<usize>()
+    }
+
     fn clear(&mut self) {
         self.iterates.clear();
         self.contact_sets.clear();
@@ -282,6 +334,7 @@ impl Recording {
         self.residuals.clear();
         self.active_limits.clear();
         self.rigid_contact_solves = 0;
+        self.svd_pool.append(&mut self.svds);
     }
 
     /// Record the iterate `x` (and the skeleton's state).
@@ -333,6 +386,32 @@ fn joint_scalars(sk: &crate::skeleton::Skeleton, c: &mut [f64]) {
         if let Some(x) = b.joint.scalar() {
             c[b.dof_offset] = x;
         }
+    }
+}
+
+/// The local step at `q`; with a recording that keeps iterates, every tet's decomposition is
+/// recorded too (`replace_last`: the iteration's earlier record is replaced).
+fn project_local(
+    local: &mut LocalStep,
+    recording: Option<&mut Recording>,
+    model: &Model,
+    q: &[Vector3<f64>],
+    replace_last: bool,
+) -> Result<f64, SolverError> {
+    match recording.filter(|r| r.keep_iterates && r.keep_decompositions) {
+        Some(r) => {
+            if replace_last {
+                if let Some(b) = r.svds.pop() {
+                    r.svd_pool.push(b);
+                }
+            }
+            let mut buf = r.svd_pool.pop().unwrap_or_default();
+            buf.resize(model.tets.len(), local::TetSvd::default());
+            let e = local.project_recording(model, q, Some(&mut buf));
+            r.svds.push(buf);
+            e
+        }
+        None => local.project(model, q),
     }
 }
 
@@ -589,13 +668,22 @@ impl Simulator {
     }
 
     /// Record every following step's iterations for the backward pass (`keep_iterates`: all
-    /// iterates, for unrolled differentiation; otherwise only the final contacts), or stop
-    /// recording (`None`).
+    /// iterates, for unrolled differentiation, with every tet's decomposition; otherwise only
+    /// the final contacts), or stop recording (`None`).
     pub fn record(&mut self, keep_iterates: Option<bool>) {
         self.recording = keep_iterates.map(|k| Recording {
             keep_iterates: k,
+            keep_decompositions: k,
             ..Default::default()
         });
+    }
+
+    /// Whether a recording that keeps iterates also keeps every tet's decomposition (memory:
+    /// about 200 bytes per tet and iteration; saves the backward pass decomposing again).
+    pub fn record_decompositions(&mut self, keep: bool) {
+        if let Some(r) = self.recording.as_mut() {
+            r.keep_decompositions = keep;
+        }
     }
 
     /// What the last step recorded (see [`Simulator::record`]).
@@ -786,7 +874,7 @@ impl Simulator {
                     w.full[v] = w.x[k];
                 }
                 let tl = Instant::now();
-                stats.elastic_energy = self.local.project(model, &w.full)?;
+                stats.elastic_energy = project_local(&mut self.local, self.recording.as_mut(), model, &w.full, false)?;
                 if let Some(aa) = self.anderson.as_mut() {
                     // Safeguard: an accelerated iterate must lower the step's objective;
                     // otherwise fall back to the plain update and forget the history.
@@ -806,7 +894,8 @@ impl Simulator {
                         for (k, &v) in sys.free.iter().enumerate() {
                             w.full[v] = w.x[k];
                         }
-                        stats.elastic_energy = self.local.project(model, &w.full)?;
+                        stats.elastic_energy =
+                            project_local(&mut self.local, self.recording.as_mut(), model, &w.full, true)?;
                         e = step_objective(
                             model,
                             &w.full,

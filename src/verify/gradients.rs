@@ -35,6 +35,9 @@ use crate::solver::{BodySpec, MassSpec, Material, Model, ModelBuilder, Settings,
 /// Schema of `gradients.json`.
 pub const GRADIENTS_SCHEMA: &str = "diffsoft.gradients/1";
 
+/// The store budget of the memory study's second unrolled run (bytes).
+pub const STORE_BUDGET: usize = 64_000_000;
+
 /// Relative tolerance of the checks.
 pub const RTOL: f64 = 1e-6;
 /// Absolute tolerance of the checks.
@@ -1032,10 +1035,19 @@ pub fn accuracy_vs_cost(case: &Case, caps: &[usize]) -> Result<CostReport, DiffE
 /// Memory and time of the backward pass for growing horizons.
 #[derive(Debug, Clone, Serialize)]
 pub struct MemoryPoint {
+    /// Scene.
+    pub scene: String,
     /// Steps.
     pub steps: usize,
     /// Mode.
     pub mode: Mode,
+    /// Budget for keeping whole steps' recordings instead of replaying them (bytes; 0: pure
+    /// checkpointing, as the paper).
+    pub store_budget_bytes: usize,
+    /// Steps kept (not replayed).
+    pub stored_steps: usize,
+    /// Bytes of kept recordings.
+    pub stored_bytes: usize,
     /// Bytes of checkpoints.
     pub checkpoint_bytes: usize,
     /// Peak heap growth during the gradient evaluation (bytes; `null` without the counting
@@ -1050,21 +1062,24 @@ pub struct MemoryPoint {
 }
 
 /// Memory of the backward pass on `case` for each horizon.
-pub fn memory(case: &Case, horizons: &[usize], mode: Mode) -> Result<Vec<MemoryPoint>, DiffError> {
+pub fn memory(case: &Case, horizons: &[usize], opts: Options) -> Result<Vec<MemoryPoint>, DiffError> {
     let mut out = Vec::new();
     for &steps in horizons {
         crate::alloc::reset_peak();
-        let g = diff::gradient(
-            &case.model,
-            &case.settings,
-            steps,
-            &case.controls,
-            case.loss.as_ref(),
-            Options::mode(mode),
-        )?;
+        let mut controls = case.controls.clone();
+        if let Some(t) = controls.torques.as_mut() {
+            // Hold the last torques for longer horizons.
+            let last = t.last().cloned().unwrap_or_default();
+            t.resize(steps, last);
+        }
+        let g = diff::gradient(&case.model, &case.settings, steps, &controls, case.loss.as_ref(), opts)?;
         out.push(MemoryPoint {
+            scene: case.name.clone(),
             steps,
-            mode,
+            mode: opts.mode,
+            store_budget_bytes: opts.store_bytes,
+            stored_steps: g.stats.stored_steps,
+            stored_bytes: g.stats.stored_bytes,
             checkpoint_bytes: g.stats.checkpoint_bytes,
             peak_heap_bytes: crate::alloc::peak_since_reset(),
             forward_ms: g.stats.forward_ms,
@@ -1196,8 +1211,39 @@ pub fn study(inp: &Inputs<'_>, out: &Path) -> Result<GradientsReport> {
         controls: Controls::default(),
         groups: Vec::new(),
     };
-    let mut mem = memory(&mem_case, inp.memory_steps, Mode::Unrolled)?;
-    mem.extend(memory(&mem_case, inp.memory_steps, Mode::Implicit)?);
+    let mut mem = memory(&mem_case, inp.memory_steps, Options::mode(Mode::Unrolled))?;
+    mem.extend(memory(
+        &mem_case,
+        inp.memory_steps,
+        Options {
+            store_bytes: STORE_BUDGET,
+            ..Options::mode(Mode::Unrolled)
+        },
+    )?);
+    mem.extend(memory(&mem_case, inp.memory_steps, Options::mode(Mode::Implicit))?);
+    // Baymax with its skeleton (no ground), the paper's skeleton scene, as in the check.
+    let mut sk_case = baymax_torques(inp.baymax_skeleton, 100)?;
+    sk_case.name = "baymax_skeleton".into();
+    sk_case.settings = scene::load(inp.baymax_skeleton, LoadOptions::default())?.settings;
+    sk_case.settings.anderson = 0;
+    mem.extend(memory(&sk_case, inp.memory_steps, Options::mode(Mode::Unrolled))?);
+    for m in &mem {
+        println!(
+            "  backward {:<16} {:>5} steps {:?}{}: forward {:.0} ms, backward {:.0} ms ({:.2}x), peak heap {:.1} MB",
+            m.scene,
+            m.steps,
+            m.mode,
+            if m.store_budget_bytes > 0 {
+                format!(" (store {} MB)", m.store_budget_bytes / 1_000_000)
+            } else {
+                String::new()
+            },
+            m.forward_ms,
+            m.backward_ms,
+            m.ratio,
+            m.peak_heap_bytes.unwrap_or(0) as f64 / 1e6
+        );
+    }
     let mut verdicts = Vec::new();
     for c in &checks {
         verdicts.push(Verdict::new(
@@ -1211,6 +1257,21 @@ pub fn study(inp: &Inputs<'_>, out: &Path) -> Result<GradientsReport> {
             c.error
                 .clone()
                 .unwrap_or_else(|| "worst relative error at the best step <= rtol".into()),
+        ));
+    }
+    for m in mem.iter().filter(|m| m.steps == 100 && m.mode == Mode::Unrolled) {
+        verdicts.push(Verdict::at_most(
+            format!(
+                "{}: unrolled backward at most 3x the forward over 100 steps ({}; one wall-clock run, see benches/gradient.rs for medians)",
+                m.scene,
+                if m.store_budget_bytes == 0 {
+                    "pure checkpointing, every step replayed".to_string()
+                } else {
+                    format!("recordings kept within {} MB", m.store_budget_bytes / 1_000_000)
+                }
+            ),
+            m.ratio,
+            3.0,
         ));
     }
     for s in &ids {
