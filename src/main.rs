@@ -371,6 +371,7 @@ fn run(command: Command) -> Result<()> {
                 verify::gradients::ground_contact(steps)?,
                 verify::gradients::actuated(steps)?,
                 verify::gradients::baymax_torques(&root.join("scenes/baymax_skeleton.json"), steps)?,
+                verify::gradients::baymax_ground(&root.join("scenes/baymax_skeleton.json"), steps)?,
             ];
             let checks = verify::gradients::check_all(&cases, 2021);
             let mut failed = 0;

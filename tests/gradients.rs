@@ -360,3 +360,43 @@ fn stored_recordings_give_the_replayed_gradient() {
         assert!((a - b).abs() <= 1e-8 * b.abs(), "{a} vs {b}");
     }
 }
+
+/// Baymax with its skeleton on frictional ground: contacts on free vertices inside the
+/// reduced step (their impulses feed the next iteration's bone right-hand side).
+#[test]
+fn skeleton_gradients_in_ground_contact() {
+    let case = gradients::baymax_ground(&common::root().join("verification/scenes/baymax_skeleton.json"), 6).unwrap();
+    let g = diff::gradient(
+        &case.model,
+        &case.settings,
+        case.steps,
+        &case.controls,
+        case.loss.as_ref(),
+        Options::default(),
+    )
+    .unwrap();
+    eprintln!("contact sweeps {} ms {}", g.stats.contact_sweeps, g.stats.contact_ms);
+    let c = check_case(&case, 5);
+    eprintln!("{:?}", c.error);
+    for gr in &c.modes[0].groups {
+        eprintln!(
+            "{}: analytic {:e}, best fd {:e} (step {:e}), rel {:e}",
+            gr.group, gr.analytic, gr.fd_best, gr.step_best, gr.rel_error_best
+        );
+    }
+    // Contacts on free and on bone vertices during the run.
+    let mut sim = diffsoft::solver::Simulator::new(case.model.clone(), case.settings.clone()).unwrap();
+    let (q, v) = case.controls.initial.clone().unwrap();
+    sim.set_state(q, v).unwrap();
+    sim.record(Some(true));
+    let (mut free, mut rigid) = (0, 0);
+    for _ in 0..case.steps {
+        sim.step().unwrap();
+        let r = sim.recording().unwrap();
+        free += r.solves.iter().filter(|s| !s.1.is_empty()).count();
+        rigid += r.rigid_contact_solves;
+    }
+    eprintln!("solves with contacts: free {free}, bone {rigid}");
+    assert!(free > 0 && rigid > 0, "contacts: free {free}, bone {rigid}");
+    assert_passes(&case);
+}

@@ -67,13 +67,16 @@ pub struct ContactAdjoint {
 impl ContactAdjoint {
     /// Given `z = A^-1 x_bar` (in place, free numbering), the contacts and the impulses they ended
     /// with and the solution `x` of the solve: turn `z` into `r_bar` and add the anchors'
-    /// adjoints to `anchor_bar` (global vertex numbering).
+    /// adjoints to `anchor_bar` (global vertex numbering). `impulse_bar`, when given, is a
+    /// direct adjoint of the impulses themselves (one per contact; the skeleton's step reuses
+    /// them in its next iteration).
     #[allow(clippy::too_many_arguments)]
     pub fn apply(
         &mut self,
         direct: &mut Direct,
         contacts: &[FreeContact],
         impulses: &[Vector3<f64>],
+        impulse_bar: Option<&[Vector3<f64>]>,
         x: &[Vector3<f64>],
         z: &mut [Vector3<f64>],
         anchor_bar: &mut [Vector3<f64>],
@@ -109,6 +112,17 @@ impl ContactAdjoint {
         }
         self.rhs.clear();
         self.rhs.extend(contacts.iter().map(|c| z[c.index]));
+        if let Some(lb) = impulse_bar {
+            if lb.len() != m {
+                return Err(DiffError::Input(format!(
+                    "{} impulse adjoints for {m} contacts",
+                    lb.len()
+                )));
+            }
+            for (r, l) in self.rhs.iter_mut().zip(lb) {
+                *r += l;
+            }
+        }
         self.mu.clear();
         self.mu.extend_from_slice(&self.rhs);
         // v_j = D_j^T mu_j; mu_i = rhs_i + sum_{j != i} Delta_ij v_j (Gauss-Seidel).

@@ -3,7 +3,8 @@
 //! A loss `L(q_1, v_1, ..., q_N, v_N)` ([`loss`]) of a trajectory is differentiated with respect
 //! to the initial positions and velocities, the per-tet constraint weights (hence Young's modulus
 //! and Poisson ratio, globally or per element), the lumped masses (density), the external
-//! accelerations (gravity), the attachment targets and the actuators' activations at every step.
+//! accelerations (gravity), the attachment targets, the actuators' activations at every step,
+//! the joint torques at every step and the initial joint state (skeletons, [`skeletal`]).
 //!
 //! The forward pass stores each step's state (checkpointing, as the paper does); the backward
 //! pass walks the steps in reverse. Two modes:
@@ -23,15 +24,20 @@
 //! `dL/dw_t = <F_t(r_bar), P_t(x_k)/w_t> - <F_t(r_bar), F_t(x_{k+1})>` and each mass
 //! `r_bar . (s - x_{k+1}) / h^2`. The global solves are differentiated as exact linear solves with
 //! a sparse Cholesky factor (built here for any forward solver); contact subproblems at the
-//! impulses they converged to. Skeletons and Anderson-accelerated unrolled runs are not
-//! differentiated yet: they return [`DiffError::Unsupported`].
+//! impulses they converged to. With a skeleton, each iteration is the reduced step of Eqs. 7-18,
+//! differentiated in unrolled mode with the joints' tangent charts, their update rules, active
+//! joint limits and contacts on free and bone vertices (see [`skeletal`]). Implicit mode with a
+//! skeleton and Anderson-accelerated unrolled runs return [`DiffError::Unsupported`].
+//!
+//! Memory: one state per step (pure checkpointing, as the paper); [`Options::store_bytes`]
+//! keeps whole steps' recordings from the forward pass within a budget so they need no replay.
 
 pub mod contact;
 pub mod local;
 pub mod loss;
 pub mod optim;
 pub mod params;
-mod skeletal;
+pub mod skeletal;
 
 use std::time::Instant;
 
@@ -274,18 +280,10 @@ struct Forward {
 }
 
 fn check_supported(model: &Model, settings: &Settings, mode: Mode) -> Result<(), DiffError> {
-    if model.skeleton.is_some() {
-        if mode == Mode::Implicit {
-            return Err(DiffError::Unsupported(
-                "implicit mode with a skeleton (the reduced step, Eqs. 17-18, is differentiated in unrolled mode)"
-                    .into(),
-            ));
-        }
-        if !model.obstacles.is_empty() {
-            return Err(DiffError::Unsupported(
-                "contacts with a skeleton are not differentiated yet (remove the obstacles)".into(),
-            ));
-        }
+    if model.skeleton.is_some() && mode == Mode::Implicit {
+        return Err(DiffError::Unsupported(
+            "implicit mode with a skeleton (the reduced step, Eqs. 17-18, is differentiated in unrolled mode)".into(),
+        ));
     }
     if mode == Mode::Unrolled && settings.anderson > 0 {
         return Err(DiffError::Unsupported(
@@ -585,17 +583,17 @@ impl<'a> Backward<'a> {
         }
     }
 
-    /// `z = A^-T x_bar` with the contact correction; anchors' adjoints into `anchor_bar`.
+    /// `z = A^-T x_bar` with the contact correction (`impulse_bar`: a direct adjoint of the
+    /// impulses); anchors' adjoints into `anchor_bar`.
     fn solve_adjoint(
         &mut self,
         contacts: &[FreeContact],
         impulses: &[Vector3<f64>],
         x: &[Vector3<f64>],
-        input: Option<&[Vector3<f64>]>,
+        impulse_bar: Option<&[Vector3<f64>]>,
         anchor_bar: &mut [Vector3<f64>],
     ) -> Result<(), DiffError> {
-        let src = input.unwrap_or(&self.xbar);
-        self.direct.solve_free(src, &mut self.z)?;
+        self.direct.solve_free(&self.xbar, &mut self.z)?;
         if contacts.is_empty() {
             return Ok(());
         }
@@ -604,6 +602,7 @@ impl<'a> Backward<'a> {
             &mut self.direct,
             contacts,
             impulses,
+            impulse_bar,
             x,
             &mut self.z,
             anchor_bar,

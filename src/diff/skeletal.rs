@@ -31,17 +31,19 @@
 //! matrix terms are `-alpha^T dA gamma - y~^T dA q'` (fixed vertices at their rest positions,
 //! which also differentiates the constant couplings).
 
-use nalgebra::{DMatrix, DVector, Vector3};
+use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
 
+use super::contact::project_jacobian;
 use super::local::{Linearize, LocalAdjoint};
 use super::{Backward, DiffError, Gradient};
 use crate::skeleton::Skeleton;
+use crate::solver::global::FreeContact;
 use crate::solver::skeletal::Skeletal;
 use crate::solver::{Model, Recording};
 
 /// Buffers of the skeleton's backward pass.
 #[derive(Debug, Clone)]
-pub(super) struct SkeletalAdjoint {
+pub struct SkeletalAdjoint {
     /// `W` and `Sigma`.
     skeletal: Skeletal,
     /// A copy of the skeleton whose state is loaded per iterate.
@@ -208,46 +210,45 @@ impl Backward<'_> {
                 "the replay recorded no skeleton iterates".into(),
             ));
         }
-        if rec.rigid_contact_solves > 0 {
-            return Err(DiffError::Unsupported(format!(
-                "step {}: contacts on bone vertices (projected Gauss-Seidel in the reduced coordinates) are not differentiated yet",
-                step + 1
-            )));
-        }
-        if rec.solves.iter().any(|(_, imp)| !imp.is_empty()) {
-            return Err(DiffError::Unsupported(format!(
-                "step {}: contacts with a skeleton are not differentiated yet",
-                step + 1
-            )));
+        if rec.rigid_contacts.len() != iters {
+            return Err(DiffError::Unsupported("the replay recorded no bone contacts".into()));
         }
         let dofs = sa.work.dofs;
-        let nf = self.nf;
         sa.base_acc.iter_mut().for_each(|b| *b = Vector3::zeros());
         // z_bar_N += B(z_N)^T q_R_bar.
         SkeletalAdjoint::load(&mut sa.work, &rec.skeleton_states[iters], &mut sa.q_r, &mut sa.b)?;
         SkeletalAdjoint::add_bt(&sa.b, &sa.q_r_bar_in, &mut sa.z_bar);
         let mut torque_acc = vec![0.0; dofs];
         let sigma = sa.skeletal.sigma().clone();
+        let no_contacts: Vec<FreeContact> = Vec::new();
+        let contacts_of = |k: usize| -> (&[FreeContact], &[Vector3<f64>]) {
+            let (set, imp) = &rec.solves[k];
+            (rec.contact_sets.get(*set).map_or(&no_contacts[..], |c| &c[..]), imp)
+        };
+        // The adjoint of solve k's impulses from iteration k + 1 (which adds them to `y`).
+        let mut impulse_bar: Vec<Vector3<f64>> = Vec::new();
         for k in (0..iters).rev() {
             let x_next = &rec.iterates[k + 1];
             let dz = &rec.increments[k];
             let resid = &rec.residuals[k];
-            // 1. x_{k+1} = y0 - W q_R(z_{k+1}).
+            let (contacts, impulses) = contacts_of(k);
+            // 1. x_{k+1} = A_FF^-1 (b_F - A_FR q_R(z_{k+1}) + E lambda_k), the impulses from the
+            // contact solve at x_pre = y0 - W q_R': y~ = A_FF^-1 x_pre_bar (contact-corrected).
+            let ib = (!contacts.is_empty() && impulse_bar.len() == contacts.len()).then_some(&impulse_bar[..]);
+            self.solve_adjoint(contacts, impulses, x_next, ib, qbar)?;
             SkeletalAdjoint::load(
                 &mut sa.work,
                 &rec.skeleton_states[k + 1],
                 &mut sa.q_r_next,
                 &mut sa.b_next,
             )?;
-            {
-                let w = sa.skeletal.w();
-                for (r, col) in w.as_slice().chunks_exact(nf.max(1)).enumerate() {
-                    let mut acc = Vector3::zeros();
-                    for (x, &wv) in self.xbar.iter().zip(col) {
-                        acc += x * wv;
-                    }
-                    sa.tmp_r[r] = -acc;
+            // q_R' adjoint: -W^T x_pre_bar = -A_RF y~.
+            for (r, list) in self.sys.l_rf.iter().enumerate() {
+                let mut acc = Vector3::zeros();
+                for &(f, val) in list {
+                    acc += self.z[f] * val;
                 }
+                sa.tmp_r[r] = -acc;
             }
             sa.z_after.copy_from_slice(&sa.z_bar);
             SkeletalAdjoint::add_bt(&sa.b_next, &sa.tmp_r, &mut sa.z_after);
@@ -276,27 +277,94 @@ impl Backward<'_> {
                 s[(i, i)] += 1e-14 * scale;
             }
             let s = (&s + s.transpose()) * 0.5;
-            let chol = s.cholesky().ok_or_else(|| {
+            let chol = s.clone().cholesky().ok_or_else(|| {
                 DiffError::NotDifferentiable(format!("step {}: B^T Sigma B is not positive definite", step + 1))
             })?;
-            let mut u = chol.solve(&DVector::from_column_slice(&sa.dz_bar));
             let limits = &rec.active_limits[k];
+            let rigid = rec.rigid_contacts.get(k).map_or(&[][..], |v| &v[..]);
             let mut v = DVector::zeros(limits.len());
-            if !limits.is_empty() {
-                // v = (E^T S^-1 E)^-1 E^T S^-1 dz_bar, u = S^-1 (dz_bar - E v).
-                let m = limits.len();
-                let mut e = DMatrix::zeros(dofs, m);
-                for (l, &(kk, _)) in limits.iter().enumerate() {
-                    e[(kk, l)] = 1.0;
+            // Per contact on a bone vertex: (D_j, G_j) of its cone projection and its adjoint nu_j.
+            let mut cone: Vec<(Matrix3<f64>, Matrix3<f64>, Vector3<f64>)> = Vec::with_capacity(rigid.len());
+            let u = if rigid.is_empty() {
+                let mut u = chol.solve(&DVector::from_column_slice(&sa.dz_bar));
+                if !limits.is_empty() {
+                    // v = (E^T S^-1 E)^-1 E^T S^-1 dz_bar, u = S^-1 (dz_bar - E v).
+                    let m = limits.len();
+                    let mut e = DMatrix::zeros(dofs, m);
+                    for (l, &(kk, _)) in limits.iter().enumerate() {
+                        e[(kk, l)] = 1.0;
+                    }
+                    let sie = chol.solve(&e);
+                    let schur = e.transpose() * &sie;
+                    let rhs = e.transpose() * &u;
+                    v = schur.lu().solve(&rhs).ok_or_else(|| {
+                        DiffError::NotDifferentiable(format!("step {}: active joint limits are dependent", step + 1))
+                    })?;
+                    u -= &sie * &v;
                 }
-                let sie = chol.solve(&e);
-                let schur = e.transpose() * &sie;
-                let rhs = e.transpose() * &u;
-                v = schur.lu().solve(&rhs).ok_or_else(|| {
-                    DiffError::NotDifferentiable(format!("step {}: active joint limits are dependent", step + 1))
-                })?;
-                u -= &sie * &v;
-            }
+                u
+            } else {
+                // The projected Gauss-Seidel's fixed point in the reduced coordinates, linearized:
+                // S ddz - B_c^T dlambda - E dmu = dc + dB_c^T lambda - dS dz,
+                // (I + D_j / w_j) dlambda_j - D_j B_j ddz = D_j (dq_j + dB_j dz) + G_j da_j,
+                // E^T ddz = dd. Its transpose gives (u, nu, v); a least-squares solve, since
+                // sticking contacts of a rigid bone may over-determine its coordinates.
+                let (m, nl) = (rigid.len(), limits.len());
+                let nn = dofs + 3 * m + nl;
+                let mut kt = DMatrix::zeros(nn, nn);
+                for (j, (r, c, lambda, wj)) in rigid.iter().enumerate() {
+                    let mut x = sa.q_r[*r];
+                    for a in 0..3 {
+                        x[a] += (0..dofs).map(|kk| sa.b[(3 * r + a, kk)] * dz[kk]).sum::<f64>();
+                    }
+                    let (d, gm) = project_jacobian(&(x - lambda / *wj), *wj, c);
+                    let col = dofs + 3 * j;
+                    for a in 0..3 {
+                        for kk in 0..dofs {
+                            // K[kk, col + a] = -B[3r + a, kk]  ->  K^T[col + a, kk].
+                            kt[(col + a, kk)] = -sa.b[(3 * r + a, kk)];
+                            // K[col + a, kk] = -(D B_j)[a, kk]  ->  K^T[kk, col + a].
+                            kt[(kk, col + a)] = -(0..3).map(|b| d[(a, b)] * sa.b[(3 * r + b, kk)]).sum::<f64>();
+                        }
+                        for b in 0..3 {
+                            let id = if a == b { 1.0 } else { 0.0 };
+                            kt[(col + b, col + a)] = id + d[(a, b)] / *wj;
+                        }
+                    }
+                    cone.push((d, gm, Vector3::zeros()));
+                }
+                for i in 0..dofs {
+                    for jj in 0..dofs {
+                        kt[(i, jj)] = s[(jj, i)];
+                    }
+                }
+                for (l, &(kk, _)) in limits.iter().enumerate() {
+                    let col = dofs + 3 * m + l;
+                    kt[(col, kk)] = -1.0;
+                    kt[(kk, col)] = 1.0;
+                }
+                let mut rhs = DVector::zeros(nn);
+                rhs.rows_mut(0, dofs).copy_from(&DVector::from_column_slice(&sa.dz_bar));
+                let y = kt
+                    .clone()
+                    .lu()
+                    .solve(&rhs)
+                    .filter(|y| y.iter().all(|x| x.is_finite()))
+                    .map_or_else(|| kt.svd(true, true).solve(&rhs, 1e-13), Ok)
+                    .map_err(|e| {
+                        DiffError::NotDifferentiable(format!(
+                            "step {}: the linearized contacts on bones have no solution ({e})",
+                            step + 1
+                        ))
+                    })?;
+                for (j, cj) in cone.iter_mut().enumerate() {
+                    cj.2 = Vector3::new(y[dofs + 3 * j], y[dofs + 3 * j + 1], y[dofs + 3 * j + 2]);
+                }
+                for l in 0..nl {
+                    v[l] = y[dofs + 3 * m + l];
+                }
+                y.rows(0, dofs).into_owned()
+            };
             for (t, x) in torque_acc.iter_mut().zip(u.iter()) {
                 *t += x;
             }
@@ -316,6 +384,16 @@ impl Backward<'_> {
                     sa.b_bar[(i, kk)] = (resid[i / 3][i % 3] - sb_dz[i]) * u[kk] - sb_u[i] * dz[kk];
                 }
             }
+            // Contacts on bones: B_c^T lambda and D_j dB_j dz.
+            for ((r, c, lambda, _), (d, gm, nu)) in rigid.iter().zip(&cone) {
+                let dnu = d.transpose() * nu;
+                for kk in 0..dofs {
+                    for a in 0..3 {
+                        sa.b_bar[(3 * r + a, kk)] += lambda[a] * u[kk] + dnu[a] * dz[kk];
+                    }
+                }
+                qbar[c.vertex] += gm.transpose() * nu;
+            }
             sa.work.contract_jacobian_derivative(&sa.b_bar, &mut sa.z_bar);
             for (l, &(kk, _)) in limits.iter().enumerate() {
                 let bone = sa
@@ -334,21 +412,12 @@ impl Backward<'_> {
                 }
                 sa.tmp_r[rr] = -acc;
             }
+            // The contact vertices' positions q_j (in x_j = q_j + B_j dz).
+            for ((r, ..), (d, _, nu)) in rigid.iter().zip(&cone) {
+                sa.tmp_r[*r] += d.transpose() * nu;
+            }
             SkeletalAdjoint::add_bt(&sa.b, &sa.tmp_r, &mut sa.z_bar);
-            // g = b_R - A_RF y0, y0 = A_FF^-1 b_F.
-            for (rr, list) in self.sys.l_rf.iter().enumerate() {
-                for &(f, val) in list {
-                    self.xbar[f] -= sa.beta[rr] * val;
-                }
-            }
-            self.direct.solve_free(&self.xbar, &mut self.z)?;
-            for (b, z) in self.base_acc.iter_mut().zip(&self.z) {
-                *b += z;
-            }
-            for (b, x) in sa.base_acc.iter_mut().zip(&sa.beta) {
-                *b += x;
-            }
-            // Matrix terms: -alpha^T dA gamma - y~^T dA q'.
+            // g = b_R - A_RF y, y = A_FF^-1 (b_F + E lambda_{k-1}): b_F_bar = y~ - W beta.
             let w = sa.skeletal.w();
             SkeletalAdjoint::w_times(w, &sa.beta, &mut sa.w_beta);
             for rr in 0..nr {
@@ -356,10 +425,38 @@ impl Backward<'_> {
                 for a in 0..3 {
                     bdz[a] = (0..dofs).map(|kk| sa.b[(3 * rr + a, kk)] * dz[kk]).sum::<f64>();
                 }
-                // tmp_r = q_R' - c, c = q_R + B dz.
+                // tmp_r = q_R' - c, c = q_R + B dz (the linearized solution).
                 sa.tmp_r[rr] = sa.q_r_next[rr] - (sa.q_r[rr] + bdz);
             }
             SkeletalAdjoint::w_times(w, &sa.tmp_r, &mut sa.w_shift);
+            // The impulses of solve k - 1 entered y: their adjoint is (-W beta) at their contacts;
+            // y - W c = x_{k+1} + W (q_R' - c) + A_FF^-1 E (lambda_{k-1} - lambda_k).
+            impulse_bar.clear();
+            for (c, l) in contacts.iter().zip(impulses) {
+                let col = self.direct.inverse_column(c.index);
+                for (ws, a) in sa.w_shift.iter_mut().zip(col) {
+                    *ws -= l * *a;
+                }
+            }
+            if k > 0 {
+                let (prev, prev_imp) = contacts_of(k - 1);
+                if !prev_imp.is_empty() {
+                    impulse_bar.extend(prev.iter().map(|c| -sa.w_beta[c.index]));
+                    for (c, l) in prev.iter().zip(prev_imp) {
+                        let col = self.direct.inverse_column(c.index);
+                        for (ws, a) in sa.w_shift.iter_mut().zip(col) {
+                            *ws += l * *a;
+                        }
+                    }
+                }
+            }
+            for (f, (b, z)) in self.base_acc.iter_mut().zip(&self.z).enumerate() {
+                *b += z - sa.w_beta[f];
+            }
+            for (b, x) in sa.base_acc.iter_mut().zip(&sa.beta) {
+                *b += x;
+            }
+            // Matrix terms: -alpha^T dA gamma - y~^T dA q'.
             for i in 0..self.n {
                 let fixed = model.fixed[i];
                 let rest = if fixed { model.rest[i] } else { Vector3::zeros() };
@@ -371,7 +468,7 @@ impl Backward<'_> {
             for (f, &v) in self.sys.free.iter().enumerate() {
                 sa.alpha[v] = -sa.w_beta[f];
                 sa.gamma[v] = x_next[f] + sa.w_shift[f];
-                sa.y_tilde[v] = self.z[f] + sa.w_beta[f];
+                sa.y_tilde[v] = self.z[f];
                 sa.q_prime[v] = x_next[f];
             }
             for (rr, &v) in self.sys.rigid.iter().enumerate() {
@@ -391,6 +488,9 @@ impl Backward<'_> {
                 }
             }
             // The local step at q_k = (x_k, q_R(z_k)) (the stored positions at k = 0).
+            for (z, wb) in self.z.iter_mut().zip(&sa.w_beta) {
+                *z -= wb;
+            }
             Self::scatter(&self.sys, model, &rec.iterates[k], &mut self.q_full, false);
             Self::scatter(&self.sys, model, &self.z, &mut self.y_full, true);
             for (rr, &v) in self.sys.rigid.iter().enumerate() {

@@ -243,6 +243,10 @@ struct Work {
     torque: Vec<f64>,
 }
 
+/// A contact on a bone vertex as a reduced solve ended: `(bone-vertex index, contact, impulse,
+/// projected Gauss-Seidel weight)`.
+pub type RigidContact = (usize, Contact, Vector3<f64>, f64);
+
 /// One step's local-global iterations, recorded for the backward pass (see [`crate::diff`]).
 #[derive(Debug, Clone, Default)]
 pub struct Recording {
@@ -269,6 +273,9 @@ pub struct Recording {
     pub active_limits: Vec<Vec<(usize, f64)>>,
     /// Reduced solves that had contacts on bone vertices.
     pub rigid_contact_solves: usize,
+    /// Per reduced solve: contacts on bone vertices `(bone-vertex index, contact, impulse,
+    /// weight)`, as the projected Gauss-Seidel in the reduced coordinates ended.
+    pub rigid_contacts: Vec<Vec<RigidContact>>,
     /// With `keep_iterates`: every tet's decomposition at each iterate's local step (aligned
     /// with `iterates`, one fewer), so the backward pass need not decompose again.
     pub svds: Vec<Vec<local::TetSvd>>,
@@ -292,6 +299,7 @@ impl Recording {
             residuals: self.residuals.clone(),
             active_limits: self.active_limits.clone(),
             rigid_contact_solves: self.rigid_contact_solves,
+            rigid_contacts: self.rigid_contacts.clone(),
             svds: self.svds.clone(),
             svd_pool: Vec::new(),
             keep_decompositions: self.keep_decompositions,
@@ -318,6 +326,11 @@ impl Recording {
             + self.residuals.iter().map(|x| x.len() * v3).sum::<usize>()
             + self.active_limits.iter().map(|x| x.len() * 16).sum::<usize>()
             + self
+                .rigid_contacts
+                .iter()
+                .map(|x| x.len() * (size_of::<Contact>() + 40))
+                .sum::<usize>()
+            + self
                 .svds
                 .iter()
                 .map(|x| x.len() * size_of::<local::TetSvd>())
@@ -334,6 +347,7 @@ impl Recording {
         self.residuals.clear();
         self.active_limits.clear();
         self.rigid_contact_solves = 0;
+        self.rigid_contacts.clear();
         self.svd_pool.append(&mut self.svds);
     }
 
@@ -983,6 +997,16 @@ impl Simulator {
                         r.residuals.push(sp.last_residual().to_vec());
                         r.active_limits.push(sp.active_limits().collect());
                         r.rigid_contact_solves += usize::from(!w.rigid_contacts.is_empty());
+                        let rc = if w.rigid_contacts.is_empty() {
+                            Vec::new()
+                        } else {
+                            w.rigid_contacts
+                                .iter()
+                                .zip(sp.rigid_contact_solution())
+                                .map(|(&(i, c), (l, wt))| (i, c, l, wt))
+                                .collect()
+                        };
+                        r.rigid_contacts.push(rc);
                     }
                 }
                 stats.iterations += 1;

@@ -145,6 +145,12 @@ impl Skeletal {
             .map(|(&(k, _, _), &mu)| (k, mu))
     }
 
+    /// Contacts on bone vertices in the last solve: their impulses and the weights `w_j` of the
+    /// projected Gauss-Seidel (in the order of the `rigid_contacts` passed to it).
+    pub fn rigid_contact_solution(&self) -> impl Iterator<Item = (Vector3<f64>, f64)> + '_ {
+        self.c_lambda.iter().copied().zip(self.c_w.iter().copied())
+    }
+
     /// Forget contact impulses (at the start of a step).
     pub fn reset_impulses(&mut self) {
         self.impulses.clear();
