@@ -139,6 +139,23 @@ impl SkeletalAdjoint {
     }
 }
 
+/// Which iteration the adjoint of [`Backward::skeletal_iteration`] is of.
+#[derive(Debug, Clone, Copy)]
+struct Iteration<'r> {
+    /// Index into the recording.
+    k: usize,
+    /// Whether it is the step's first (it starts from the stored positions, not from `z_k`).
+    at_start: bool,
+    /// The contacts and impulses of the solve before it (whose impulses it reuses).
+    prev: Option<(&'r [FreeContact], &'r [Vector3<f64>])>,
+}
+
+/// Solve `k`'s contact set and impulses.
+fn contacts_of(rec: &Recording, k: usize) -> (&[FreeContact], &[Vector3<f64>]) {
+    let (set, imp) = &rec.solves[k];
+    (rec.contact_sets.get(*set).map_or(&[][..], |c| &c[..]), imp)
+}
+
 impl Backward<'_> {
     /// The unrolled backward of one step with a skeleton (see the module docs). On entry `qbar`,
     /// `vbar` are the adjoints of `(q_{n+1}, v_{n+1})` and the skeleton adjoint holds that of
@@ -198,8 +215,6 @@ impl Backward<'_> {
         step: usize,
         act_grad: &mut [f64],
     ) -> Result<(), DiffError> {
-        let model = self.model;
-        let ih2 = 1.0 / (h * h);
         let iters = rec.solves.len();
         if rec.iterates.len() != iters + 1
             || rec.skeleton_states.len() != iters + 1
@@ -219,316 +234,356 @@ impl Backward<'_> {
         SkeletalAdjoint::load(&mut sa.work, &rec.skeleton_states[iters], &mut sa.q_r, &mut sa.b)?;
         SkeletalAdjoint::add_bt(&sa.b, &sa.q_r_bar_in, &mut sa.z_bar);
         let mut torque_acc = vec![0.0; dofs];
-        let sigma = sa.skeletal.sigma().clone();
-        let no_contacts: Vec<FreeContact> = Vec::new();
-        let contacts_of = |k: usize| -> (&[FreeContact], &[Vector3<f64>]) {
-            let (set, imp) = &rec.solves[k];
-            (rec.contact_sets.get(*set).map_or(&no_contacts[..], |c| &c[..]), imp)
-        };
         // The adjoint of solve k's impulses from iteration k + 1 (which adds them to `y`).
         let mut impulse_bar: Vec<Vector3<f64>> = Vec::new();
         for k in (0..iters).rev() {
-            let x_next = &rec.iterates[k + 1];
-            let dz = &rec.increments[k];
-            let resid = &rec.residuals[k];
-            let (contacts, impulses) = contacts_of(k);
-            // 1. x_{k+1} = A_FF^-1 (b_F - A_FR q_R(z_{k+1}) + E lambda_k), the impulses from the
-            // contact solve at x_pre = y0 - W q_R': y~ = A_FF^-1 x_pre_bar (contact-corrected).
-            let ib = (!contacts.is_empty() && impulse_bar.len() == contacts.len()).then_some(&impulse_bar[..]);
-            self.solve_adjoint(contacts, impulses, x_next, ib, qbar)?;
-            SkeletalAdjoint::load(
-                &mut sa.work,
-                &rec.skeleton_states[k + 1],
-                &mut sa.q_r_next,
-                &mut sa.b_next,
-            )?;
-            // q_R' adjoint: -W^T x_pre_bar = -A_RF y~.
-            for (r, list) in self.sys.l_rf.iter().enumerate() {
-                let mut acc = Vector3::zeros();
-                for &(f, val) in list {
-                    acc += self.z[f] * val;
-                }
-                sa.tmp_r[r] = -acc;
-            }
-            sa.z_after.copy_from_slice(&sa.z_bar);
-            SkeletalAdjoint::add_bt(&sa.b_next, &sa.tmp_r, &mut sa.z_after);
-            // 2. z_{k+1} = U(z_k, dz).
-            SkeletalAdjoint::load(&mut sa.work, &rec.skeleton_states[k], &mut sa.q_r, &mut sa.b)?;
-            sa.work.update_adjoint(dz, &sa.z_after, &mut sa.z_bar, &mut sa.dz_bar);
-            // 3. dz = S^-1 (B^T r + tau) under the active limits.
-            let nr = sa.q_r.len();
-            for kk in 0..dofs {
-                for rr in 0..nr {
-                    for a in 0..3 {
-                        let mut acc = 0.0;
-                        for c in 0..nr {
-                            acc += sigma[(rr, c)] * sa.b[(3 * c + a, kk)];
-                        }
-                        sa.sb[(3 * rr + a, kk)] = acc;
-                    }
-                }
-            }
-            let mut s = sa.b.transpose() * &sa.sb;
-            let scale = (0..dofs)
-                .map(|i| s[(i, i)].abs())
-                .fold(0.0, f64::max)
-                .max(f64::MIN_POSITIVE);
-            for i in 0..dofs {
-                s[(i, i)] += 1e-14 * scale;
-            }
-            let s = (&s + s.transpose()) * 0.5;
-            let chol = s.clone().cholesky().ok_or_else(|| {
-                DiffError::NotDifferentiable(format!("step {}: B^T Sigma B is not positive definite", step + 1))
-            })?;
-            let limits = &rec.active_limits[k];
-            let rigid = rec.rigid_contacts.get(k).map_or(&[][..], |v| &v[..]);
-            let mut v = DVector::zeros(limits.len());
-            // Per contact on a bone vertex: (D_j, G_j) of its cone projection and its adjoint nu_j.
-            let mut cone: Vec<(Matrix3<f64>, Matrix3<f64>, Vector3<f64>)> = Vec::with_capacity(rigid.len());
-            let u = if rigid.is_empty() {
-                let mut u = chol.solve(&DVector::from_column_slice(&sa.dz_bar));
-                if !limits.is_empty() {
-                    // v = (E^T S^-1 E)^-1 E^T S^-1 dz_bar, u = S^-1 (dz_bar - E v).
-                    let m = limits.len();
-                    let mut e = DMatrix::zeros(dofs, m);
-                    for (l, &(kk, _)) in limits.iter().enumerate() {
-                        e[(kk, l)] = 1.0;
-                    }
-                    let sie = chol.solve(&e);
-                    let schur = e.transpose() * &sie;
-                    let rhs = e.transpose() * &u;
-                    v = schur.lu().solve(&rhs).ok_or_else(|| {
-                        DiffError::NotDifferentiable(format!("step {}: active joint limits are dependent", step + 1))
-                    })?;
-                    u -= &sie * &v;
-                }
-                u
-            } else {
-                // The projected Gauss-Seidel's fixed point in the reduced coordinates, linearized:
-                // S ddz - B_c^T dlambda - E dmu = dc + dB_c^T lambda - dS dz,
-                // (I + D_j / w_j) dlambda_j - D_j B_j ddz = D_j (dq_j + dB_j dz) + G_j da_j,
-                // E^T ddz = dd. Its transpose gives (u, nu, v); a least-squares solve, since
-                // sticking contacts of a rigid bone may over-determine its coordinates.
-                let (m, nl) = (rigid.len(), limits.len());
-                let nn = dofs + 3 * m + nl;
-                let mut kt = DMatrix::zeros(nn, nn);
-                for (j, (r, c, lambda, wj)) in rigid.iter().enumerate() {
-                    let mut x = sa.q_r[*r];
-                    for a in 0..3 {
-                        x[a] += (0..dofs).map(|kk| sa.b[(3 * r + a, kk)] * dz[kk]).sum::<f64>();
-                    }
-                    let (d, gm) = project_jacobian(&(x - lambda / *wj), *wj, c);
-                    let col = dofs + 3 * j;
-                    for a in 0..3 {
-                        for kk in 0..dofs {
-                            // K[kk, col + a] = -B[3r + a, kk]  ->  K^T[col + a, kk].
-                            kt[(col + a, kk)] = -sa.b[(3 * r + a, kk)];
-                            // K[col + a, kk] = -(D B_j)[a, kk]  ->  K^T[kk, col + a].
-                            kt[(kk, col + a)] = -(0..3).map(|b| d[(a, b)] * sa.b[(3 * r + b, kk)]).sum::<f64>();
-                        }
-                        for b in 0..3 {
-                            let id = if a == b { 1.0 } else { 0.0 };
-                            kt[(col + b, col + a)] = id + d[(a, b)] / *wj;
-                        }
-                    }
-                    cone.push((d, gm, Vector3::zeros()));
-                }
-                for i in 0..dofs {
-                    for jj in 0..dofs {
-                        kt[(i, jj)] = s[(jj, i)];
-                    }
-                }
-                for (l, &(kk, _)) in limits.iter().enumerate() {
-                    let col = dofs + 3 * m + l;
-                    kt[(col, kk)] = -1.0;
-                    kt[(kk, col)] = 1.0;
-                }
-                let mut rhs = DVector::zeros(nn);
-                rhs.rows_mut(0, dofs).copy_from(&DVector::from_column_slice(&sa.dz_bar));
-                let y = kt
-                    .clone()
-                    .lu()
-                    .solve(&rhs)
-                    .filter(|y| y.iter().all(|x| x.is_finite()))
-                    .map_or_else(|| kt.svd(true, true).solve(&rhs, 1e-13), Ok)
-                    .map_err(|e| {
-                        DiffError::NotDifferentiable(format!(
-                            "step {}: the linearized contacts on bones have no solution ({e})",
-                            step + 1
-                        ))
-                    })?;
-                for (j, cj) in cone.iter_mut().enumerate() {
-                    cj.2 = Vector3::new(y[dofs + 3 * j], y[dofs + 3 * j + 1], y[dofs + 3 * j + 2]);
-                }
-                for l in 0..nl {
-                    v[l] = y[dofs + 3 * m + l];
-                }
-                y.rows(0, dofs).into_owned()
+            let it = Iteration {
+                k,
+                at_start: k == 0,
+                prev: (k > 0).then(|| contacts_of(rec, k - 1)),
             };
-            for (t, x) in torque_acc.iter_mut().zip(u.iter()) {
-                *t += x;
-            }
-            // beta = B u; B_bar = (r - SB dz) u^T - (SB u) dz^T.
-            let dzv = DVector::from_column_slice(dz);
-            let sb_dz = &sa.sb * &dzv;
-            let sb_u = &sa.sb * &u;
-            for rr in 0..nr {
-                let mut bu = Vector3::zeros();
-                for a in 0..3 {
-                    bu[a] = (0..dofs).map(|kk| sa.b[(3 * rr + a, kk)] * u[kk]).sum::<f64>();
-                }
-                sa.beta[rr] = bu;
-            }
-            for kk in 0..dofs {
-                for i in 0..3 * nr {
-                    sa.b_bar[(i, kk)] = (resid[i / 3][i % 3] - sb_dz[i]) * u[kk] - sb_u[i] * dz[kk];
-                }
-            }
-            // Contacts on bones: B_c^T lambda and D_j dB_j dz.
-            for ((r, c, lambda, _), (d, gm, nu)) in rigid.iter().zip(&cone) {
-                let dnu = d.transpose() * nu;
-                for kk in 0..dofs {
-                    for a in 0..3 {
-                        sa.b_bar[(3 * r + a, kk)] += lambda[a] * u[kk] + dnu[a] * dz[kk];
-                    }
-                }
-                qbar[c.vertex] += gm.transpose() * nu;
-            }
-            sa.work.contract_jacobian_derivative(&sa.b_bar, &mut sa.z_bar);
-            for (l, &(kk, _)) in limits.iter().enumerate() {
-                let bone = sa
-                    .work
-                    .bones
-                    .iter()
-                    .find(|b| kk >= b.dof_offset && kk < b.dof_offset + b.joint.dofs())
-                    .ok_or_else(|| DiffError::Input(format!("limit on unknown coordinate {kk}")))?;
-                sa.z_bar[kk] += v[l] * bone.joint.increment_bound_derivative(dz[kk]);
-            }
-            // r = g - Sigma q_R(z_k): q_R's adjoint is -Sigma beta.
-            for rr in 0..nr {
-                let mut acc = Vector3::zeros();
-                for c in 0..nr {
-                    acc += sa.beta[c] * sigma[(rr, c)];
-                }
-                sa.tmp_r[rr] = -acc;
-            }
-            // The contact vertices' positions q_j (in x_j = q_j + B_j dz).
-            for ((r, ..), (d, _, nu)) in rigid.iter().zip(&cone) {
-                sa.tmp_r[*r] += d.transpose() * nu;
-            }
-            SkeletalAdjoint::add_bt(&sa.b, &sa.tmp_r, &mut sa.z_bar);
-            // g = b_R - A_RF y, y = A_FF^-1 (b_F + E lambda_{k-1}): b_F_bar = y~ - W beta.
-            let w = sa.skeletal.w();
-            SkeletalAdjoint::w_times(w, &sa.beta, &mut sa.w_beta);
-            for rr in 0..nr {
-                let mut bdz = Vector3::zeros();
-                for a in 0..3 {
-                    bdz[a] = (0..dofs).map(|kk| sa.b[(3 * rr + a, kk)] * dz[kk]).sum::<f64>();
-                }
-                // tmp_r = q_R' - c, c = q_R + B dz (the linearized solution).
-                sa.tmp_r[rr] = sa.q_r_next[rr] - (sa.q_r[rr] + bdz);
-            }
-            SkeletalAdjoint::w_times(w, &sa.tmp_r, &mut sa.w_shift);
-            // The impulses of solve k - 1 entered y: their adjoint is (-W beta) at their contacts;
-            // y - W c = x_{k+1} + W (q_R' - c) + A_FF^-1 E (lambda_{k-1} - lambda_k).
-            impulse_bar.clear();
-            for (c, l) in contacts.iter().zip(impulses) {
-                let col = self.direct.inverse_column(c.index);
-                for (ws, a) in sa.w_shift.iter_mut().zip(col) {
-                    *ws -= l * *a;
-                }
-            }
-            if k > 0 {
-                let (prev, prev_imp) = contacts_of(k - 1);
-                if !prev_imp.is_empty() {
-                    impulse_bar.extend(prev.iter().map(|c| -sa.w_beta[c.index]));
-                    for (c, l) in prev.iter().zip(prev_imp) {
-                        let col = self.direct.inverse_column(c.index);
-                        for (ws, a) in sa.w_shift.iter_mut().zip(col) {
-                            *ws += l * *a;
-                        }
-                    }
-                }
-            }
-            for (f, (b, z)) in self.base_acc.iter_mut().zip(&self.z).enumerate() {
-                *b += z - sa.w_beta[f];
-            }
-            for (b, x) in sa.base_acc.iter_mut().zip(&sa.beta) {
-                *b += x;
-            }
-            // Matrix terms: -alpha^T dA gamma - y~^T dA q'.
-            for i in 0..self.n {
-                let fixed = model.fixed[i];
-                let rest = if fixed { model.rest[i] } else { Vector3::zeros() };
-                sa.alpha[i] = Vector3::zeros();
-                sa.y_tilde[i] = Vector3::zeros();
-                sa.gamma[i] = rest;
-                sa.q_prime[i] = rest;
-            }
-            for (f, &v) in self.sys.free.iter().enumerate() {
-                sa.alpha[v] = -sa.w_beta[f];
-                sa.gamma[v] = x_next[f] + sa.w_shift[f];
-                sa.y_tilde[v] = self.z[f];
-                sa.q_prime[v] = x_next[f];
-            }
-            for (rr, &v) in self.sys.rigid.iter().enumerate() {
-                sa.alpha[v] = sa.beta[rr];
-                sa.gamma[v] = sa.q_r_next[rr] - sa.tmp_r[rr];
-                sa.q_prime[v] = sa.q_r_next[rr];
-            }
-            LocalAdjoint::matrix_terms(
-                model,
-                &[(&sa.alpha, &sa.gamma), (&sa.y_tilde, &sa.q_prime)],
-                &mut g.w_rot,
-                &mut g.w_vol,
-            );
-            for i in 0..self.n {
-                if !model.fixed[i] {
-                    g.mass[i] -= (sa.alpha[i].dot(&sa.gamma[i]) + sa.y_tilde[i].dot(&sa.q_prime[i])) * ih2;
-                }
-            }
-            // The local step at q_k = (x_k, q_R(z_k)) (the stored positions at k = 0).
-            for (z, wb) in self.z.iter_mut().zip(&sa.w_beta) {
-                *z -= wb;
-            }
-            Self::scatter(&self.sys, model, &rec.iterates[k], &mut self.q_full, false);
-            Self::scatter(&self.sys, model, &self.z, &mut self.y_full, true);
-            for (rr, &v) in self.sys.rigid.iter().enumerate() {
-                self.q_full[v] = if k == 0 { q_n[v] } else { sa.q_r[rr] };
-                self.y_full[v] = sa.beta[rr];
-            }
-            self.local.backward(
-                model,
-                &self.q_full,
-                &self.y_full,
-                None,
+            self.skeletal_iteration(
+                sa,
+                h,
+                q_n,
+                rec,
+                it,
+                &mut impulse_bar,
                 activations,
-                rec.svds.get(k).map_or(Linearize::Recompute, |s| Linearize::Recorded(s)),
-                &mut self.out_full,
-                &mut g.w_rot,
-                &mut g.w_vol,
+                qbar,
+                g,
+                step,
                 act_grad,
+                &mut torque_acc,
             )?;
-            for (f, &v) in self.sys.free.iter().enumerate() {
-                self.xbar[f] = self.out_full[v];
-            }
-            for (rr, &v) in self.sys.rigid.iter().enumerate() {
-                sa.tmp_r[rr] = self.out_full[v];
-            }
-            if k == 0 {
-                for (rr, &v) in self.sys.rigid.iter().enumerate() {
-                    qbar[v] += sa.tmp_r[rr];
-                }
-            } else {
-                SkeletalAdjoint::add_bt(&sa.b, &sa.tmp_r, &mut sa.z_bar);
-            }
-            g.stats.backward_iterations += 1;
         }
         if let Some(tg) = g.torques.get_mut(step) {
             for (a, b) in tg.iter_mut().zip(&torque_acc) {
                 *a += b;
             }
         }
+        Ok(())
+    }
+
+    /// The adjoint of one iteration `it.k` of `rec` (see the module docs): on entry `self.xbar`
+    /// and `sa.z_bar` hold the adjoints of `(x_{k+1}, z_{k+1})`, on exit those of `(x_k, z_k)`;
+    /// parameter adjoints are added to `g`, `torque_acc` and `act_grad`, the right-hand side's
+    /// to the `base_acc` buffers.
+    #[allow(clippy::too_many_arguments)]
+    fn skeletal_iteration(
+        &mut self,
+        sa: &mut SkeletalAdjoint,
+        h: f64,
+        q_n: &[Vector3<f64>],
+        rec: &Recording,
+        it: Iteration<'_>,
+        impulse_bar: &mut Vec<Vector3<f64>>,
+        activations: &[f64],
+        qbar: &mut [Vector3<f64>],
+        g: &mut Gradient,
+        step: usize,
+        act_grad: &mut [f64],
+        torque_acc: &mut [f64],
+    ) -> Result<(), DiffError> {
+        let model = self.model;
+        let ih2 = 1.0 / (h * h);
+        let dofs = sa.work.dofs;
+        let k = it.k;
+        let sigma = sa.skeletal.sigma().clone();
+        let x_next = &rec.iterates[k + 1];
+        let dz = &rec.increments[k];
+        let resid = &rec.residuals[k];
+        let (contacts, impulses) = contacts_of(rec, k);
+        // 1. x_{k+1} = A_FF^-1 (b_F - A_FR q_R(z_{k+1}) + E lambda_k), the impulses from the
+        // contact solve at x_pre = y0 - W q_R': y~ = A_FF^-1 x_pre_bar (contact-corrected).
+        let ib = (!contacts.is_empty() && impulse_bar.len() == contacts.len()).then_some(&impulse_bar[..]);
+        self.solve_adjoint(contacts, impulses, x_next, ib, qbar)?;
+        SkeletalAdjoint::load(
+            &mut sa.work,
+            &rec.skeleton_states[k + 1],
+            &mut sa.q_r_next,
+            &mut sa.b_next,
+        )?;
+        // q_R' adjoint: -W^T x_pre_bar = -A_RF y~.
+        for (r, list) in self.sys.l_rf.iter().enumerate() {
+            let mut acc = Vector3::zeros();
+            for &(f, val) in list {
+                acc += self.z[f] * val;
+            }
+            sa.tmp_r[r] = -acc;
+        }
+        sa.z_after.copy_from_slice(&sa.z_bar);
+        SkeletalAdjoint::add_bt(&sa.b_next, &sa.tmp_r, &mut sa.z_after);
+        // 2. z_{k+1} = U(z_k, dz).
+        SkeletalAdjoint::load(&mut sa.work, &rec.skeleton_states[k], &mut sa.q_r, &mut sa.b)?;
+        sa.work.update_adjoint(dz, &sa.z_after, &mut sa.z_bar, &mut sa.dz_bar);
+        // 3. dz = S^-1 (B^T r + tau) under the active limits.
+        let nr = sa.q_r.len();
+        for kk in 0..dofs {
+            for rr in 0..nr {
+                for a in 0..3 {
+                    let mut acc = 0.0;
+                    for c in 0..nr {
+                        acc += sigma[(rr, c)] * sa.b[(3 * c + a, kk)];
+                    }
+                    sa.sb[(3 * rr + a, kk)] = acc;
+                }
+            }
+        }
+        let mut s = sa.b.transpose() * &sa.sb;
+        let scale = (0..dofs)
+            .map(|i| s[(i, i)].abs())
+            .fold(0.0, f64::max)
+            .max(f64::MIN_POSITIVE);
+        for i in 0..dofs {
+            s[(i, i)] += 1e-14 * scale;
+        }
+        let s = (&s + s.transpose()) * 0.5;
+        let chol = s.clone().cholesky().ok_or_else(|| {
+            DiffError::NotDifferentiable(format!("step {}: B^T Sigma B is not positive definite", step + 1))
+        })?;
+        let limits = &rec.active_limits[k];
+        let rigid = rec.rigid_contacts.get(k).map_or(&[][..], |v| &v[..]);
+        let mut v = DVector::zeros(limits.len());
+        // Per contact on a bone vertex: (D_j, G_j) of its cone projection and its adjoint nu_j.
+        let mut cone: Vec<(Matrix3<f64>, Matrix3<f64>, Vector3<f64>)> = Vec::with_capacity(rigid.len());
+        let u = if rigid.is_empty() {
+            let mut u = chol.solve(&DVector::from_column_slice(&sa.dz_bar));
+            if !limits.is_empty() {
+                // v = (E^T S^-1 E)^-1 E^T S^-1 dz_bar, u = S^-1 (dz_bar - E v).
+                let m = limits.len();
+                let mut e = DMatrix::zeros(dofs, m);
+                for (l, &(kk, _)) in limits.iter().enumerate() {
+                    e[(kk, l)] = 1.0;
+                }
+                let sie = chol.solve(&e);
+                let schur = e.transpose() * &sie;
+                let rhs = e.transpose() * &u;
+                v = schur.lu().solve(&rhs).ok_or_else(|| {
+                    DiffError::NotDifferentiable(format!("step {}: active joint limits are dependent", step + 1))
+                })?;
+                u -= &sie * &v;
+            }
+            u
+        } else {
+            // The projected Gauss-Seidel's fixed point in the reduced coordinates, linearized:
+            // S ddz - B_c^T dlambda - E dmu = dc + dB_c^T lambda - dS dz,
+            // (I + D_j / w_j) dlambda_j - D_j B_j ddz = D_j (dq_j + dB_j dz) + G_j da_j,
+            // E^T ddz = dd. Its transpose gives (u, nu, v); a least-squares solve, since
+            // sticking contacts of a rigid bone may over-determine its coordinates.
+            let (m, nl) = (rigid.len(), limits.len());
+            let nn = dofs + 3 * m + nl;
+            let mut kt = DMatrix::zeros(nn, nn);
+            for (j, (r, c, lambda, wj)) in rigid.iter().enumerate() {
+                let mut x = sa.q_r[*r];
+                for a in 0..3 {
+                    x[a] += (0..dofs).map(|kk| sa.b[(3 * r + a, kk)] * dz[kk]).sum::<f64>();
+                }
+                let (d, gm) = project_jacobian(&(x - lambda / *wj), *wj, c);
+                let col = dofs + 3 * j;
+                for a in 0..3 {
+                    for kk in 0..dofs {
+                        // K[kk, col + a] = -B[3r + a, kk]  ->  K^T[col + a, kk].
+                        kt[(col + a, kk)] = -sa.b[(3 * r + a, kk)];
+                        // K[col + a, kk] = -(D B_j)[a, kk]  ->  K^T[kk, col + a].
+                        kt[(kk, col + a)] = -(0..3).map(|b| d[(a, b)] * sa.b[(3 * r + b, kk)]).sum::<f64>();
+                    }
+                    for b in 0..3 {
+                        let id = if a == b { 1.0 } else { 0.0 };
+                        kt[(col + b, col + a)] = id + d[(a, b)] / *wj;
+                    }
+                }
+                cone.push((d, gm, Vector3::zeros()));
+            }
+            for i in 0..dofs {
+                for jj in 0..dofs {
+                    kt[(i, jj)] = s[(jj, i)];
+                }
+            }
+            for (l, &(kk, _)) in limits.iter().enumerate() {
+                let col = dofs + 3 * m + l;
+                kt[(col, kk)] = -1.0;
+                kt[(kk, col)] = 1.0;
+            }
+            let mut rhs = DVector::zeros(nn);
+            rhs.rows_mut(0, dofs).copy_from(&DVector::from_column_slice(&sa.dz_bar));
+            let y = kt
+                .clone()
+                .lu()
+                .solve(&rhs)
+                .filter(|y| y.iter().all(|x| x.is_finite()))
+                .map_or_else(|| kt.svd(true, true).solve(&rhs, 1e-13), Ok)
+                .map_err(|e| {
+                    DiffError::NotDifferentiable(format!(
+                        "step {}: the linearized contacts on bones have no solution ({e})",
+                        step + 1
+                    ))
+                })?;
+            for (j, cj) in cone.iter_mut().enumerate() {
+                cj.2 = Vector3::new(y[dofs + 3 * j], y[dofs + 3 * j + 1], y[dofs + 3 * j + 2]);
+            }
+            for l in 0..nl {
+                v[l] = y[dofs + 3 * m + l];
+            }
+            y.rows(0, dofs).into_owned()
+        };
+        for (t, x) in torque_acc.iter_mut().zip(u.iter()) {
+            *t += x;
+        }
+        // beta = B u; B_bar = (r - SB dz) u^T - (SB u) dz^T.
+        let dzv = DVector::from_column_slice(dz);
+        let sb_dz = &sa.sb * &dzv;
+        let sb_u = &sa.sb * &u;
+        for rr in 0..nr {
+            let mut bu = Vector3::zeros();
+            for a in 0..3 {
+                bu[a] = (0..dofs).map(|kk| sa.b[(3 * rr + a, kk)] * u[kk]).sum::<f64>();
+            }
+            sa.beta[rr] = bu;
+        }
+        for kk in 0..dofs {
+            for i in 0..3 * nr {
+                sa.b_bar[(i, kk)] = (resid[i / 3][i % 3] - sb_dz[i]) * u[kk] - sb_u[i] * dz[kk];
+            }
+        }
+        // Contacts on bones: B_c^T lambda and D_j dB_j dz.
+        for ((r, c, lambda, _), (d, gm, nu)) in rigid.iter().zip(&cone) {
+            let dnu = d.transpose() * nu;
+            for kk in 0..dofs {
+                for a in 0..3 {
+                    sa.b_bar[(3 * r + a, kk)] += lambda[a] * u[kk] + dnu[a] * dz[kk];
+                }
+            }
+            qbar[c.vertex] += gm.transpose() * nu;
+        }
+        sa.work.contract_jacobian_derivative(&sa.b_bar, &mut sa.z_bar);
+        for (l, &(kk, _)) in limits.iter().enumerate() {
+            let bone = sa
+                .work
+                .bones
+                .iter()
+                .find(|b| kk >= b.dof_offset && kk < b.dof_offset + b.joint.dofs())
+                .ok_or_else(|| DiffError::Input(format!("limit on unknown coordinate {kk}")))?;
+            sa.z_bar[kk] += v[l] * bone.joint.increment_bound_derivative(dz[kk]);
+        }
+        // r = g - Sigma q_R(z_k): q_R's adjoint is -Sigma beta.
+        for rr in 0..nr {
+            let mut acc = Vector3::zeros();
+            for c in 0..nr {
+                acc += sa.beta[c] * sigma[(rr, c)];
+            }
+            sa.tmp_r[rr] = -acc;
+        }
+        // The contact vertices' positions q_j (in x_j = q_j + B_j dz).
+        for ((r, ..), (d, _, nu)) in rigid.iter().zip(&cone) {
+            sa.tmp_r[*r] += d.transpose() * nu;
+        }
+        SkeletalAdjoint::add_bt(&sa.b, &sa.tmp_r, &mut sa.z_bar);
+        // g = b_R - A_RF y, y = A_FF^-1 (b_F + E lambda_{k-1}): b_F_bar = y~ - W beta.
+        let w = sa.skeletal.w();
+        SkeletalAdjoint::w_times(w, &sa.beta, &mut sa.w_beta);
+        for rr in 0..nr {
+            let mut bdz = Vector3::zeros();
+            for a in 0..3 {
+                bdz[a] = (0..dofs).map(|kk| sa.b[(3 * rr + a, kk)] * dz[kk]).sum::<f64>();
+            }
+            // tmp_r = q_R' - c, c = q_R + B dz (the linearized solution).
+            sa.tmp_r[rr] = sa.q_r_next[rr] - (sa.q_r[rr] + bdz);
+        }
+        SkeletalAdjoint::w_times(w, &sa.tmp_r, &mut sa.w_shift);
+        // The impulses of solve k - 1 entered y: their adjoint is (-W beta) at their contacts;
+        // y - W c = x_{k+1} + W (q_R' - c) + A_FF^-1 E (lambda_{k-1} - lambda_k).
+        impulse_bar.clear();
+        for (c, l) in contacts.iter().zip(impulses) {
+            let col = self.direct.inverse_column(c.index);
+            for (ws, a) in sa.w_shift.iter_mut().zip(col) {
+                *ws -= l * *a;
+            }
+        }
+        if let Some((prev, prev_imp)) = it.prev {
+            if !prev_imp.is_empty() {
+                impulse_bar.extend(prev.iter().map(|c| -sa.w_beta[c.index]));
+                for (c, l) in prev.iter().zip(prev_imp) {
+                    let col = self.direct.inverse_column(c.index);
+                    for (ws, a) in sa.w_shift.iter_mut().zip(col) {
+                        *ws += l * *a;
+                    }
+                }
+            }
+        }
+        for (f, (b, z)) in self.base_acc.iter_mut().zip(&self.z).enumerate() {
+            *b += z - sa.w_beta[f];
+        }
+        for (b, x) in sa.base_acc.iter_mut().zip(&sa.beta) {
+            *b += x;
+        }
+        // Matrix terms: -alpha^T dA gamma - y~^T dA q'.
+        for i in 0..self.n {
+            let fixed = model.fixed[i];
+            let rest = if fixed { model.rest[i] } else { Vector3::zeros() };
+            sa.alpha[i] = Vector3::zeros();
+            sa.y_tilde[i] = Vector3::zeros();
+            sa.gamma[i] = rest;
+            sa.q_prime[i] = rest;
+        }
+        for (f, &v) in self.sys.free.iter().enumerate() {
+            sa.alpha[v] = -sa.w_beta[f];
+            sa.gamma[v] = x_next[f] + sa.w_shift[f];
+            sa.y_tilde[v] = self.z[f];
+            sa.q_prime[v] = x_next[f];
+        }
+        for (rr, &v) in self.sys.rigid.iter().enumerate() {
+            sa.alpha[v] = sa.beta[rr];
+            sa.gamma[v] = sa.q_r_next[rr] - sa.tmp_r[rr];
+            sa.q_prime[v] = sa.q_r_next[rr];
+        }
+        LocalAdjoint::matrix_terms(
+            model,
+            &[(&sa.alpha, &sa.gamma), (&sa.y_tilde, &sa.q_prime)],
+            &mut g.w_rot,
+            &mut g.w_vol,
+        );
+        for i in 0..self.n {
+            if !model.fixed[i] {
+                g.mass[i] -= (sa.alpha[i].dot(&sa.gamma[i]) + sa.y_tilde[i].dot(&sa.q_prime[i])) * ih2;
+            }
+        }
+        // The local step at q_k = (x_k, q_R(z_k)) (the stored positions at k = 0).
+        for (z, wb) in self.z.iter_mut().zip(&sa.w_beta) {
+            *z -= wb;
+        }
+        Self::scatter(&self.sys, model, &rec.iterates[k], &mut self.q_full, false);
+        Self::scatter(&self.sys, model, &self.z, &mut self.y_full, true);
+        for (rr, &v) in self.sys.rigid.iter().enumerate() {
+            self.q_full[v] = if it.at_start { q_n[v] } else { sa.q_r[rr] };
+            self.y_full[v] = sa.beta[rr];
+        }
+        self.local.backward(
+            model,
+            &self.q_full,
+            &self.y_full,
+            None,
+            activations,
+            rec.svds.get(k).map_or(Linearize::Recompute, |s| Linearize::Recorded(s)),
+            &mut self.out_full,
+            &mut g.w_rot,
+            &mut g.w_vol,
+            act_grad,
+        )?;
+        for (f, &v) in self.sys.free.iter().enumerate() {
+            self.xbar[f] = self.out_full[v];
+        }
+        for (rr, &v) in self.sys.rigid.iter().enumerate() {
+            sa.tmp_r[rr] = self.out_full[v];
+        }
+        if it.at_start {
+            for (rr, &v) in self.sys.rigid.iter().enumerate() {
+                qbar[v] += sa.tmp_r[rr];
+            }
+        } else {
+            SkeletalAdjoint::add_bt(&sa.b, &sa.tmp_r, &mut sa.z_bar);
+        }
+        g.stats.backward_iterations += 1;
         Ok(())
     }
 }
