@@ -120,11 +120,6 @@ fn skeleton_limits_of_the_backward_pass_are_refused_clearly() {
     let run = |model: &diffsoft::solver::Model, controls: &Controls, l: &dyn loss::Loss, mode| {
         diff::gradient(model, &case.settings, 2, controls, l, Options::mode(mode)).map(|g| g.loss)
     };
-    // Implicit mode with a skeleton.
-    match run(&case.model, &case.controls, case.loss.as_ref(), Mode::Implicit) {
-        Err(DiffError::Unsupported(m)) => assert!(m.contains("skeleton"), "{m}"),
-        other => panic!("expected Unsupported, got {other:?}"),
-    }
     // Unrolled mode through Anderson acceleration (the built-in scene's own setting).
     let with_anderson = diffsoft::scene::load(&path, diffsoft::scene::LoadOptions::default()).unwrap();
     assert!(with_anderson.settings.anderson > 0);
@@ -323,7 +318,7 @@ fn skeleton_gradients_match_finite_differences() {
             c.name, g.group, g.analytic, g.fd_best, g.step_best, g.rel_error_best, g.truncation_slope
         );
     }
-    assert!(c.implicit_unsupported.is_some());
+    assert!(c.implicit_unsupported.is_none(), "{:?}", c.implicit_unsupported);
     assert_passes(&case);
 }
 
@@ -407,4 +402,51 @@ fn skeleton_gradients_in_ground_contact() {
     eprintln!("solves with contacts: free {free}, bone {rigid}");
     assert!(free > 0 && rigid > 0, "contacts: free {free}, bone {rigid}");
     assert_passes(&case);
+}
+
+/// With the forward converged, the implicit and the unrolled gradients agree through the
+/// skeleton's reduced step too (free fall and on the ground, torques, initial state, material).
+#[test]
+fn skeleton_implicit_matches_unrolled_at_convergence() {
+    let path = common::root().join("verification/scenes/baymax_skeleton.json");
+    for mut case in [
+        gradients::baymax_torques(&path, 3).unwrap(),
+        gradients::baymax_ground(&path, 6).unwrap(),
+    ] {
+        case.settings.tolerance = 1e-13;
+        case.settings.max_iterations = 1000;
+        let run = |mode| {
+            diff::gradient(
+                &case.model,
+                &case.settings,
+                case.steps,
+                &case.controls,
+                case.loss.as_ref(),
+                Options::mode(mode),
+            )
+            .unwrap()
+        };
+        let (u, i) = (run(Mode::Unrolled), run(Mode::Implicit));
+        eprintln!(
+            "{}: {} forward iterations, implicit residual {:e}, {} adjoint iterations",
+            case.name, u.stats.forward_iterations, i.stats.implicit_residual, i.stats.backward_iterations
+        );
+        let close = |a: f64, b: f64, what: &str| {
+            assert!(
+                (a - b).abs() <= 1e-7 * a.abs().max(b.abs()) + 1e-12,
+                "{}: {what}: unrolled {a:e} implicit {b:e}",
+                case.name
+            );
+        };
+        close(
+            Param::YoungsModulus.derivative(&case.model, &u),
+            Param::YoungsModulus.derivative(&case.model, &i),
+            "E",
+        );
+        let dot = |g: &diff::Gradient| {
+            g.torques.iter().flatten().map(|x| x * 0.37).sum::<f64>()
+                + g.v0.iter().map(|v| v.x - 0.5 * v.y + 0.2 * v.z).sum::<f64>()
+        };
+        close(dot(&u), dot(&i), "torques and initial velocities");
+    }
 }

@@ -25,9 +25,10 @@
 //! `r_bar . (s - x_{k+1}) / h^2`. The global solves are differentiated as exact linear solves with
 //! a sparse Cholesky factor (built here for any forward solver); contact subproblems at the
 //! impulses they converged to. With a skeleton, each iteration is the reduced step of Eqs. 7-18,
-//! differentiated in unrolled mode with the joints' tangent charts, their update rules, active
-//! joint limits and contacts on free and bone vertices (see [`skeletal`]). Implicit mode with a
-//! skeleton and Anderson-accelerated unrolled runs return [`DiffError::Unsupported`].
+//! differentiated with the joints' tangent charts, their update rules, active joint limits and
+//! contacts on free and bone vertices (see [`skeletal`]); its implicit mode iterates the adjoint
+//! of the step's last iteration to its fixed point. Anderson-accelerated unrolled runs return
+//! [`DiffError::Unsupported`].
 //!
 //! Memory: one state per step (pure checkpointing, as the paper); [`Options::store_bytes`]
 //! keeps whole steps' recordings from the forward pass within a budget so they need no replay.
@@ -280,11 +281,6 @@ struct Forward {
 }
 
 fn check_supported(model: &Model, settings: &Settings, mode: Mode) -> Result<(), DiffError> {
-    if model.skeleton.is_some() && mode == Mode::Implicit {
-        return Err(DiffError::Unsupported(
-            "implicit mode with a skeleton (the reduced step, Eqs. 17-18, is differentiated in unrolled mode)".into(),
-        ));
-    }
     if mode == Mode::Unrolled && settings.anderson > 0 {
         return Err(DiffError::Unsupported(
             "unrolled gradients through Anderson acceleration; use anderson = 0 or --mode implicit".into(),
@@ -659,8 +655,9 @@ impl<'a> Backward<'a> {
         let empty = (Vec::new(), Vec::new());
         let mut act_grad = std::mem::take(&mut g.activations[step]);
         match (self.opts.mode, replay) {
-            (Mode::Unrolled, Some(rec)) if self.skel.is_some() => {
-                self.skeletal_step(h, q_n, rec, activations, qbar, vbar, g, step, &mut act_grad)?;
+            (mode, Some(rec)) if self.skel.is_some() => {
+                let implicit = mode == Mode::Implicit;
+                self.skeletal_step(h, q_n, rec, activations, qbar, vbar, g, step, &mut act_grad, implicit)?;
             }
             (Mode::Unrolled, Some(rec)) => {
                 let iters = rec.solves.len();
@@ -971,7 +968,8 @@ pub fn gradient(
             .map(|(c, l)| c.len() * std::mem::size_of::<FreeContact>() + l.len() * 24)
             .sum::<usize>();
     let mut bw = Backward::new(model, settings, opts)?;
-    let mut replayer = if implicit {
+    // Implicit mode with a skeleton replays too: it linearizes the step's last iteration.
+    let mut replayer = if implicit && model.skeleton.is_none() {
         None
     } else {
         let mut sim = Simulator::new(model.clone(), settings.clone())?;

@@ -69,6 +69,8 @@ pub struct SkeletalAdjoint {
     /// Free-numbered scratch: `W beta`, `W (q_R' - c)`.
     w_beta: Vec<Vector3<f64>>,
     w_shift: Vec<Vector3<f64>>,
+    /// Implicit mode: the previous fixed-point iterate `(x_bar, z_bar)`.
+    fp_prev: Option<(Vec<Vector3<f64>>, Vec<f64>)>,
     /// Full-numbered vectors of the matrix terms.
     alpha: Vec<Vector3<f64>>,
     gamma: Vec<Vector3<f64>>,
@@ -99,6 +101,7 @@ impl SkeletalAdjoint {
             base_acc: vec![Vector3::zeros(); nr],
             w_beta: vec![Vector3::zeros(); nf],
             w_shift: vec![Vector3::zeros(); nf],
+            fp_prev: None,
             alpha: vec![Vector3::zeros(); n],
             gamma: vec![Vector3::zeros(); n],
             y_tilde: vec![Vector3::zeros(); n],
@@ -150,6 +153,23 @@ struct Iteration<'r> {
     prev: Option<(&'r [FreeContact], &'r [Vector3<f64>])>,
 }
 
+/// Check that `rec` holds a skeleton step's recording; its number of iterations.
+fn check_recording(rec: &Recording, step: usize) -> Result<usize, DiffError> {
+    let iters = rec.solves.len();
+    if rec.iterates.len() != iters + 1
+        || rec.skeleton_states.len() != iters + 1
+        || rec.increments.len() != iters
+        || rec.residuals.len() != iters
+        || rec.rigid_contacts.len() != iters
+    {
+        return Err(DiffError::Unsupported(format!(
+            "step {}: the replay recorded no skeleton iterates",
+            step + 1
+        )));
+    }
+    Ok(iters)
+}
+
 /// Solve `k`'s contact set and impulses.
 fn contacts_of(rec: &Recording, k: usize) -> (&[FreeContact], &[Vector3<f64>]) {
     let (set, imp) = &rec.solves[k];
@@ -172,6 +192,7 @@ impl Backward<'_> {
         g: &mut Gradient,
         step: usize,
         act_grad: &mut [f64],
+        implicit: bool,
     ) -> Result<(), DiffError> {
         let model = self.model;
         let ih2 = 1.0 / (h * h);
@@ -179,11 +200,16 @@ impl Backward<'_> {
             .skel
             .take()
             .ok_or_else(|| DiffError::Unsupported("skeleton buffers missing".into()))?;
-        let r = self.skeletal_iterations(&mut sa, h, q_n, rec, activations, qbar, g, step, act_grad);
+        let r = if implicit {
+            self.skeletal_fixed_point(&mut sa, h, q_n, rec, activations, qbar, g, step, act_grad)
+        } else {
+            self.skeletal_iterations(&mut sa, h, q_n, rec, activations, qbar, g, step, act_grad)
+        };
         if r.is_ok() {
-            // x_0 = s on free vertices (done by the caller's pattern), and s enters b_R on bones.
+            // x_0 = s on free vertices (unrolled mode), and s enters b on every vertex.
+            let x0 = if implicit { 0.0 } else { 1.0 };
             for (k, &v) in self.sys.free.iter().enumerate() {
-                let sbar = self.xbar[k] + self.base_acc[k] * (model.mass[v] * ih2);
+                let sbar = self.xbar[k] * x0 + self.base_acc[k] * (model.mass[v] * ih2);
                 self.add_s_adjoint(v, sbar, h, qbar, vbar, g);
             }
             for (r, &v) in self.sys.rigid.iter().enumerate() {
@@ -202,6 +228,118 @@ impl Backward<'_> {
         r
     }
 
+    /// The implicit adjoint of one step with a skeleton: at the converged iterate the step is a
+    /// fixed point `(x, z, lambda) = Phi(x, z, lambda; params)` of one local-global iteration, so
+    /// the adjoint solves `r = r_out + Phi'^T r` by iterating the last recorded iteration's
+    /// adjoint (at the forward's own rate), then accumulates the parameter adjoints once with
+    /// the converged `r`. The converged step does not depend on the joint state it started from.
+    #[allow(clippy::too_many_arguments)]
+    fn skeletal_fixed_point(
+        &mut self,
+        sa: &mut SkeletalAdjoint,
+        h: f64,
+        q_n: &[Vector3<f64>],
+        rec: &Recording,
+        activations: &[f64],
+        qbar: &mut [Vector3<f64>],
+        g: &mut Gradient,
+        step: usize,
+        act_grad: &mut [f64],
+    ) -> Result<(), DiffError> {
+        let iters = check_recording(rec, step)?;
+        if iters == 0 {
+            return Err(DiffError::Unsupported("the replay ran no iteration".into()));
+        }
+        let dofs = sa.work.dofs;
+        let k = iters - 1;
+        SkeletalAdjoint::load(&mut sa.work, &rec.skeleton_states[iters], &mut sa.q_r, &mut sa.b)?;
+        SkeletalAdjoint::add_bt(&sa.b, &sa.q_r_bar_in, &mut sa.z_bar);
+        let (x_in, z_in) = (self.xbar.clone(), sa.z_bar.clone());
+        let it = Iteration {
+            k,
+            at_start: false,
+            prev: Some(contacts_of(rec, k)),
+        };
+        let mut impulse_bar = Vec::new();
+        // Scratch accumulators for the iterations whose parameter adjoints are discarded.
+        let mut g_s = g.clone();
+        let mut q_s = qbar.to_vec();
+        let mut a_s = act_grad.to_vec();
+        let mut t_s = vec![0.0; dofs];
+        let mut count = 0;
+        let mut residual = f64::INFINITY;
+        while count < self.opts.implicit_max_iterations {
+            count += 1;
+            self.skeletal_iteration(
+                sa,
+                h,
+                q_n,
+                rec,
+                it,
+                &mut impulse_bar,
+                activations,
+                &mut q_s,
+                &mut g_s,
+                step,
+                &mut a_s,
+                &mut t_s,
+            )?;
+            let (mut change, mut size) = (0.0f64, 0.0f64);
+            for (x, x0) in self.xbar.iter_mut().zip(&x_in) {
+                let new = x0 + *x;
+                size = size.max(new.amax());
+                *x = new;
+            }
+            for (z, z0) in sa.z_bar.iter_mut().zip(&z_in) {
+                let new = z0 + *z;
+                size = size.max(new.abs());
+                *z = new;
+            }
+            // The change against the previous iterate: compare with what went in.
+            if let Some(prev) = sa.fp_prev.as_ref() {
+                for (a, b) in self.xbar.iter().zip(&prev.0) {
+                    change = change.max((a - b).amax());
+                }
+                for (a, b) in sa.z_bar.iter().zip(&prev.1) {
+                    change = change.max((a - b).abs());
+                }
+                residual = if size > 0.0 { change / size } else { 0.0 };
+            }
+            sa.fp_prev = Some((self.xbar.clone(), sa.z_bar.clone()));
+            if residual <= self.opts.implicit_tolerance {
+                break;
+            }
+        }
+        sa.fp_prev = None;
+        g.stats.backward_iterations += count;
+        g.stats.implicit_residual = g.stats.implicit_residual.max(residual);
+        // The parameter adjoints with the converged r.
+        self.base_acc.iter_mut().for_each(|b| *b = Vector3::zeros());
+        sa.base_acc.iter_mut().for_each(|b| *b = Vector3::zeros());
+        let mut torque_acc = vec![0.0; dofs];
+        self.skeletal_iteration(
+            sa,
+            h,
+            q_n,
+            rec,
+            it,
+            &mut impulse_bar,
+            activations,
+            qbar,
+            g,
+            step,
+            act_grad,
+            &mut torque_acc,
+        )?;
+        if let Some(tg) = g.torques.get_mut(step) {
+            for (a, b) in tg.iter_mut().zip(&torque_acc) {
+                *a += b;
+            }
+        }
+        sa.z_bar.iter_mut().for_each(|z| *z = 0.0);
+        Ok(())
+    }
+
     #[allow(clippy::too_many_arguments)]
     fn skeletal_iterations(
         &mut self,
@@ -215,19 +353,7 @@ impl Backward<'_> {
         step: usize,
         act_grad: &mut [f64],
     ) -> Result<(), DiffError> {
-        let iters = rec.solves.len();
-        if rec.iterates.len() != iters + 1
-            || rec.skeleton_states.len() != iters + 1
-            || rec.increments.len() != iters
-            || rec.residuals.len() != iters
-        {
-            return Err(DiffError::Unsupported(
-                "the replay recorded no skeleton iterates".into(),
-            ));
-        }
-        if rec.rigid_contacts.len() != iters {
-            return Err(DiffError::Unsupported("the replay recorded no bone contacts".into()));
-        }
+        let iters = check_recording(rec, step)?;
         let dofs = sa.work.dofs;
         sa.base_acc.iter_mut().for_each(|b| *b = Vector3::zeros());
         // z_bar_N += B(z_N)^T q_R_bar.
