@@ -396,6 +396,9 @@ fn run(command: Command) -> Result<()> {
                                 m.worst_rel_error.unwrap_or(f64::NAN),
                             );
                         }
+                        if let Some(e) = &c.implicit_error {
+                            println!("{:<16} implicit  off (informational): {e}", c.name);
+                        }
                     }
                 }
                 failed += usize::from(!c.passes);

@@ -318,7 +318,7 @@ fn skeleton_gradients_match_finite_differences() {
             c.name, g.group, g.analytic, g.fd_best, g.step_best, g.rel_error_best, g.truncation_slope
         );
     }
-    assert!(c.implicit_unsupported.is_none(), "{:?}", c.implicit_unsupported);
+    assert!(c.implicit_error.is_none(), "{:?}", c.implicit_error);
     assert_passes(&case);
 }
 

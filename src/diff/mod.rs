@@ -488,6 +488,21 @@ fn forward(
     Ok(f)
 }
 
+/// An implicit adjoint's fixed point that ends with a relative change above this has diverged.
+const DIVERGED_CHANGE: f64 = 0.1;
+
+/// Refuse the result of an implicit adjoint fixed point that diverged (the linearized step is
+/// not contractive there, e.g. far from convergence or where the contact set is switching).
+pub(crate) fn fixed_point_converged(residual: f64, iterations: usize, step: usize) -> Result<(), DiffError> {
+    if residual.is_finite() && residual <= DIVERGED_CHANGE {
+        return Ok(());
+    }
+    Err(DiffError::NotDifferentiable(format!(
+        "step {}: the implicit adjoint's fixed point diverged (relative change {residual:.1e} after {iterations} iterations); the linearized step is not contractive here (forward far from converged?): use unrolled mode",
+        step + 1
+    )))
+}
+
 /// The loss of a forward run alone (for finite differences).
 pub fn loss_value(
     model: &Model,
@@ -740,6 +755,7 @@ impl<'a> Backward<'a> {
                         if residual <= self.opts.implicit_tolerance || it >= self.opts.implicit_max_iterations {
                             g.stats.backward_iterations += it;
                             g.stats.implicit_residual = g.stats.implicit_residual.max(residual);
+                            fixed_point_converged(residual, it, step)?;
                             break;
                         }
                         let z = std::mem::take(&mut self.z);

@@ -313,6 +313,7 @@ impl Backward<'_> {
         sa.fp_prev = None;
         g.stats.backward_iterations += count;
         g.stats.implicit_residual = g.stats.implicit_residual.max(residual);
+        super::fixed_point_converged(residual, count, step)?;
         // The parameter adjoints with the converged r.
         self.base_acc.iter_mut().for_each(|b| *b = Vector3::zeros());
         sa.base_acc.iter_mut().for_each(|b| *b = Vector3::zeros());

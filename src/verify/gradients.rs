@@ -482,8 +482,9 @@ pub struct CaseCheck {
     pub dual: Option<DualCheck>,
     /// Why the case could not be differentiated (it then fails).
     pub error: Option<String>,
-    /// Why implicit mode does not apply to this case (`null` when it ran).
-    pub implicit_unsupported: Option<String>,
+    /// Why implicit mode gave no gradient for this case (not supported, or its adjoint fixed
+    /// point diverged on the unconverged forward); `null` when it ran. Informational.
+    pub implicit_error: Option<String>,
     /// The unrolled-mode checks pass.
     pub passes: bool,
 }
@@ -501,7 +502,7 @@ pub fn check_case(case: &Case, seed: u64) -> CaseCheck {
         modes: Vec::new(),
         dual: None,
         error: None,
-        implicit_unsupported: None,
+        implicit_error: None,
         passes: false,
     };
     let run = |mode: Mode| -> Result<ModeCheck, DiffError> {
@@ -535,8 +536,8 @@ pub fn check_case(case: &Case, seed: u64) -> CaseCheck {
     for mode in [Mode::Unrolled, Mode::Implicit] {
         match run(mode) {
             Ok(m) => out.modes.push(m),
-            Err(e @ DiffError::Unsupported(_)) if mode == Mode::Implicit => {
-                out.implicit_unsupported = Some(e.to_string());
+            Err(e @ (DiffError::Unsupported(_) | DiffError::NotDifferentiable(_))) if mode == Mode::Implicit => {
+                out.implicit_error = Some(e.to_string());
             }
             Err(e) => {
                 out.error = Some(e.to_string());
