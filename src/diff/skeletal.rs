@@ -416,7 +416,7 @@ impl Backward<'_> {
         let ih2 = 1.0 / (h * h);
         let dofs = sa.work.dofs;
         let k = it.k;
-        let sigma = sa.skeletal.sigma().clone();
+        let sigma = sa.skeletal.sigma();
         let x_next = &rec.iterates[k + 1];
         let dz = &rec.increments[k];
         let resid = &rec.residuals[k];
