@@ -93,8 +93,10 @@ fn is_cap(r: &Row) -> bool {
     matches!(r.setting.knob, Knob::Cap(_))
 }
 
-/// Write `tradeoff_<slug>.svg` (trajectory) and, with gradients, `tradeoff_<slug>_gradient.svg`
-/// into `dir`; returns the file names written.
+/// Write `tradeoff_<slug>.svg` (trajectory error against the `h/R` reference) and, with
+/// gradients, `tradeoff_<slug>_gradient.svg` (gradient error against the tight-tolerance gradient
+/// at the same step: against the `h/R` one the time step dominates) into `dir`; returns the file
+/// names written.
 pub fn write(s: &SceneTradeoff, dir: &Path, slug: &str) -> std::io::Result<Vec<String>> {
     std::fs::create_dir_all(dir)?;
     let mut names = Vec::new();
@@ -116,7 +118,10 @@ pub fn write(s: &SceneTradeoff, dir: &Path, slug: &str) -> std::io::Result<Vec<S
     render(
         &dir.join(&name),
         &Scatter {
-            title: format!("{}: cost against trajectory error (h = {:e} s)", s.name, s.scene.dt),
+            title: format!(
+                "{}: cost against trajectory error (h = {:e} s; one band per time step)",
+                s.name, s.scene.dt
+            ),
             x_label: time,
             y_label: "max vertex error / largest displacement (vs h/R reference)",
             points: traj,
@@ -124,7 +129,7 @@ pub fn write(s: &SceneTradeoff, dir: &Path, slug: &str) -> std::io::Result<Vec<S
         },
     )?;
     names.push(name);
-    if !s.pareto.gradient.is_empty() {
+    if !s.pareto.gradient_solver.is_empty() {
         let grad: Vec<(Family, bool, f64, f64)> = s
             .rows
             .iter()
@@ -134,7 +139,7 @@ pub fn write(s: &SceneTradeoff, dir: &Path, slug: &str) -> std::io::Result<Vec<S
                     r.setting.family,
                     is_cap(r),
                     gradient_cost(&s.inputs, r)?,
-                    r.gradient.error?,
+                    r.gradient.solver_error?,
                 ))
             })
             .collect();
@@ -142,11 +147,11 @@ pub fn write(s: &SceneTradeoff, dir: &Path, slug: &str) -> std::io::Result<Vec<S
         render(
             &dir.join(&name),
             &Scatter {
-                title: format!("{}: cost against gradient error", s.name),
+                title: format!("{}: cost against gradient error at the same time step", s.name),
                 x_label: "forward + backward cost per simulated second",
-                y_label: "relative gradient error (vs h/R reference gradient)",
+                y_label: "relative gradient error (vs the tight-tolerance gradient at the same step)",
                 points: grad,
-                front: s.pareto.gradient.iter().map(|p| (p.time, p.error)).collect(),
+                front: s.pareto.gradient_solver.iter().map(|p| (p.time, p.error)).collect(),
             },
         )?;
         names.push(name);

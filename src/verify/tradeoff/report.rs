@@ -222,8 +222,12 @@ pub struct Fronts {
     pub time_meaning: String,
     /// Forward cost against `trajectory.max_relative`.
     pub trajectory: Vec<Pick>,
+    /// Forward cost against `trajectory.solver_max_relative` (the solver's share).
+    pub trajectory_solver: Vec<Pick>,
     /// Forward + backward cost against `gradient.error` (empty without gradients).
     pub gradient: Vec<Pick>,
+    /// Forward + backward cost against `gradient.solver_error`.
+    pub gradient_solver: Vec<Pick>,
     /// Why the gradient front is empty.
     pub gradient_note: Option<String>,
 }
@@ -550,6 +554,28 @@ fn fronts(spec: &TradeoffSpec, rows: &[Row], grefs: &[GradientReference]) -> (Fr
             })
         })
         .collect();
+    let solver_points: Vec<Point> = rows
+        .iter()
+        .filter(|r| r.status == Status::Ran)
+        .filter_map(|r| {
+            Some(Point {
+                id: r.id.clone(),
+                time: forward_cost(spec, r)?,
+                error: r.trajectory?.solver_max_relative,
+            })
+        })
+        .collect();
+    let gsolver_points: Vec<Point> = rows
+        .iter()
+        .filter(|r| r.status == Status::Ran)
+        .filter_map(|r| {
+            Some(Point {
+                id: r.id.clone(),
+                time: gradient_cost(spec, r)?,
+                error: r.gradient.solver_error?,
+            })
+        })
+        .collect();
     let gradient_note = if gpoints.is_empty() {
         Some(if spec.gradient_dt_divisors.is_empty() {
             "no gradients requested for this scene (gradient_dt_divisors is empty)".to_string()
@@ -577,7 +603,15 @@ fn fronts(spec: &TradeoffSpec, rows: &[Row], grefs: &[GradientReference]) -> (Fr
         time_axis: spec.time_axis,
         time_meaning: time_meaning.into(),
         trajectory: pareto::front(&points).into_iter().map(|i| pick(&points, i)).collect(),
+        trajectory_solver: pareto::front(&solver_points)
+            .into_iter()
+            .map(|i| pick(&solver_points, i))
+            .collect(),
         gradient: pareto::front(&gpoints).into_iter().map(|i| pick(&gpoints, i)).collect(),
+        gradient_solver: pareto::front(&gsolver_points)
+            .into_iter()
+            .map(|i| pick(&gsolver_points, i))
+            .collect(),
         gradient_note,
     };
     (f, points, gpoints)
