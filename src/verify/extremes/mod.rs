@@ -16,6 +16,7 @@
 
 mod cases;
 mod probe;
+mod scenarios;
 
 use std::fmt::Write as _;
 use std::panic::{catch_unwind, AssertUnwindSafe};

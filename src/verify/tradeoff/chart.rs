@@ -5,7 +5,8 @@ use std::path::Path;
 
 use plotters::prelude::*;
 
-use super::report::{forward_cost, gradient_cost, Row, SceneTradeoff, Status};
+use super::assess::{forward_cost, gradient_cost};
+use super::report::{Row, SceneTradeoff, Status};
 use super::{Family, Knob};
 
 const COLORS: [(Family, RGBColor); 5] = [

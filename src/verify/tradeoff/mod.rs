@@ -17,11 +17,13 @@
 //! settings. A sweep splits into shards (`--shard K/N`, [`super::shard`]); [`merge`] reassembles
 //! the partial reports into the report of the unsharded run.
 
+mod assess;
 mod chart;
 pub mod pareto;
 mod report;
 mod run;
 mod scene;
+mod summary;
 pub mod trajectory;
 
 use std::path::PathBuf;
@@ -31,11 +33,12 @@ use serde::{Deserialize, Serialize};
 use crate::solver::{CertifyPolicy, Settings, SolverKind};
 
 pub use report::{
-    finalize, merge, summary, Fronts, GradientResult, Pick, Recommendation, Reference, Row, SceneTradeoff, Status,
+    finalize, merge, Fronts, GradientResult, Pick, Recommendation, Reference, Row, SceneTradeoff, Status,
     TradeoffPartial, TradeoffReport, PARTIAL_SCHEMA, SCHEMA,
 };
 pub use run::{run_scene, run_shard, suite_section, write_plots, PARAMETERS};
 pub use scene::{Cantilever, SceneSummary};
+pub use summary::summary;
 
 /// Anderson memory of the `anderson` family.
 pub const ANDERSON_MEMORY: usize = 5;
@@ -308,12 +311,17 @@ impl TradeoffSpec {
         {
             return bad("needs at least one dt divisor, one family and one cap or tolerance".into());
         }
-        let distinct = |v: &[usize]| v.iter().enumerate().all(|(i, a)| !v[..i].contains(a));
+        fn distinct<T: PartialEq>(v: &[T]) -> bool {
+            v.iter().enumerate().all(|(i, a)| !v[..i].contains(a))
+        }
         if !distinct(&self.dt_divisors) || self.dt_divisors.contains(&0) {
             return bad(format!(
                 "dt_divisors must be distinct and positive, got {:?}",
                 self.dt_divisors
             ));
+        }
+        if !distinct(&self.families) || !distinct(&self.caps) || !distinct(&self.tolerances) {
+            return bad("families, caps and tolerances must not repeat".into());
         }
         let r = self.reference_divisor;
         if let Some(d) = self.dt_divisors.iter().find(|&&d| d >= r || !r.is_multiple_of(d)) {
