@@ -32,7 +32,8 @@
 //!   rates and `rho(dt)` sweeps.
 //! * [`report`], [`plot`], [`verify`]: versioned JSON reports, SVG plots and the suite that the
 //!   main job (`diffsoft verify`) runs over `verification/`, including the physics checks of
-//!   the forward solver.
+//!   the forward solver, the accuracy/cost trade-off of its settings, the extremes suite, and
+//!   sharded sweeps.
 //!
 //! Equation numbers refer to the paper and its supplementary appendix as summarised in the
 //! project's METHOD notes (paper Eqs. 1-21, seed Eqs. 22-40).

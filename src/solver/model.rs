@@ -256,6 +256,11 @@ impl Model {
     }
 }
 
+/// Smallest thickness of a triangle-mesh obstacle, relative to the bodies' length scale: well
+/// above the round-off of a contact solve (a cube resting on a plate of thickness 1e-12 m fell
+/// through it; 1e-9 m held).
+pub const MIN_MESH_THICKNESS: f64 = 1e-6;
+
 /// Builds a [`Model`] from bodies, obstacles and gravity.
 #[derive(Debug, Default)]
 pub struct ModelBuilder {
@@ -437,6 +442,18 @@ impl ModelBuilder {
         };
         let fem = FemOperators::new(&all).map_err(|e| SolverError::Input(e.to_string()))?;
         let (lo, hi) = all.bounding_box();
+        let length_scale = (hi - lo).norm().max(f64::MIN_POSITIVE);
+        for o in &self.obstacles {
+            // A mesh obstacle is two-sided: a vertex resting on a zero-thickness surface is on
+            // neither side, and round-off can put it on the far side, through the surface.
+            let min = MIN_MESH_THICKNESS * length_scale;
+            if matches!(o.shape, crate::contact::Shape::TriMesh(_)) && o.thickness < min {
+                return Err(SolverError::Input(format!(
+                    "obstacle '{}': a triangle-mesh obstacle is two-sided, so its thickness must be at least {MIN_MESH_THICKNESS:e} x the bodies' length scale ({min:.3e} m) for vertices resting on it to stay on their side despite round-off; got {} (the paper's scenes use 1e-4 m)",
+                    o.name, o.thickness
+                )));
+            }
+        }
         let vertex_tets = VertexTets::new(rest.len(), &tets);
         let skeleton = if bones.is_empty() {
             None
@@ -459,7 +476,7 @@ impl ModelBuilder {
             vertex_tets,
             skeleton,
             actuators: (!actuators.groups.is_empty()).then_some(actuators),
-            length_scale: (hi - lo).norm().max(f64::MIN_POSITIVE),
+            length_scale,
         })
     }
 }

@@ -3,13 +3,17 @@
 //! and writes `reports/`.
 
 pub mod actuators;
+pub mod extremes;
 pub mod fd;
 pub mod gradients;
 pub mod jacobians;
 pub mod physics;
+pub mod pool;
+pub mod shard;
 pub mod skeleton;
 pub mod suite;
 mod summary;
+pub mod tradeoff;
 
 pub use summary::{
     bounds_summary, jacobians_table, physics_table, quality_summary, skeleton_table, sweep_summary, table,
@@ -747,8 +751,18 @@ pub fn run_suite(suite_path: &Path, out: &Path) -> Result<SuiteBoundsReport> {
     for v in &grad.verdicts {
         println!("  [{}] {}", if v.holds { "holds" } else { "FAILS" }, v.claim);
     }
+    if let Some(t) = &suite.tradeoff {
+        println!("\ntrade-off of solver settings (accuracy against cost):");
+        tradeoff::suite_section(base, out, &t.scenes)?;
+    }
+    if let Some(x) = &suite.extremes {
+        println!("\nextremes ({:?} subset):", x.subset);
+        let ex = extremes::run(x.subset, true);
+        write_json(out.join("extremes.json"), &ex)?;
+        print!("{}", extremes::table(&ex));
+    }
     println!(
-        "wrote {}, {}, {}, {}, {}, gradients.json, t_scaling.svg, cantilever.svg, skeleton_*.svg, gradient_cost.svg, actuator frames and {} sweep plots in {:.1} s",
+        "wrote {}, {}, {}, {}, {}, gradients.json, tradeoff.json, extremes.json, t_scaling.svg, cantilever.svg, skeleton_*.svg, gradient_cost.svg, tradeoff_*.svg, actuator frames and {} sweep plots in {:.1} s",
         path.display(),
         out.join("jacobians.json").display(),
         out.join("physics.json").display(),

@@ -25,6 +25,28 @@ pub struct Suite {
     pub actuators: ActuatorSuite,
     /// Gradient checks, system identification, accuracy against cost, memory (METHOD.md 7).
     pub gradients: GradientSuite,
+    /// Accuracy against cost of the solver settings (absent: skipped).
+    #[serde(default)]
+    pub tradeoff: Option<TradeoffSuite>,
+    /// The extremes suite (absent: skipped).
+    #[serde(default)]
+    pub extremes: Option<ExtremesSuite>,
+}
+
+/// The trade-off study: one sweep per scene.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TradeoffSuite {
+    /// The sweeps (scene files relative to the suite file).
+    pub scenes: Vec<super::tradeoff::TradeoffSpec>,
+}
+
+/// The extremes suite.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ExtremesSuite {
+    /// Which cases.
+    pub subset: super::extremes::Subset,
 }
 
 /// The gradient study.

@@ -1,0 +1,211 @@
+//! Sharding of sweeps: `--shard K/N` runs the items `i` of a sweep with `i mod N == K`
+//! (`0 <= K < N`, the numbering of Slurm array task ids and Kubernetes completion indices), and
+//! writes a partial report; [`merge_files`] checks that the partial reports are the `N` distinct
+//! shards of one sweep and merges them into the report the unsharded run writes.
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+use std::str::FromStr;
+
+use serde::{Deserialize, Serialize};
+
+/// One shard of a sweep: items `i` with `i mod count == index`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Shard {
+    /// Shard number, `0 <= index < count`.
+    pub index: usize,
+    /// Number of shards.
+    pub count: usize,
+}
+
+impl Shard {
+    /// The whole sweep as one shard.
+    pub const ALL: Shard = Shard { index: 0, count: 1 };
+
+    /// Whether item `i` belongs to this shard.
+    pub fn owns(&self, i: usize) -> bool {
+        i % self.count == self.index
+    }
+}
+
+impl fmt::Display for Shard {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}/{}", self.index, self.count)
+    }
+}
+
+/// Errors parsing a shard or merging partial reports.
+#[derive(Debug, thiserror::Error)]
+pub enum ShardError {
+    /// `--shard` is not `K/N` with `0 <= K < N`.
+    #[error("shard '{0}': expected K/N with 0 <= K < N (e.g. 0/4 ... 3/4; K is the array task index)")]
+    Syntax(String),
+    /// A partial report cannot be read.
+    #[error("{path}: {message}")]
+    Read {
+        /// File.
+        path: String,
+        /// What failed.
+        message: String,
+    },
+    /// The partial reports do not form one sweep.
+    #[error("cannot merge: {0}")]
+    Mismatch(String),
+}
+
+impl FromStr for Shard {
+    type Err = ShardError;
+    fn from_str(s: &str) -> Result<Self, ShardError> {
+        let bad = || ShardError::Syntax(s.to_string());
+        let (k, n) = s.split_once('/').ok_or_else(bad)?;
+        let index: usize = k.trim().parse().map_err(|_| bad())?;
+        let count: usize = n.trim().parse().map_err(|_| bad())?;
+        if count == 0 || index >= count {
+            return Err(bad());
+        }
+        Ok(Shard { index, count })
+    }
+}
+
+/// Check that `shards` (one per partial report, named by `paths`) are exactly the shards
+/// `0/N ... N-1/N` of one sweep, each once.
+pub fn check_cover(shards: &[Shard], paths: &[String]) -> Result<(), ShardError> {
+    let Some(first) = shards.first() else {
+        return Err(ShardError::Mismatch("no partial reports given".into()));
+    };
+    let n = first.count;
+    let mut seen: Vec<Option<&str>> = vec![None; n];
+    for (s, p) in shards.iter().zip(paths) {
+        if s.count != n {
+            return Err(ShardError::Mismatch(format!(
+                "{p} is shard {s} but {} is shard {first}: different shard counts",
+                paths[0]
+            )));
+        }
+        if let Some(other) = seen[s.index] {
+            return Err(ShardError::Mismatch(format!("{p} and {other} are both shard {s}")));
+        }
+        seen[s.index] = Some(p);
+    }
+    let missing: Vec<String> = (0..n)
+        .filter(|&k| seen[k].is_none())
+        .map(|k| format!("{k}/{n}"))
+        .collect();
+    if !missing.is_empty() {
+        return Err(ShardError::Mismatch(format!("missing shard(s) {}", missing.join(", "))));
+    }
+    Ok(())
+}
+
+/// Check that every partial report has the same value of a field (the sweep's inputs, the crate
+/// version): partial reports of different sweeps or builds do not merge.
+pub fn check_same<T: PartialEq + fmt::Debug>(what: &str, values: &[T], paths: &[String]) -> Result<(), ShardError> {
+    for (v, p) in values.iter().zip(paths).skip(1) {
+        if v != &values[0] {
+            return Err(ShardError::Mismatch(format!(
+                "{what} differ: {} has {:?}, {p} has {v:?}",
+                paths[0], values[0]
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// A merged report of either kind.
+#[derive(Debug, Clone)]
+pub enum Merged {
+    /// A trade-off report.
+    Tradeoff(Box<super::tradeoff::TradeoffReport>),
+    /// An extremes report.
+    Extremes(Box<super::extremes::ExtremesReport>),
+}
+
+fn parse<T: serde::de::DeserializeOwned>(v: serde_json::Value, path: &str) -> Result<T, ShardError> {
+    serde_json::from_value(v).map_err(|e| ShardError::Read {
+        path: path.to_string(),
+        message: format!("not a valid partial report: {e}"),
+    })
+}
+
+fn read_value(path: &Path) -> Result<serde_json::Value, ShardError> {
+    let shown = path.display().to_string();
+    let text = std::fs::read_to_string(path).map_err(|e| ShardError::Read {
+        path: shown.clone(),
+        message: e.to_string(),
+    })?;
+    serde_json::from_str(&text).map_err(|e| ShardError::Read {
+        path: shown,
+        message: e.to_string(),
+    })
+}
+
+/// Read partial reports (`diffsoft tradeoff --shard` or `diffsoft extremes --shard` output) and
+/// merge them; every file must be a partial report of the same kind.
+pub fn merge_files(paths: &[PathBuf]) -> Result<Merged, ShardError> {
+    let shown: Vec<String> = paths.iter().map(|p| p.display().to_string()).collect();
+    let mut values = Vec::with_capacity(paths.len());
+    for p in paths {
+        values.push(read_value(p)?);
+    }
+    let schemas: Vec<String> = values
+        .iter()
+        .map(|v| v.get("schema").and_then(|s| s.as_str()).unwrap_or("").to_string())
+        .collect();
+    check_same("schemas", &schemas, &shown)?;
+    match schemas.first().map(String::as_str) {
+        Some(super::tradeoff::PARTIAL_SCHEMA) => {
+            let mut parts = Vec::new();
+            for (v, p) in values.into_iter().zip(&shown) {
+                parts.push(parse(v, p)?);
+            }
+            Ok(Merged::Tradeoff(Box::new(super::tradeoff::merge(parts, &shown)?)))
+        }
+        Some(super::extremes::PARTIAL_SCHEMA) => {
+            let mut parts = Vec::new();
+            for (v, p) in values.into_iter().zip(&shown) {
+                parts.push(parse(v, p)?);
+            }
+            Ok(Merged::Extremes(Box::new(super::extremes::merge(parts, &shown)?)))
+        }
+        other => Err(ShardError::Mismatch(format!(
+            "{} has schema {:?}; expected a partial report ({} or {}), written with --shard",
+            shown.first().map_or("", String::as_str),
+            other.unwrap_or(""),
+            super::tradeoff::PARTIAL_SCHEMA,
+            super::extremes::PARTIAL_SCHEMA
+        ))),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parses_and_rejects() {
+        assert_eq!("2/4".parse::<Shard>().unwrap(), Shard { index: 2, count: 4 });
+        for bad in ["4/4", "1/0", "a/2", "3", "-1/2"] {
+            assert!(bad.parse::<Shard>().is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn shards_partition_the_items() {
+        let n = 3;
+        for i in 0..20 {
+            let owners = (0..n).filter(|&k| Shard { index: k, count: n }.owns(i)).count();
+            assert_eq!(owners, 1);
+        }
+    }
+
+    #[test]
+    fn cover_detects_missing_and_duplicate_shards() {
+        let p: Vec<String> = ["a", "b", "c"].iter().map(|s| s.to_string()).collect();
+        let s = |k| Shard { index: k, count: 3 };
+        assert!(check_cover(&[s(0), s(1), s(2)], &p).is_ok());
+        let e = check_cover(&[s(0), s(2)], &p).unwrap_err().to_string();
+        assert!(e.contains("missing shard(s) 1/3"), "{e}");
+        let e = check_cover(&[s(0), s(0), s(2)], &p).unwrap_err().to_string();
+        assert!(e.contains("both shard 0/3"), "{e}");
+    }
+}
