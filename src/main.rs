@@ -698,6 +698,9 @@ struct GradArgs {
     /// Override the local-global tolerance (0: always run the cap, a smooth forward).
     #[arg(long)]
     tolerance: Option<f64>,
+    /// Override the Anderson memory (unrolled mode differentiates plain iterations: 0).
+    #[arg(long)]
+    anderson: Option<usize>,
     /// Write `{loss, gradient}` as JSON here.
     #[arg(long)]
     json: Option<PathBuf>,
@@ -727,6 +730,9 @@ fn grad(a: GradArgs) -> Result<()> {
     }
     if let Some(t) = a.tolerance {
         sc.settings.tolerance = t;
+    }
+    if let Some(m) = a.anderson {
+        sc.settings.anderson = m;
     }
     for s in &a.set {
         let (name, value) = s
