@@ -21,7 +21,10 @@
 //!   rotational, prismatic, fixed), the bone tree and `B = dq/dz` (Eqs. 12-16).
 //! * [`actuator`]: groups of pneumatic cells and muscle fibres with their activation schedules
 //!   (seed Appendix D).
-//! * [`contact`]: static obstacles and the per-vertex Coulomb cone projection.
+//! * [`cloth`]: triangle-mesh bodies (2D as-rigid-as-possible stretching, cotangent-Laplacian
+//!   bending, area density) in the same projective-dynamics system as the soft bodies.
+//! * [`contact`]: static obstacles, collisions between bodies (vertex-face and edge-edge pairs,
+//!   spatial hash) and the Coulomb cone projection.
 //! * [`solver`]: projective dynamics with implicit Euler (paper Eqs. 2-5): parallel local step,
 //!   global solvers (sparse Cholesky, plain Eq. 19, split Eq. 21, Chebyshev) behind one trait,
 //!   certified by the spectral analysis before stepping.
@@ -42,6 +45,7 @@
 pub mod actuator;
 pub mod alloc;
 pub mod analysis;
+pub mod cloth;
 pub mod constraint;
 pub mod contact;
 pub mod diff;

@@ -171,6 +171,26 @@ enum Command {
         #[arg(long)]
         json: Option<PathBuf>,
     },
+    /// The cloth study: a scene with cloth and collisions between bodies (default: the paper's
+    /// ball on cloth), probed every step, and the cost of collision detection against mesh size
+    /// (reports/cloth.json format); exits 1 if a claim fails.
+    Cloth {
+        /// Scene with cloth and collisions between bodies.
+        #[arg(long, default_value = "verification/paper/cloth_ball/cloth_ball.json")]
+        scene: PathBuf,
+        /// Steps to run.
+        #[arg(long, default_value_t = 100)]
+        steps: usize,
+        /// Cloth cells per side of the detection-cost meshes.
+        #[arg(long, value_delimiter = ',', default_value = "16,32,64,128")]
+        sizes: Vec<usize>,
+        /// Directory for the plots and VTK frames.
+        #[arg(long, default_value = "out/cloth")]
+        out: PathBuf,
+        /// Write the JSON report here.
+        #[arg(long)]
+        json: Option<PathBuf>,
+    },
     /// Merge the partial reports of a sharded `tradeoff` or `extremes` run into one report.
     Merge {
         /// Partial reports (every shard 0/N .. N-1/N once).
@@ -466,6 +486,7 @@ fn run(command: Command) -> Result<()> {
                 verify::gradients::actuated(steps)?,
                 verify::gradients::baymax_torques(&root.join("scenes/baymax_skeleton.json"), steps)?,
                 verify::gradients::baymax_ground(&root.join("scenes/baymax_skeleton.json"), steps)?,
+                verify::gradients::ball_on_cloth(steps)?,
             ];
             let checks = verify::gradients::check_all(&cases, 2021);
             let mut failed = 0;
@@ -509,6 +530,24 @@ fn run(command: Command) -> Result<()> {
             }
         }
         Command::Tradeoff(args) => tradeoff(*args)?,
+        Command::Cloth {
+            scene,
+            steps,
+            sizes,
+            out,
+            json,
+        } => {
+            use diffsoft::verify::cloth;
+            let r = cloth::study(&scene, steps, &sizes, &out)?;
+            print!("{}", cloth::table(&r));
+            if let Some(path) = json {
+                write_json(&path, &r)?;
+                println!("wrote {}", path.display());
+            }
+            if r.verdicts.iter().any(|v| !v.holds) {
+                bail!("some cloth claims failed");
+            }
+        }
         Command::Extremes { subset, shard, json } => {
             use diffsoft::verify::extremes;
             match shard {
@@ -808,13 +847,19 @@ fn simulate(
     use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
     let model_size = (sc.model.n(), sc.model.tets.len());
     let bodies = sc.model.bodies.clone();
+    let cloth = sc.model.cloth.as_ref().map_or(Vec::new(), |c| c.bodies.clone());
     println!(
-        "scene       {} ({:?}): {} vertices, {} tets, {} bodies",
+        "scene       {} ({:?}): {} vertices, {} tets, {} bodies{}",
         sc.path.display(),
         sc.format,
         model_size.0,
         model_size.1,
-        bodies.len()
+        bodies.len(),
+        if cloth.is_empty() {
+            String::new()
+        } else {
+            format!(", {} cloth ({} triangles)", cloth.len(), sc.model.num_cloth_triangles())
+        }
     );
     for n in &sc.notes {
         println!("note        {n}");
@@ -866,7 +911,7 @@ fn simulate(
     bar.finish_and_clear();
     let summary = RunSummary::of(&stats);
     println!(
-        "ran         {} steps ({:.4} s simulated) in {:.3} s: median {:.3} ms/step, {:.2} iterations/step, {} of {} converged, max penetration {:.3e} m, max contacts {}",
+        "ran         {} steps ({:.4} s simulated) in {:.3} s: median {:.3} ms/step, {:.2} iterations/step, {} of {} converged, max penetration {:.3e} m, max contacts {} (between bodies {})",
         summary.steps,
         summary.simulated_time,
         summary.wall_time_s,
@@ -875,7 +920,8 @@ fn simulate(
         summary.converged_steps,
         summary.steps,
         summary.max_penetration,
-        summary.max_contacts
+        summary.max_contacts,
+        summary.max_pair_contacts
     );
     if let Some(dir) = out {
         let log = RunLog {
@@ -883,6 +929,7 @@ fn simulate(
             scene: sc.path.display().to_string(),
             notes: sc.notes.clone(),
             bodies,
+            cloth,
             size: model_size,
             settings: sim.settings().clone(),
             certificate: sim.certificate().clone(),

@@ -5,7 +5,7 @@ mod common;
 use std::process::Command;
 
 use common::{cube_scene, root, tmp_dir, write};
-use diffsoft::scene::{self, LoadOptions, SceneError, SceneFormat};
+use diffsoft::scene::{self, LoadOptions, SceneFormat};
 use diffsoft::solver::SolverKind;
 use serde_json::Value;
 
@@ -47,15 +47,18 @@ fn paper_scenes_import_with_the_reference_defaults() {
 }
 
 #[test]
-fn unsupported_paper_features_are_errors_unless_passive() {
-    let (file, feature) = ("cloth_ball/cloth_ball.json", "Clothes");
-    let e = scene::load(paper(file), LoadOptions::default()).unwrap_err();
-    assert!(matches!(e, SceneError::Unsupported { .. }), "{file}: {e}");
-    let msg = e.to_string();
-    assert!(
-        msg.contains(feature) && msg.contains("--passive") && msg.contains(file),
-        "{msg}"
-    );
+fn paper_scenes_with_cloth_actuators_and_skeletons_load() {
+    // The ball-on-cloth scene: a tet ball, a triangle cloth, contacts between them.
+    let cb = scene::load(paper("cloth_ball/cloth_ball.json"), LoadOptions::default()).unwrap();
+    let cloth = cb.model.cloth.as_ref().expect("cloth");
+    assert_eq!((cb.model.n(), cb.model.tets.len()), (43 + 81, 80));
+    assert_eq!((cloth.bodies.len(), cloth.num_triangles()), (1, 128));
+    assert_eq!(cloth.bodies[0].area_density, 3.0);
+    assert_eq!(cb.model.attachments.len(), 4);
+    let col = cb.model.collision.as_ref().expect("collisions between bodies");
+    assert_eq!(col.names.len(), 2);
+    assert!((col.settings.friction - 0.1).abs() < 1e-15);
+    assert!(cb.notes.iter().any(|n| n.contains("edge springs")), "{:?}", cb.notes);
     // Actuators are simulated: the drone and the octopus load (tests/actuators.rs).
     for file in ["droneman/droneman.json", "octopus/octopus.json"] {
         assert!(scene::load(paper(file), LoadOptions::default())

@@ -13,6 +13,7 @@
 //!   tangential part that sticks (`x_T = anchor_T`) when `|lambda_T| <= mu lambda_N`, or slides
 //!   on the cone boundary against the slip direction (maximal dissipation) otherwise.
 
+pub mod pair;
 mod trimesh;
 
 pub use trimesh::TriMeshObstacle;

@@ -64,12 +64,59 @@ pub struct ContactAdjoint {
     pub worst_residual: f64,
 }
 
+/// `(dlambda/dn, dlambda/d point)` of the Coulomb cone projection at `x_hat` (the derivatives
+/// with respect to the half-space's normal and point, for contacts between bodies whose
+/// geometry moves with the start positions).
+pub fn project_geometry_jacobian(x_hat: &Vector3<f64>, w: f64, c: &Contact) -> (Matrix3<f64>, Matrix3<f64>) {
+    let n = c.normal;
+    let gap = n.dot(&(x_hat - c.point));
+    if gap >= 0.0 {
+        return (Matrix3::zeros(), Matrix3::zeros());
+    }
+    let lambda_n = -w * gap;
+    let rel = x_hat - c.anchor;
+    let p = Matrix3::identity() - n * n.transpose();
+    let stick = -w * (p * rel);
+    let sn = stick.norm();
+    if sn <= c.friction * lambda_n {
+        // lambda = -w (x_hat - a) + w n (n . (point - a)).
+        let b = c.point - c.anchor;
+        (
+            (Matrix3::identity() * n.dot(&b) + n * b.transpose()) * w,
+            n * n.transpose() * w,
+        )
+    } else {
+        // lambda = (n + mu u) lambda_n, u = stick / |stick|, stick = -w P(n) rel.
+        let u = stick / sn;
+        let du = (Matrix3::identity() - u * u.transpose()) / sn;
+        let dstick_dn = (Matrix3::identity() * n.dot(&rel) + n * rel.transpose()) * w;
+        let dir = n + u * c.friction;
+        let dn =
+            (Matrix3::identity() + du * dstick_dn * c.friction) * lambda_n - dir * (x_hat - c.point).transpose() * w;
+        let dp = dir * n.transpose() * w;
+        (dn, dp)
+    }
+}
+
+/// What the backward pass knows of a step's start, for contacts between bodies (their
+/// coefficients and normals depend on the start positions).
+#[derive(Debug, Clone, Copy)]
+pub struct PairInputs<'a> {
+    /// Positions at the start of the step (global numbering).
+    pub q_start: &'a [Vector3<f64>],
+    /// Global vertex -> free index (`usize::MAX` for fixed vertices).
+    pub free_index: &'a [usize],
+    /// Collision thickness.
+    pub thickness: f64,
+}
+
 impl ContactAdjoint {
     /// Given `z = A^-1 x_bar` (in place, free numbering), the contacts and the impulses they ended
-    /// with and the solution `x` of the solve: turn `z` into `r_bar` and add the anchors'
-    /// adjoints to `anchor_bar` (global vertex numbering). `impulse_bar`, when given, is a
-    /// direct adjoint of the impulses themselves (one per contact; the skeleton's step reuses
-    /// them in its next iteration).
+    /// with and the solution `x` of the solve: turn `z` into `r_bar` and add the adjoints of the
+    /// start positions (anchors; for contacts between bodies also their coefficients and
+    /// normals, through `pairs`) to `anchor_bar` (global vertex numbering). `impulse_bar`, when
+    /// given, is a direct adjoint of the impulses themselves (one per contact; the skeleton's
+    /// step reuses them in its next iteration).
     #[allow(clippy::too_many_arguments)]
     pub fn apply(
         &mut self,
@@ -80,6 +127,7 @@ impl ContactAdjoint {
         x: &[Vector3<f64>],
         z: &mut [Vector3<f64>],
         anchor_bar: &mut [Vector3<f64>],
+        pairs: Option<PairInputs<'_>>,
         tolerance: f64,
         max_sweeps: usize,
     ) -> Result<(), DiffError> {
@@ -93,11 +141,15 @@ impl ContactAdjoint {
                     .into(),
             ));
         }
+        for c in contacts {
+            for (i, _) in c.stencil.entries() {
+                direct.inverse_column(i);
+            }
+        }
         self.delta.clear();
         for ci in contacts {
-            let col = direct.inverse_column(ci.index);
             for cj in contacts {
-                self.delta.push(col[cj.index]);
+                self.delta.push(direct.stencil_inverse(&ci.stencil, &cj.stencil));
             }
         }
         self.d.clear();
@@ -105,13 +157,13 @@ impl ContactAdjoint {
         for (j, (c, l)) in contacts.iter().zip(impulses).enumerate() {
             let djj = self.delta[j * m + j];
             let w = 1.0 / djj;
-            let x_hat = x[c.index] - l * djj;
+            let x_hat = c.stencil.apply(x) - l * djj;
             let (d, g) = project_jacobian(&x_hat, w, &c.contact);
             self.d.push(d);
             self.g.push(g);
         }
         self.rhs.clear();
-        self.rhs.extend(contacts.iter().map(|c| z[c.index]));
+        self.rhs.extend(contacts.iter().map(|c| c.stencil.apply(z)));
         if let Some(lb) = impulse_bar {
             if lb.len() != m {
                 return Err(DiffError::Input(format!(
@@ -163,12 +215,51 @@ impl ContactAdjoint {
             ));
         }
         for (j, c) in contacts.iter().enumerate() {
-            anchor_bar[c.contact.vertex] += self.g[j].transpose() * self.mu[j];
-            if v[j] != Vector3::zeros() {
-                let col = direct.inverse_column(c.index);
-                for (zi, a) in z.iter_mut().zip(col) {
-                    *zi += v[j] * *a;
+            if c.pair.is_none() {
+                anchor_bar[c.contact.vertex] += self.g[j].transpose() * self.mu[j];
+            }
+            direct.add_inverse_columns(&c.stencil, &v[j], z);
+        }
+        // Contacts between bodies: their coefficients, normal, point and anchor move with the
+        // start positions (z is now r_bar = z + A^-1 E v).
+        for (j, c) in contacts.iter().enumerate() {
+            let Some(pair) = c.pair.as_ref() else {
+                continue;
+            };
+            let inputs = pairs.ok_or_else(|| {
+                DiffError::Unsupported("contacts between bodies need the step's start positions".into())
+            })?;
+            let q = inputs.q_start;
+            let djj = self.delta[j * m + j];
+            let x_hat = c.stencil.apply(x) - impulses[j] * djj;
+            let (hn, hp) = project_geometry_jacobian(&x_hat, 1.0 / djj, &c.contact);
+            let mu = self.mu[j];
+            let anchor_bar_j = self.g[j].transpose() * mu;
+            let point_bar = hp.transpose() * mu;
+            let n_bar = hn.transpose() * mu + point_bar * inputs.thickness;
+            let mut c_bar = [0.0; 4];
+            let mut e = 0;
+            for (k, (&vtx, cb)) in pair.vertices.iter().zip(c_bar.iter_mut()).enumerate() {
+                let fi = inputs.free_index[vtx];
+                if fi == usize::MAX {
+                    // point = n th - sum_fixed c_k q_k.
+                    *cb -= point_bar.dot(&q[vtx]);
+                    continue;
                 }
+                debug_assert_eq!(c.stencil.index[e], fi);
+                e += 1;
+                // anchor = sum_free c_k q_k; the solve's impulse enters as c_k lambda (x_k) and
+                // the relative coordinate as c_k x_k.
+                anchor_bar[vtx] += anchor_bar_j * pair.coefs[k];
+                *cb += anchor_bar_j.dot(&q[vtx]) + z[fi].dot(&impulses[j]) + v[j].dot(&x[fi]);
+            }
+            let (dc, dn) = pair.jacobian(q);
+            for (jj, &vtx) in pair.vertices.iter().enumerate() {
+                let grad = Vector3::from_fn(|d, _| {
+                    let col = 3 * jj + d;
+                    dn[col].dot(&n_bar) + dc[col].iter().zip(&c_bar).map(|(a, b)| a * b).sum::<f64>()
+                });
+                anchor_bar[vtx] += grad;
             }
         }
         Ok(())

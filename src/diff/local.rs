@@ -143,6 +143,8 @@ pub struct LocalAdjoint {
     pub dp_cells: Vec<Matrix3<f64>>,
     /// Activation adjoint per actuator cell.
     pub da_cells: Vec<f64>,
+    /// Cloth scratch buffers (`None` without cloth).
+    pub cloth: Option<crate::cloth::ClothStep>,
 }
 
 impl LocalAdjoint {
@@ -155,6 +157,7 @@ impl LocalAdjoint {
             cache: Vec::new(),
             dp_cells: vec![Matrix3::zeros(); cells],
             da_cells: vec![0.0; cells],
+            cloth: model.cloth.as_ref().map(crate::cloth::ClothStep::new),
         }
     }
 
@@ -280,6 +283,9 @@ impl LocalAdjoint {
             }
         }
         gather(model, &self.dp, out);
+        if let (Some(cs), Some(cl)) = (self.cloth.as_mut(), model.cloth.as_ref()) {
+            cs.backward_add(cl, q, y, out).map_err(DiffError::NotDifferentiable)?;
+        }
         Ok(())
     }
 

@@ -596,6 +596,7 @@ impl<'a> Backward<'a> {
 
     /// `z = A^-T x_bar` with the contact correction (`impulse_bar`: a direct adjoint of the
     /// impulses); anchors' adjoints into `anchor_bar`.
+    #[allow(clippy::too_many_arguments)]
     fn solve_adjoint(
         &mut self,
         contacts: &[FreeContact],
@@ -603,12 +604,18 @@ impl<'a> Backward<'a> {
         x: &[Vector3<f64>],
         impulse_bar: Option<&[Vector3<f64>]>,
         anchor_bar: &mut [Vector3<f64>],
+        q_start: &[Vector3<f64>],
     ) -> Result<(), DiffError> {
         self.direct.solve_free(&self.xbar, &mut self.z)?;
         if contacts.is_empty() {
             return Ok(());
         }
         let t = Instant::now();
+        let pairs = self.model.collision.as_ref().map(|c| contact::PairInputs {
+            q_start,
+            free_index: &self.sys.index,
+            thickness: c.settings.thickness,
+        });
         let r = self.contact.apply(
             &mut self.direct,
             contacts,
@@ -617,6 +624,7 @@ impl<'a> Backward<'a> {
             x,
             &mut self.z,
             anchor_bar,
+            pairs,
             self.opts.contact_tolerance,
             self.opts.contact_max_sweeps,
         );
@@ -683,7 +691,7 @@ impl<'a> Backward<'a> {
                     let (set, impulses) = &rec.solves[k];
                     let contacts = rec.contact_sets.get(*set).map_or(&empty.0, |c| c);
                     let x_next = &rec.iterates[k + 1];
-                    self.solve_adjoint(contacts, impulses, x_next, None, qbar)?;
+                    self.solve_adjoint(contacts, impulses, x_next, None, qbar, q_n)?;
                     self.accumulate_solve(x_next, ih2, g);
                     Self::scatter(&self.sys, model, &rec.iterates[k], &mut self.q_full, false);
                     Self::scatter(&self.sys, model, x_next, &mut self.xn_full, false);
@@ -741,7 +749,7 @@ impl<'a> Backward<'a> {
                     loop {
                         self.anchor_scratch.iter_mut().for_each(|a| *a = Vector3::zeros());
                         let mut anchors = std::mem::take(&mut self.anchor_scratch);
-                        let r = self.solve_adjoint(contacts, impulses, &x_star, None, &mut anchors);
+                        let r = self.solve_adjoint(contacts, impulses, &x_star, None, &mut anchors, q_n);
                         self.anchor_scratch = anchors;
                         r?;
                         it += 1;
@@ -940,7 +948,7 @@ pub fn gradient(
         loss,
         Keep {
             states: true,
-            contacts: implicit && !model.obstacles.is_empty(),
+            contacts: implicit && (!model.obstacles.is_empty() || model.collision.is_some()),
             store_bytes: if implicit { 0 } else { opts.store_bytes },
         },
     )?;

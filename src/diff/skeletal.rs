@@ -424,7 +424,8 @@ impl Backward<'_> {
         // 1. x_{k+1} = A_FF^-1 (b_F - A_FR q_R(z_{k+1}) + E lambda_k), the impulses from the
         // contact solve at x_pre = y0 - W q_R': y~ = A_FF^-1 x_pre_bar (contact-corrected).
         let ib = (!contacts.is_empty() && impulse_bar.len() == contacts.len()).then_some(&impulse_bar[..]);
-        self.solve_adjoint(contacts, impulses, x_next, ib, qbar)?;
+        // A skeleton has no contacts between bodies (refused by the simulator): no start positions needed.
+        self.solve_adjoint(contacts, impulses, x_next, ib, qbar, &[])?;
         SkeletalAdjoint::load(
             &mut sa.work,
             &rec.skeleton_states[k + 1],

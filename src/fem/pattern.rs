@@ -23,8 +23,16 @@ pub struct StiffnessPattern {
 }
 
 impl StiffnessPattern {
-    /// Build the pattern for `n` vertices and the given tets (sorting in parallel).
+    /// Build the pattern for `n` vertices and the given tets (sorting in parallel). Every
+    /// vertex has a diagonal entry, also one that no tet uses.
     pub fn new(n: usize, tets: &[[usize; 4]]) -> Self {
+        Self::with_cliques(n, tets, &[]).0
+    }
+
+    /// The pattern of the tets and of further elements coupling arbitrary vertex sets
+    /// (cliques: cloth triangles, bending stencils), with each clique's `k x k` value slots
+    /// (row-major).
+    pub fn with_cliques(n: usize, tets: &[[usize; 4]], cliques: &[&[usize]]) -> (Self, Vec<Vec<u32>>) {
         let mut keys: Vec<u64> = tets
             .par_iter()
             .flat_map_iter(|t| {
@@ -34,6 +42,14 @@ impl StiffnessPattern {
                 })
             })
             .collect();
+        for c in cliques {
+            for &a in *c {
+                for &b in *c {
+                    keys.push(((b as u64) << 32) | a as u64);
+                }
+            }
+        }
+        keys.extend((0..n as u64).map(|j| (j << 32) | j));
         keys.par_sort_unstable();
         keys.dedup();
         assert!(
@@ -49,29 +65,31 @@ impl StiffnessPattern {
         for j in 0..n {
             col_ptr[j + 1] += col_ptr[j];
         }
-        let diag_slot: Vec<usize> = (0..n)
-            .map(|j| {
-                let (lo, hi) = (col_ptr[j], col_ptr[j + 1]);
-                lo + row_idx[lo..hi].binary_search(&j).unwrap_or(0)
-            })
-            .collect();
         let find = |row: usize, col: usize| -> u32 {
             let (lo, hi) = (col_ptr[col], col_ptr[col + 1]);
             (lo + row_idx[lo..hi]
                 .binary_search(&row)
-                .expect("pattern holds every tet entry")) as u32
+                .expect("pattern holds every element entry")) as u32
         };
+        let diag_slot: Vec<usize> = (0..n).map(|j| find(j, j) as usize).collect();
         let tet_slots = tets
             .par_iter()
             .map(|t| std::array::from_fn(|s| find(t[s / 4], t[s % 4])))
             .collect();
-        Self {
-            n,
-            col_ptr,
-            row_idx,
-            diag_slot,
-            tet_slots,
-        }
+        let clique_slots = cliques
+            .iter()
+            .map(|c| c.iter().flat_map(|&a| c.iter().map(move |&b| find(a, b))).collect())
+            .collect();
+        (
+            Self {
+                n,
+                col_ptr,
+                row_idx,
+                diag_slot,
+                tet_slots,
+            },
+            clique_slots,
+        )
     }
 
     /// Number of stored entries.

@@ -3,6 +3,7 @@
 
 use serde::Serialize;
 
+use crate::cloth::ClothBody;
 use crate::report::Header;
 use crate::solver::{Body, Certificate, Settings, StepStats};
 
@@ -28,6 +29,8 @@ pub struct RunSummary {
     pub max_penetration: f64,
     /// Largest number of contacts in a step.
     pub max_contacts: usize,
+    /// Largest number of contacts between bodies in a step.
+    pub max_pair_contacts: usize,
     /// Total energy after the first and last step (J).
     pub energy_first_last: (f64, f64),
 }
@@ -44,6 +47,8 @@ pub struct RunLog {
     pub notes: Vec<String>,
     /// Bodies.
     pub bodies: Vec<Body>,
+    /// Cloth bodies.
+    pub cloth: Vec<ClothBody>,
     /// Vertices and tets in total.
     pub size: (usize, usize),
     /// Solver settings.
@@ -75,6 +80,7 @@ impl RunSummary {
             converged_steps: steps.iter().filter(|s| s.converged).count(),
             max_penetration: steps.iter().map(|s| s.max_penetration).fold(0.0, f64::max),
             max_contacts: steps.iter().map(|s| s.contacts).max().unwrap_or(0),
+            max_pair_contacts: steps.iter().map(|s| s.pair_contacts).max().unwrap_or(0),
             energy_first_last: (
                 steps.first().map_or(0.0, |s| s.total_energy()),
                 steps.last().map_or(0.0, |s| s.total_energy()),

@@ -1,5 +1,5 @@
-//! VTK XML unstructured-grid frames (`frame_00000.vtu`) of all bodies, with velocity and body id
-//! as data, and a ParaView collection `frames.pvd` that orders them in time.
+//! VTK XML unstructured-grid frames (`frame_00000.vtu`) of all bodies (tets, and triangles for
+//! cloth), with velocity and body id as data, and a ParaView collection `frames.pvd` that orders them in time.
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -37,10 +37,22 @@ impl FrameWriter {
                 body[t] = k as i32;
             }
         }
+        let mut types = vec![CellType::Tetra; model.tets.len()];
+        if let Some(cl) = &model.cloth {
+            // Cloth triangles follow the tets; their body ids continue the soft bodies'.
+            for (k, b) in cl.bodies.iter().enumerate() {
+                for t in b.triangles.clone() {
+                    cells.push(3);
+                    cells.extend(cl.triangles[t].iter().map(|&i| i as u32));
+                    types.push(CellType::Triangle);
+                    body.push((model.bodies.len() + k) as i32);
+                }
+            }
+        }
         Ok(Self {
             dir: dir.to_path_buf(),
             cells,
-            types: vec![CellType::Tetra; model.tets.len()],
+            types,
             body,
             frames: Vec::new(),
         })

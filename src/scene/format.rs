@@ -42,7 +42,14 @@ pub struct SceneFile {
     #[serde(default)]
     pub gravity: [f64; 3],
     /// Bodies.
+    #[serde(default)]
     pub bodies: Vec<BodyFile>,
+    /// Cloth bodies (triangle meshes).
+    #[serde(default)]
+    pub cloths: Vec<ClothFile>,
+    /// Collisions between bodies (soft and cloth): `{ "thickness": m, "friction": mu }`.
+    #[serde(default)]
+    pub collisions: Option<crate::contact::pair::BodyCollision>,
     /// Static obstacles.
     #[serde(default)]
     pub obstacles: Vec<ObstacleFile>,
@@ -144,6 +151,50 @@ pub struct BodyFile {
     /// Actuator groups (pneumatic cells, muscle fibres).
     #[serde(default)]
     pub actuators: Vec<ActuatorFile>,
+}
+
+/// One cloth body: a triangle mesh (OBJ `v`/`f` lines) with 2D as-rigid-as-possible stretching,
+/// cotangent-Laplacian bending and an area density (see [`crate::cloth`]).
+///
+/// ```json
+/// { "name": "sheet", "mesh": "sheet.obj", "stretching": 200, "bending": 5e-4,
+///   "area_density": 3, "attachments": [{ "vertices": { "indices": [0, 8] }, "stiffness": 1e5 }] }
+/// ```
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ClothFile {
+    /// Name.
+    pub name: String,
+    /// Triangle mesh (OBJ), relative to the scene file.
+    pub mesh: PathBuf,
+    /// Scale applied to the mesh about the origin.
+    #[serde(default = "one")]
+    pub scale: f64,
+    /// Translation applied after scaling.
+    #[serde(default)]
+    pub translate: [f64; 3],
+    /// Rotation applied after scaling, before translating: axis-angle vector (radians).
+    #[serde(default)]
+    pub rotate: [f64; 3],
+    /// In-plane stretching stiffness (N/m).
+    pub stretching: f64,
+    /// Bending stiffness (N m; 0 for none).
+    #[serde(default)]
+    pub bending: f64,
+    /// Area density (kg/m^2).
+    pub area_density: f64,
+    /// Whether gravity acts on the cloth.
+    #[serde(default = "yes")]
+    pub gravity: bool,
+    /// Initial velocity (m/s).
+    #[serde(default)]
+    pub initial_velocity: [f64; 3],
+    /// Vertices held at their rest position (Dirichlet), OBJ order (0-based).
+    #[serde(default)]
+    pub fixed: Option<VertexSelector>,
+    /// Penalty attachments to the rest position.
+    #[serde(default)]
+    pub attachments: Vec<AttachmentFile>,
 }
 
 /// One actuator group: exactly one of `pneumatic` and `muscle`.

@@ -109,6 +109,71 @@ pub struct LoadOptions {
     pub passive: bool,
 }
 
+/// A cloth of the diffsoft format: the mesh placed, vertex selections resolved (OBJ order).
+fn cloth_from_file(scene: &str, dir: &Path, c: &format::ClothFile) -> Result<crate::cloth::ClothSpec, SceneError> {
+    let invalid = |message: String| SceneError::Invalid {
+        path: scene.to_string(),
+        message,
+    };
+    if !(c.scale.is_finite() && c.scale > 0.0) {
+        return Err(invalid(format!(
+            "cloth '{}': scale must be finite and positive, got {}",
+            c.name, c.scale
+        )));
+    }
+    let path = dir.join(&c.mesh);
+    let s = mesh::surface::load_obj(&path)?;
+    let rot = Rotation3::from_scaled_axis(finite3(scene, "rotate", &c.rotate)?);
+    let t = finite3(scene, "translate", &c.translate)?;
+    let surface = mesh::surface::TriSurface {
+        vertices: s.vertices.iter().map(|v| rot * (v * c.scale) + t).collect(),
+        triangles: s.triangles,
+    };
+    let pick = |sel: &VertexSelector| -> Result<Vec<usize>, SceneError> {
+        let n = surface.vertices.len();
+        match sel {
+            VertexSelector::Indices(ids) => {
+                if let Some(bad) = ids.iter().find(|&&i| i >= n) {
+                    return Err(invalid(format!(
+                        "cloth '{}': vertex {bad} out of range ({n} vertices in {})",
+                        c.name,
+                        path.display()
+                    )));
+                }
+                Ok(ids.clone())
+            }
+            VertexSelector::Box { min, max } => {
+                let (lo, hi) = (finite3(scene, "box min", min)?, finite3(scene, "box max", max)?);
+                let v: Vec<usize> = (0..n)
+                    .filter(|&i| {
+                        let p = surface.vertices[i];
+                        (0..3).all(|k| p[k] >= lo[k] && p[k] <= hi[k])
+                    })
+                    .collect();
+                if v.is_empty() {
+                    return Err(invalid(format!("cloth '{}': the box selects no vertex", c.name)));
+                }
+                Ok(v)
+            }
+        }
+    };
+    let fixed = match &c.fixed {
+        Some(sel) => pick(sel)?,
+        None => Vec::new(),
+    };
+    let mut attachments = Vec::new();
+    for a in &c.attachments {
+        attachments.extend(pick(&a.vertices)?.into_iter().map(|v| (v, a.stiffness)));
+    }
+    let mut spec = crate::cloth::ClothSpec::new(&c.name, surface, c.stretching, c.bending, c.area_density);
+    spec.source = path.display().to_string();
+    spec.gravity = c.gravity;
+    spec.initial_velocity = finite3(scene, "initial_velocity", &c.initial_velocity)?;
+    spec.fixed = fixed;
+    spec.attachments = attachments;
+    Ok(spec)
+}
+
 /// Read a scene file of either format.
 pub fn load(path: impl AsRef<Path>, opts: LoadOptions) -> Result<Scene, SceneError> {
     let path = path.as_ref();
@@ -453,6 +518,12 @@ fn from_diffsoft(path: &Path, file: SceneFile) -> Result<Scene, SceneError> {
         }
         builder = builder.body(spec);
         meshes.push(loaded.info);
+    }
+    for c in &file.cloths {
+        builder = builder.cloth(cloth_from_file(&scene, dir, c)?);
+    }
+    if let Some(c) = file.collisions {
+        builder = builder.collisions(c);
     }
     for (k, o) in file.obstacles.iter().enumerate() {
         let name = o.name.clone().unwrap_or_else(|| format!("obstacle {k}"));

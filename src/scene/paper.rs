@@ -22,8 +22,13 @@
 //!   each tet whose centroid is within half the mean edge length of a muscle's polyline joins
 //!   the nearest one, along its nearest segment; activation 0 (rest) until set.
 //!
+//! * `"Clothes"` as cloth bodies (triangle meshes, see [`crate::cloth`]): `"Area Density"`,
+//!   `"Stretching"`, `"Bending"`, `"Attach Verts"` with `"Attach Stiffness"`, scale 1 by
+//!   default; with `"Handle collision"` and `"Self-collision"` the bodies collide with each
+//!   other ([`crate::contact::pair`], thickness [`CLOTH_THICKNESS`]).
+//!
 //! Every other key is either known and ignored (listed in the scene's notes with the reason) or
-//! an error naming it. Cloth is an error unless `passive` is set.
+//! an error naming it.
 
 use std::path::{Path, PathBuf};
 
@@ -40,6 +45,7 @@ pub const DIRICHLET_STIFFNESS: f64 = 1e12;
 
 const TOP_KEYS: &[&str] = &["Parameters", "Friction coefficients", "Meshes", "Obstacles", "Clothes"];
 const PARAM_USED: &[&str] = &[
+    "Self-collision",
     "Simulation HZ",
     "Gravity",
     "Is underwater",
@@ -48,8 +54,10 @@ const PARAM_USED: &[&str] = &[
     "Damping coefficient",
 ];
 const PARAM_IGNORED: &[(&str, &str)] = &[
-    ("Self-collision", "self-collision is not simulated"),
-    ("Self-collision tolerance", "self-collision is not simulated"),
+    (
+        "Self-collision tolerance",
+        "not read by the reference implementation (its arcsim contact thickness is 1e-4); contacts between bodies keep 1e-3 m apart (CLOTH_THICKNESS)",
+    ),
     ("Air damping", "air drag is not simulated"),
     ("Frame number", "not read by the reference implementation"),
     ("LocalGlobal", "not read by the reference implementation"),
@@ -101,6 +109,27 @@ const MESH_IGNORED: &[(&str, &str)] = &[
 ];
 const MESH_UNSUPPORTED: &[(&str, &str)] = &[];
 const OBSTACLE_KEYS: &[&str] = &["Obj filename", "Scale", "Collision tolerance"];
+const CLOTH_USED: &[&str] = &[
+    "Obj filename",
+    "Scale",
+    "Area Density",
+    "Bending",
+    "Stretching",
+    "Attach Stiffness",
+    "Attach Verts",
+];
+const CLOTH_IGNORED: &[(&str, &str)] = &[
+    (
+        "Friction coefficients",
+        "per-body friction; contacts between bodies use the top-level \"Friction coefficients\"",
+    ),
+    ("Material Identifier", "not used by the solver"),
+];
+
+/// Distance kept between the surfaces of two bodies in the paper's scenes (m): a cloth's
+/// thickness. The reference's own contact thickness is arcsim's 1e-4 m; its scene files'
+/// "Self-collision tolerance" (5e-2) is not read.
+pub const CLOTH_THICKNESS: f64 = 1e-3;
 
 struct Ctx<'a> {
     path: &'a Path,
@@ -195,13 +224,6 @@ pub fn import(path: &Path, value: &Value, opts: LoadOptions) -> Result<Scene, Sc
         if !TOP_KEYS.contains(&k.as_str()) {
             return Err(cx.invalid(format!("unknown top-level key \"{k}\"")));
         }
-    }
-    if top
-        .get("Clothes")
-        .and_then(|c| c.as_array())
-        .is_some_and(|a| !a.is_empty())
-    {
-        cx.unsupported("\"Clothes\"", "cloth bodies")?;
     }
     let empty = Value::Object(Default::default());
     let params = value
@@ -339,6 +361,29 @@ pub fn import(path: &Path, value: &Value, opts: LoadOptions) -> Result<Scene, Sc
         builder = builder.body(spec);
         meshes.push(loaded.info);
     }
+    let mut bodies = meshes_json.len();
+    if let Some(cloths) = value.get("Clothes") {
+        let list = cloths
+            .as_array()
+            .ok_or_else(|| cx.invalid("\"Clothes\" must be a list".into()))?;
+        for (k, cj) in list.iter().enumerate() {
+            builder = builder.cloth(paper_cloth(&mut cx, k, cj)?);
+            bodies += 1;
+        }
+    }
+    let self_collision = params.get("Self-collision").and_then(|v| v.as_bool()).unwrap_or(false);
+    if collisions && self_collision && bodies >= 2 {
+        cx.notes.push(format!(
+            "\"Self-collision\": the bodies collide with each other (vertex-face and edge-edge pairs, thickness {CLOTH_THICKNESS} m, friction {friction} from \"Friction coefficients\"; the reference hard-codes 1 and its thickness is 1e-4 m); self-collision within a body is not simulated"
+        ));
+        builder = builder.collisions(crate::contact::pair::BodyCollision {
+            thickness: CLOTH_THICKNESS,
+            friction,
+        });
+    } else if self_collision {
+        cx.notes
+            .push("\"Self-collision\": self-collision within a body is not simulated".into());
+    }
     if let Some(obs) = value.get("Obstacles").and_then(|o| o.as_array()) {
         for (k, oj) in obs.iter().enumerate() {
             let w = format!("Obstacles[{k}]");
@@ -394,6 +439,70 @@ pub fn import(path: &Path, value: &Value, opts: LoadOptions) -> Result<Scene, Sc
         meshes,
         notes: cx.notes,
     })
+}
+
+/// One entry of the paper's "Clothes": a triangle mesh (OBJ `f` lines) with "Area Density",
+/// "Stretching", "Bending" and attachments. The parameters are used as the paper describes its
+/// cloth; where the reference implementation differs, a note says how.
+fn paper_cloth(cx: &mut Ctx<'_>, k: usize, cj: &Value) -> Result<crate::cloth::ClothSpec, SceneError> {
+    let w = format!("Clothes[{k}]");
+    cx.check_keys(&w, cj, CLOTH_USED, CLOTH_IGNORED, &[])?;
+    let file = cj
+        .get("Obj filename")
+        .and_then(|f| f.as_str())
+        .ok_or_else(|| cx.invalid(format!("{w}: \"Obj filename\" is required")))?;
+    let path = cx.resolve(file)?;
+    let scale = cx.number(cj, "Scale", 1.0, &w)?;
+    if !(scale.is_finite() && scale > 0.0) {
+        return Err(cx.invalid(format!("{w}: \"Scale\" must be positive, got {scale}")));
+    }
+    if cj.get("Scale").is_none() {
+        cx.notes.push(format!(
+            "{w}: no \"Scale\": scale 1 (the reference's default for cloth is 0.05, which would shrink {file} to a twentieth of the scene it is modelled in)"
+        ));
+    }
+    let surface = mesh::surface::load_obj(&path)?.scaled(scale);
+    let area_density = cx.number(cj, "Area Density", 1.5, &w)?;
+    let stretching = cx.number(cj, "Stretching", 200.0, &w)?;
+    let bending = cx.number(cj, "Bending", 0.0, &w)?;
+    cx.notes.push(format!(
+        "{w}: cloth {file}: {} vertices, {} triangles; area density {area_density} kg/m^2, in-plane stretching {stretching} N/m (2D as-rigid-as-possible per triangle), bending {bending} N m (cotangent Laplacian); gravity on. The reference instead uses edge springs of weight sqrt(200), no bending, 1.5 kg/m^2 and no gravity on cloth",
+        surface.vertices.len(),
+        surface.triangles.len()
+    ));
+    let name = Path::new(file)
+        .file_stem()
+        .and_then(|s| s.to_str())
+        .unwrap_or("cloth")
+        .to_string();
+    let mut spec = crate::cloth::ClothSpec::new(&name, surface, stretching, bending, area_density);
+    spec.source = path.display().to_string();
+    if let Some(av) = cj.get("Attach Verts") {
+        let ids: Vec<usize> = av
+            .as_array()
+            .and_then(|a| {
+                a.iter()
+                    .map(|x| x.as_u64().map(|u| u as usize))
+                    .collect::<Option<Vec<_>>>()
+            })
+            .ok_or_else(|| cx.invalid(format!("{w}: \"Attach Verts\" must be a list of vertex indices")))?;
+        let n = spec.surface.vertices.len();
+        if let Some(bad) = ids.iter().find(|&&v| v >= n) {
+            return Err(cx.invalid(format!(
+                "{w}: \"Attach Verts\": vertex {bad} out of range ({n} vertices in {file})"
+            )));
+        }
+        let stiffness = cj
+            .get("Attach Stiffness")
+            .and_then(|s| s.as_f64())
+            .ok_or_else(|| cx.invalid(format!("{w}: \"Attach Verts\" needs \"Attach Stiffness\"")))?;
+        if stiffness >= DIRICHLET_STIFFNESS {
+            spec.fixed = ids;
+        } else {
+            spec.attachments = ids.into_iter().map(|v| (v, stiffness)).collect();
+        }
+    }
+    Ok(spec)
 }
 
 /// The paper's "Bones" list: "Parent ID" (-1 for the root), "Joint Type" ("ALL", "ROTATIONAL",

@@ -17,7 +17,7 @@ use faer::sparse::{SparseColMat, SymbolicSparseColMat};
 use faer::{Conj, Mat, Par, Side};
 use nalgebra::Vector3;
 
-use super::global::{FreeContact, GlobalSolver, GlobalStats, GlobalSystem, InnerControl, SolverKind};
+use super::global::{FreeContact, GlobalSolver, GlobalStats, GlobalSystem, InnerControl, SolverKind, Stencil};
 use super::SolverError;
 use crate::contact::project;
 
@@ -32,7 +32,7 @@ pub struct Direct {
     control: InnerControl,
     lambda: Vec<Vector3<f64>>,
     // Contact buffers, reused across solves.
-    idx: Vec<usize>,
+    stencils: Vec<Stencil>,
     dmat: Vec<f64>,
     x_free: Vec<Vector3<f64>>,
 }
@@ -91,7 +91,7 @@ impl Direct {
             delassus: HashMap::new(),
             control,
             lambda: Vec::new(),
-            idx: Vec::new(),
+            stencils: Vec::new(),
             dmat: Vec::new(),
             x_free: Vec::new(),
         })
@@ -111,7 +111,7 @@ impl Direct {
         let missing: Vec<usize> = {
             let mut m: Vec<usize> = contacts
                 .iter()
-                .map(|c| c.index)
+                .flat_map(|c| c.stencil.entries().map(|(i, _)| i))
                 .filter(|i| !self.delassus.contains_key(i))
                 .collect();
             m.sort_unstable();
@@ -183,9 +183,40 @@ impl Direct {
         &self.delassus[&i]
     }
 
-    /// The contact impulses of the last [`Direct::apply_contacts`], with their free indices.
+    /// The contact impulses of the last [`Direct::apply_contacts`], with the free index of
+    /// each contact's first stencil entry.
     pub fn impulses(&self) -> impl Iterator<Item = (usize, Vector3<f64>)> + '_ {
-        self.idx.iter().copied().zip(self.lambda.iter().copied())
+        self.stencils
+            .iter()
+            .map(|s| s.index[0])
+            .zip(self.lambda.iter().copied())
+    }
+
+    /// `(A^-1)` between two contacts' stencils: `sum_a sum_b c_a c_b (A^-1)_{i_a i_b}` (the
+    /// columns must be cached).
+    pub fn stencil_inverse(&self, a: &Stencil, b: &Stencil) -> f64 {
+        let mut d = 0.0;
+        for (i, ci) in a.entries() {
+            let col = &self.delassus[&i];
+            for (k, ck) in b.entries() {
+                d += ci * ck * col[k];
+            }
+        }
+        d
+    }
+
+    /// `x += sum_k c_k (A^-1)_{:, i_k} l` for a contact's stencil (columns cached on demand).
+    pub fn add_inverse_columns(&mut self, stencil: &Stencil, l: &Vector3<f64>, x: &mut [Vector3<f64>]) {
+        if *l == Vector3::zeros() {
+            return;
+        }
+        for (i, c) in stencil.entries() {
+            let col = self.inverse_column(i);
+            let lc = l * c;
+            for (xi, a) in x.iter_mut().zip(col) {
+                *xi += lc * *a;
+            }
+        }
     }
 
     /// Contacts on a contact-free solution `x`: projected Gauss-Seidel on the contact-space
@@ -197,29 +228,44 @@ impl Direct {
             ..Default::default()
         };
         if contacts.is_empty() {
-            self.idx.clear();
+            self.stencils.clear();
             self.lambda.clear();
             return stats;
         }
         self.ensure_columns(contacts);
         let m = contacts.len();
-        // The same contact vertices as the previous call (the usual case between two
+        // The same contact stencils as the previous call (the usual case between two
         // local-global iterations): warm-start the impulses and keep the Delassus matrix.
-        let same = self.idx.len() == m && self.idx.iter().zip(contacts).all(|(&i, c)| i == c.index);
+        let same = self.stencils.len() == m && self.stencils.iter().zip(contacts).all(|(s, c)| *s == c.stencil);
         if !same {
-            self.idx.clear();
-            self.idx.extend(contacts.iter().map(|c| c.index));
-            self.lambda.clear();
-            self.lambda.resize(m, Vector3::zeros());
-            // Delassus entries D[j][k] = (A^-1)_{c_j c_k}.
-            self.dmat.clear();
-            for j in 0..m {
-                let col = &self.delassus[&self.idx[j]];
-                self.dmat.extend(self.idx.iter().map(|&i| col[i]));
+            // Contacts that were already in the set (a contact round added others) keep their
+            // impulses as the warm start; the rest start from zero.
+            let carried = self.stencils.len() < m && self.stencils.iter().zip(contacts).all(|(s, c)| *s == c.stencil);
+            self.stencils.clear();
+            self.stencils.extend(contacts.iter().map(|c| c.stencil));
+            if !carried {
+                self.lambda.clear();
             }
+            self.lambda.resize(m, Vector3::zeros());
+            // Delassus entries D[j][k] = e_j^T A^-1 e_k (for single vertices (A^-1)_{c_j c_k}).
+            let mut dmat = std::mem::take(&mut self.dmat);
+            dmat.clear();
+            if self.stencils.iter().all(|s| s.len == 1) {
+                for j in 0..m {
+                    let col = &self.delassus[&self.stencils[j].index[0]];
+                    dmat.extend(self.stencils.iter().map(|s| col[s.index[0]]));
+                }
+            } else {
+                for j in 0..m {
+                    for k in 0..m {
+                        dmat.push(self.stencil_inverse(&self.stencils[j], &self.stencils[k]));
+                    }
+                }
+            }
+            self.dmat = dmat;
         }
         self.x_free.clear();
-        self.x_free.extend(self.idx.iter().map(|&i| x[i]));
+        self.x_free.extend(self.stencils.iter().map(|s| s.apply(x)));
         let (dmat, x_free) = (&self.dmat, &self.x_free);
         stats.converged = false;
         for sweep in 0..self.control.max_iterations {
@@ -243,14 +289,10 @@ impl Direct {
                 break;
             }
         }
-        for (j, c) in contacts.iter().enumerate() {
-            let col = &self.delassus[&c.index];
+        for j in 0..m {
             let l = self.lambda[j];
-            if l != Vector3::zeros() {
-                for (xi, a) in x.iter_mut().zip(col) {
-                    *xi += l * *a;
-                }
-            }
+            let st = self.stencils[j];
+            self.add_inverse_columns(&st, &l, x);
         }
         stats
     }

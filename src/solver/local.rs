@@ -50,6 +50,8 @@ pub struct LocalStep {
     pub t_warm: Vec<f64>,
     /// Actuator buffers (`None` when the model has no actuators).
     pub actuators: Option<ActuatorStep>,
+    /// Cloth buffers (`None` when the model has no cloth).
+    pub cloth: Option<crate::cloth::ClothStep>,
 }
 
 /// Per-cell buffers of the actuator projections and the current activations.
@@ -131,6 +133,7 @@ impl LocalStep {
             energy: vec![0.0; tets],
             t_warm: vec![0.0; tets],
             actuators: None,
+            cloth: None,
         }
     }
 
@@ -138,6 +141,7 @@ impl LocalStep {
     /// schedules' values at time 0).
     pub fn for_model(model: &Model) -> Self {
         let mut s = Self::new(model.tets.len());
+        s.cloth = model.cloth.as_ref().map(crate::cloth::ClothStep::new);
         s.actuators = model.actuators.as_ref().map(|act| {
             let n = act.cells.len();
             ActuatorStep {
@@ -226,6 +230,9 @@ impl LocalStep {
         if let Some(act) = self.actuators.as_mut() {
             energy += act.project(model, q, &mut self.weighted)?;
         }
+        if let (Some(cs), Some(cl)) = (self.cloth.as_mut(), model.cloth.as_ref()) {
+            energy += cs.project(cl, q)?;
+        }
         Ok(energy)
     }
 
@@ -240,6 +247,9 @@ impl LocalStep {
             }
             *r = s;
         });
+        if let (Some(cs), Some(cl)) = (self.cloth.as_ref(), model.cloth.as_ref()) {
+            cs.gather_add(cl, rhs);
+        }
     }
 }
 

@@ -37,6 +37,7 @@ pub use model::{Body, BodySpec, MassSpec, Material, Model, ModelBuilder};
 
 use crate::analysis::spectral::EigenMethod;
 use crate::constraint::ProjectionError;
+use crate::contact::pair::{BodyCollision, Detector, PairContact, Query as PairQuery};
 use crate::contact::{self, Contact};
 use global::{FreeContact, InnerControl, Stationary};
 use local::LocalStep;
@@ -209,6 +210,8 @@ pub struct StepStats {
     pub anderson_rejections: usize,
     /// Largest change of a distance within a bone after the step (m; 0 without a skeleton).
     pub bone_length_error: f64,
+    /// Contacts between bodies (vertex-face and edge-edge pairs) in the final round.
+    pub pair_contacts: usize,
 }
 
 impl StepStats {
@@ -241,6 +244,9 @@ struct Work {
     /// Joint scalars at the start of the step and joint torques (skeleton DoF layout).
     coords0: Vec<f64>,
     torque: Vec<f64>,
+    /// Contacts between bodies and their detection buffers.
+    pairs: Vec<PairContact>,
+    detector: Detector,
 }
 
 /// A contact on a bone vertex as a reduced solve ended: `(bone-vertex index, contact, impulse,
@@ -469,12 +475,75 @@ fn step_objective(
     e
 }
 
+/// A pair's linearised gap at the end of a step may fall this far (times the thickness) below
+/// zero before the pair is added as a new contact.
+pub const PAIR_TOLERANCE: f64 = 1e-3;
+
+/// The obstacle index that marks a contact between two bodies.
+pub const PAIR_OBSTACLE: usize = usize::MAX;
+
+/// A pair between bodies as a contact on its free vertices: Dirichlet vertices move into the
+/// plane's offset and the anchor (`None` when every vertex of the pair is fixed).
+fn pair_contact(
+    p: &PairContact,
+    sys: &GlobalSystem,
+    q_start: &[Vector3<f64>],
+    col: &BodyCollision,
+) -> Option<FreeContact> {
+    let mut stencil = global::Stencil {
+        len: 0,
+        index: [0; 4],
+        coef: [0.0; 4],
+    };
+    let mut offset = Vector3::zeros();
+    let mut anchor = Vector3::zeros();
+    for (&v, &c) in p.vertices.iter().zip(&p.coefs) {
+        let k = sys.index[v];
+        if k == usize::MAX {
+            offset += q_start[v] * c;
+        } else {
+            stencil.index[stencil.len as usize] = k;
+            stencil.coef[stencil.len as usize] = c;
+            stencil.len += 1;
+            anchor += q_start[v] * c;
+        }
+    }
+    (stencil.len > 0).then(|| FreeContact {
+        index: stencil.index[0],
+        contact: Contact {
+            vertex: p.vertices[0],
+            obstacle: PAIR_OBSTACLE,
+            normal: p.normal,
+            point: p.normal * col.thickness - offset,
+            anchor,
+            friction: col.friction,
+        },
+        stencil,
+        pair: Some(*p),
+    })
+}
+
 fn build_solver(
     model: &Model,
     settings: &Settings,
     system: &GlobalSystem,
 ) -> Result<(Box<dyn GlobalSolver>, Certificate), SolverError> {
-    let cert = if model.skeleton.is_some() && settings.solver != SolverKind::Direct {
+    if model.collision.is_some() && model.skeleton.is_some() {
+        return Err(SolverError::Input(
+            "collisions between bodies with a skeleton are not supported yet (bone vertices in a pair contact)".into(),
+        ));
+    }
+    let cert = if model.collision.is_some() && settings.solver != SolverKind::Direct {
+        // A contact between two bodies couples several vertices through one impulse: the
+        // projected Gauss-Seidel runs on the factored matrix's Delassus operator.
+        let mut c = certify::certify(system, SolverKind::Direct, settings.certify, settings.eigen_method, 0)?;
+        c.requested = settings.solver;
+        c.message = format!(
+            "{:?} requested, but contacts between bodies couple several vertices per impulse: direct sparse Cholesky",
+            settings.solver
+        );
+        c
+    } else if model.skeleton.is_some() && settings.solver != SolverKind::Direct {
         // The reduced step (Eqs. 17-18) eliminates the free vertices with the factored free
         // block, so a skeleton always runs on the direct solver; no eigenvalue check is needed.
         let mut c = certify::certify(system, SolverKind::Direct, settings.certify, settings.eigen_method, 0)?;
@@ -568,6 +637,8 @@ impl Simulator {
                 q_start_free: vec![Vector3::zeros(); nf],
                 coords0: vec![0.0; dofs],
                 torque: vec![0.0; dofs],
+                pairs: Vec::new(),
+                detector: Detector::default(),
             },
             skeleton,
             anderson: (settings.anderson > 0).then(|| anderson::Anderson::new(settings.anderson, nf)),
@@ -821,12 +892,19 @@ impl Simulator {
             w.rigid_contacts.clear();
             for c in &w.contacts {
                 if sys.index[c.vertex] != usize::MAX {
-                    w.free_contacts.push(FreeContact {
-                        index: sys.index[c.vertex],
-                        contact: *c,
-                    });
+                    w.free_contacts.push(FreeContact::single(sys.index[c.vertex], *c));
                 } else {
                     w.rigid_contacts.push((sys.rigid_index[c.vertex], *c));
+                }
+            }
+        }
+        w.pairs.clear();
+        if let Some(col) = &model.collision {
+            w.detector
+                .detect(col, &w.q_start, &w.s, PairQuery::Candidates { margin }, &mut w.pairs);
+            for p in &w.pairs {
+                if let Some(fc) = pair_contact(p, sys, &w.q_start, &col.settings) {
+                    w.free_contacts.push(fc);
                 }
             }
         }
@@ -853,6 +931,7 @@ impl Simulator {
             global_ms: 0.0,
             anderson_rejections: 0,
             bone_length_error: 0.0,
+            pair_contacts: 0,
         };
         let nf = sys.n();
         let rms = (nf.max(1) as f64).sqrt();
@@ -1035,12 +1114,29 @@ impl Simulator {
                     accelerated = true;
                 }
             }
-            if model.obstacles.is_empty() {
+            if model.obstacles.is_empty() && model.collision.is_none() {
                 break;
             }
             // New penetrations: add them as contacts and resume.
             for (k, &v) in sys.free.iter().enumerate() {
                 w.full[v] = w.x[k];
+            }
+            let pairs_before = w.pairs.len();
+            if let Some(col) = &model.collision {
+                w.detector.remember(&w.pairs, true);
+                let tolerance = PAIR_TOLERANCE * col.settings.thickness;
+                w.detector.detect(
+                    col,
+                    &w.q_start,
+                    &w.full,
+                    PairQuery::Violations { tolerance },
+                    &mut w.pairs,
+                );
+                for p in &w.pairs[pairs_before..] {
+                    if let Some(fc) = pair_contact(p, sys, &w.q_start, &col.settings) {
+                        w.free_contacts.push(fc);
+                    }
+                }
             }
             let before = w.contacts.len();
             for c in &w.contacts {
@@ -1063,10 +1159,7 @@ impl Simulator {
                             };
                             w.contacts.push(c);
                             if sys.index[i] != usize::MAX {
-                                w.free_contacts.push(FreeContact {
-                                    index: sys.index[i],
-                                    contact: c,
-                                });
+                                w.free_contacts.push(FreeContact::single(sys.index[i], c));
                             } else {
                                 w.rigid_contacts.push((sys.rigid_index[i], c));
                             }
@@ -1078,11 +1171,12 @@ impl Simulator {
             for c in &w.contacts {
                 w.in_contact[c.vertex] = false;
             }
-            if w.contacts.len() == before {
+            if w.contacts.len() == before && w.pairs.len() == pairs_before {
                 break;
             }
         }
         stats.contacts = w.contacts.len();
+        stats.pair_contacts = w.pairs.len();
         if let Some(r) = self.recording.as_mut().filter(|r| r.keep_iterates) {
             r.push_iterate(&w.x, self.skeleton.as_ref().map(|(sk, _)| sk));
         }

@@ -9,7 +9,9 @@ use serde::Serialize;
 
 use super::SolverError;
 use crate::actuator::{ActuatorKind, ActuatorSpec, Actuators};
+use crate::cloth::{Bends, Cloth, ClothBody, ClothSpec, Incidence};
 use crate::constraint::attachment::Attachment;
+use crate::contact::pair::{BodyCollision, Colliders};
 use crate::contact::Obstacle;
 use crate::fem::{Coefficient, FemOperators};
 use crate::mesh::TetMesh;
@@ -209,6 +211,11 @@ pub struct Model {
     pub skeleton: Option<Skeleton>,
     /// Pneumatic cells and muscle fibres (`None`: no actuator code runs).
     pub actuators: Option<Actuators>,
+    /// Cloth bodies (`None`: no cloth code runs).
+    pub cloth: Option<Cloth>,
+    /// Collisions between bodies (soft-soft, soft-cloth; `None`: bodies pass through each
+    /// other and no collision code runs).
+    pub collision: Option<Colliders>,
     /// Characteristic length: the diagonal of the rest bounding box.
     pub length_scale: f64,
 }
@@ -249,10 +256,36 @@ impl Model {
                 }
             }
         }
+        if let Some(cl) = &self.cloth {
+            for ((g, slots), w) in cl.geometry.iter().zip(&cl.tri_slots).zip(&cl.w_stretch) {
+                let k = g.local_laplacian();
+                for a in 0..3 {
+                    for b in 0..3 {
+                        values[slots[3 * a + b] as usize] += w * k[a][b];
+                    }
+                }
+            }
+            let bends = &cl.bends;
+            for i in 0..bends.len() {
+                let (_, c) = bends.stencil(i);
+                let slots = &bends.slots[bends.slot_offsets[i]..bends.slot_offsets[i + 1]];
+                let k = c.len();
+                for a in 0..k {
+                    for b in 0..k {
+                        values[slots[k * a + b] as usize] += bends.weight[i] * c[a] * c[b];
+                    }
+                }
+            }
+        }
         for a in &self.attachments {
             values[self.fem.pattern.diag_slot[a.vertex]] += a.weight;
         }
         values
+    }
+
+    /// Number of cloth triangles (0 without cloth).
+    pub fn num_cloth_triangles(&self) -> usize {
+        self.cloth.as_ref().map_or(0, |c| c.num_triangles())
     }
 }
 
@@ -265,8 +298,10 @@ pub const MIN_MESH_THICKNESS: f64 = 1e-6;
 #[derive(Debug, Default)]
 pub struct ModelBuilder {
     bodies: Vec<BodySpec>,
+    cloths: Vec<ClothSpec>,
     obstacles: Vec<Obstacle>,
     gravity: Vector3<f64>,
+    collision: Option<BodyCollision>,
 }
 
 impl ModelBuilder {
@@ -287,6 +322,19 @@ impl ModelBuilder {
         self
     }
 
+    /// Add a cloth body.
+    pub fn cloth(mut self, c: ClothSpec) -> Self {
+        self.cloths.push(c);
+        self
+    }
+
+    /// Let the bodies (soft and cloth) collide with each other, keeping `thickness` apart, with
+    /// Coulomb friction `friction`.
+    pub fn collisions(mut self, c: BodyCollision) -> Self {
+        self.collision = Some(c);
+        self
+    }
+
     /// Add an obstacle.
     pub fn obstacle(mut self, o: Obstacle) -> Self {
         self.obstacles.push(o);
@@ -295,7 +343,7 @@ impl ModelBuilder {
 
     /// Validate and assemble.
     pub fn build(mut self) -> Result<Model, SolverError> {
-        if self.bodies.is_empty() {
+        if self.bodies.is_empty() && self.cloths.is_empty() {
             return Err(SolverError::Input("the scene has no bodies".into()));
         }
         if !self.gravity.iter().all(|g| g.is_finite()) {
@@ -430,6 +478,14 @@ impl ModelBuilder {
                 volume_constraint: b.volume_constraint,
             });
         }
+        let cloth_parts = self.add_cloth(
+            &mut rest,
+            &mut initial_velocity,
+            &mut accel,
+            &mut fixed,
+            &mut attachments,
+            &mut mass,
+        )?;
         if fixed.iter().all(|&f| f) {
             return Err(SolverError::Input("every vertex is fixed: nothing to simulate".into()));
         }
@@ -440,7 +496,8 @@ impl ModelBuilder {
             vertices: rest.clone(),
             tets: tets.clone(),
         };
-        let fem = FemOperators::new(&all).map_err(|e| SolverError::Input(e.to_string()))?;
+        let mut fem = FemOperators::new(&all).map_err(|e| SolverError::Input(e.to_string()))?;
+        let cloth = cloth_parts.map(|c| c.assemble(&mut fem, &rest));
         let (lo, hi) = all.bounding_box();
         let length_scale = (hi - lo).norm().max(f64::MIN_POSITIVE);
         for o in &self.obstacles {
@@ -455,6 +512,10 @@ impl ModelBuilder {
             }
         }
         let vertex_tets = VertexTets::new(rest.len(), &tets);
+        let collision = match self.collision {
+            Some(c) => Some(Colliders::new(c, &bodies, &tets, cloth.as_ref(), &fixed, &rest)?),
+            None => None,
+        };
         let skeleton = if bones.is_empty() {
             None
         } else {
@@ -476,7 +537,149 @@ impl ModelBuilder {
             vertex_tets,
             skeleton,
             actuators: (!actuators.groups.is_empty()).then_some(actuators),
+            cloth,
+            collision,
             length_scale,
         })
+    }
+
+    /// Append the cloth bodies' vertices to the per-vertex arrays (after the soft bodies).
+    fn add_cloth(
+        &self,
+        rest: &mut Vec<Vector3<f64>>,
+        initial_velocity: &mut Vec<Vector3<f64>>,
+        accel: &mut Vec<Vector3<f64>>,
+        fixed: &mut Vec<bool>,
+        attachments: &mut Vec<Attachment>,
+        mass: &mut Vec<f64>,
+    ) -> Result<Option<ClothParts>, SolverError> {
+        if self.cloths.is_empty() {
+            return Ok(None);
+        }
+        let mut parts = ClothParts::default();
+        for c in &self.cloths {
+            let p = crate::cloth::prepare(c)?;
+            let v0 = rest.len();
+            let nb = c.surface.vertices.len();
+            let t0 = parts.triangles.len();
+            let what = format!("cloth '{}'", c.name);
+            let mut is_fixed = vec![false; nb];
+            for &v in &c.fixed {
+                if v >= nb {
+                    return Err(SolverError::Input(format!(
+                        "{what}: fixed vertex {v} out of range ({nb} vertices)"
+                    )));
+                }
+                is_fixed[v] = true;
+            }
+            for &(v, w) in &c.attachments {
+                if v >= nb {
+                    return Err(SolverError::Input(format!(
+                        "{what}: attached vertex {v} out of range ({nb} vertices)"
+                    )));
+                }
+                if !(w.is_finite() && w > 0.0) {
+                    return Err(SolverError::Input(format!(
+                        "{what}: attachment stiffness must be finite and positive, got {w}"
+                    )));
+                }
+                attachments.push(Attachment {
+                    vertex: v + v0,
+                    target: c.surface.vertices[v],
+                    weight: w,
+                });
+            }
+            fixed.extend(is_fixed);
+            rest.extend(c.surface.vertices.iter().copied());
+            initial_velocity.extend(std::iter::repeat_n(c.initial_velocity, nb));
+            accel.extend(std::iter::repeat_n(
+                if c.gravity { self.gravity } else { Vector3::zeros() },
+                nb,
+            ));
+            let body_mass: f64 = p.mass.iter().sum();
+            mass.extend(p.mass);
+            for (tri, g) in c.surface.triangles.iter().zip(&p.geometry) {
+                parts.triangles.push(tri.map(|v| v + v0));
+                parts.w_stretch.push(c.stretching * g.area);
+            }
+            parts.geometry.extend(p.geometry);
+            let bending_vertices = p.stencils.len();
+            for (verts, coefs, area) in p.stencils {
+                parts
+                    .stencils
+                    .push((verts.iter().map(|v| v + v0).collect(), coefs, c.bending * area));
+            }
+            parts.bodies.push(ClothBody {
+                name: c.name.clone(),
+                vertices: v0..v0 + nb,
+                triangles: t0..parts.triangles.len(),
+                stretching: c.stretching,
+                bending: c.bending,
+                area_density: c.area_density,
+                mass: body_mass,
+                area: p.area,
+                bending_vertices,
+            });
+        }
+        Ok(Some(parts))
+    }
+}
+
+/// Cloth bodies gathered by the builder, before the pattern is known.
+#[derive(Default)]
+struct ClothParts {
+    bodies: Vec<ClothBody>,
+    triangles: Vec<[usize; 3]>,
+    geometry: Vec<crate::cloth::TriangleGeometry>,
+    w_stretch: Vec<f64>,
+    /// (global vertices, coefficients, weight) per bending stencil.
+    stencils: Vec<(Vec<usize>, Vec<f64>, f64)>,
+}
+
+impl ClothParts {
+    /// Rebuild the stiffness pattern with the cloth's elements and assemble the cloth.
+    fn assemble(self, fem: &mut FemOperators, rest: &[Vector3<f64>]) -> Cloth {
+        let n = rest.len();
+        let cliques: Vec<&[usize]> = self
+            .triangles
+            .iter()
+            .map(|t| t.as_slice())
+            .chain(self.stencils.iter().map(|s| s.0.as_slice()))
+            .collect();
+        let (pattern, slots) = crate::fem::StiffnessPattern::with_cliques(n, &fem.tets, &cliques);
+        fem.pattern = pattern;
+        let nt = self.triangles.len();
+        let tri_slots = slots[..nt].iter().map(|s| std::array::from_fn(|k| s[k])).collect();
+        let mut bends = Bends {
+            offsets: vec![0],
+            slot_offsets: vec![0],
+            ..Default::default()
+        };
+        for ((verts, coefs, w), sl) in self.stencils.into_iter().zip(&slots[nt..]) {
+            let (len, dir) = crate::cloth::rest_curvature(&verts, &coefs, rest);
+            bends.vertices.extend(&verts);
+            bends.coefs.extend(&coefs);
+            bends.offsets.push(bends.vertices.len());
+            bends.weight.push(w);
+            bends.rest.push(len);
+            bends.rest_dir.push(dir);
+            bends.slots.extend(sl);
+            bends.slot_offsets.push(bends.slots.len());
+        }
+        let vertex_triangles = Incidence::new(n, self.triangles.iter().map(|t| t.as_slice()));
+        let vertex_bends = Incidence::new(
+            n,
+            (0..bends.len()).map(|i| &bends.vertices[bends.offsets[i]..bends.offsets[i + 1]]),
+        );
+        Cloth {
+            bodies: self.bodies,
+            triangles: self.triangles,
+            geometry: self.geometry,
+            w_stretch: self.w_stretch,
+            bends,
+            tri_slots,
+            vertex_triangles,
+            vertex_bends,
+        }
     }
 }

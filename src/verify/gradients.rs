@@ -60,6 +60,15 @@ pub enum Group {
     AttachmentTargets,
     /// Every joint torque of a one-DoF joint at every step (random direction).
     Torques,
+    /// One component of the initial velocity of one body's vertices (a uniform shift).
+    BodyVelocity {
+        /// Body name (reports).
+        body: String,
+        /// Its vertices (global numbering).
+        vertices: std::ops::Range<usize>,
+        /// Component (0, 1, 2).
+        axis: usize,
+    },
 }
 
 impl Group {
@@ -73,6 +82,9 @@ impl Group {
             Group::Activations => "activations per step and group (random direction)".into(),
             Group::AttachmentTargets => "attachment targets (random direction)".into(),
             Group::Torques => "joint torques per step and joint (random direction)".into(),
+            Group::BodyVelocity { body, axis, .. } => {
+                format!("initial_velocity.{} of {body}", ["x", "y", "z"][*axis])
+            }
         }
     }
 }
@@ -173,6 +185,10 @@ impl Case {
                 u: random_direction(3 * m.attachments.len(), seed),
                 scale: m.length_scale,
             },
+            Group::BodyVelocity { .. } => Direction {
+                u: vec![1.0],
+                scale: 1.0,
+            },
             Group::Torques => {
                 let t = torques(self);
                 let dofs = t.first().map_or(0, |r| r.len());
@@ -209,6 +225,7 @@ impl Case {
                 Group::Activations => g.activations.iter().flatten().zip(&d.u).map(|(a, b)| a * b).sum(),
                 Group::AttachmentTargets => dot3(&g.attachment_targets),
                 Group::Torques => g.torques.iter().flatten().zip(&d.u).map(|(a, b)| a * b).sum(),
+                Group::BodyVelocity { vertices, axis, .. } => g.v0[vertices.clone()].iter().map(|v| v[*axis]).sum(),
             }
     }
 
@@ -256,6 +273,13 @@ impl Case {
                     *x += step * u;
                 }
                 controls.activations = Some(a);
+            }
+            Group::BodyVelocity { vertices, axis, .. } => {
+                let (q, mut v) = initial_state(self);
+                for x in &mut v[vertices.clone()] {
+                    x[*axis] += step;
+                }
+                controls.initial = Some((q, v));
             }
             Group::Torques => {
                 let mut t = torques(self);
@@ -703,6 +727,85 @@ pub fn ground_contact(steps: usize) -> Result<Case> {
             Group::Scalar(Param::Gravity(1)),
             Group::InitialPositions,
         ],
+    })
+}
+
+/// A soft box dropped onto a cloth held at its corners by attachment springs: both deform, and
+/// the box's vertices and the cloth's collide (vertex-face pairs in both directions, friction).
+/// The loss is a weighted sum of the box's final barycentre coordinates.
+pub fn ball_on_cloth(steps: usize) -> Result<Case> {
+    let (n, size) = (6, 0.6);
+    let mut vertices = Vec::new();
+    for j in 0..=n {
+        for i in 0..=n {
+            let (x, z) = (
+                i as f64 * size / n as f64 - 0.5 * size,
+                j as f64 * size / n as f64 - 0.5 * size,
+            );
+            vertices.push(Vector3::new(x, 0.0, z));
+        }
+    }
+    let id = |i: usize, j: usize| j * (n + 1) + i;
+    let mut triangles = Vec::new();
+    for j in 0..n {
+        for i in 0..n {
+            triangles.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
+            triangles.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
+        }
+    }
+    let corners = [id(0, 0), id(n, 0), id(0, n), id(n, n)];
+    let mut cloth = crate::cloth::ClothSpec::new(
+        "cloth",
+        crate::mesh::surface::TriSurface { vertices, triangles },
+        200.0,
+        5e-4,
+        3.0,
+    );
+    cloth.attachments = corners.iter().map(|&v| (v, 1e4)).collect();
+    let mesh = BoxSpec::new([2, 1, 2], [0.16, 0.08, 0.16])
+        .jitter(0.1, 11)
+        .origin([-0.07, 0.004, -0.09])
+        .build()?;
+    let mut body = BodySpec::new(
+        "ball",
+        mesh,
+        Material {
+            youngs_modulus: 5e3,
+            poisson_ratio: 0.3,
+        },
+        MassSpec::Density(300.0),
+    );
+    body.initial_velocity = Vector3::new(0.3, -1.0, 0.2);
+    let model = ModelBuilder::new()
+        .gravity(Vector3::new(0.0, -9.81, 0.0))
+        .body(body)
+        .cloth(cloth)
+        .collisions(crate::contact::pair::BodyCollision {
+            thickness: 1e-3,
+            friction: 0.3,
+        })
+        .build()?;
+    let ball = model.bodies[0].vertices.clone();
+    Ok(Case {
+        name: "ball_on_cloth".into(),
+        description: "soft box (16 tets) thrown onto a cloth (72 triangles, corners on springs): both deform, vertex-face contacts both ways with friction 0.3; loss: 0.3 x + y + 0.2 z of the box's final barycentre".into(),
+        settings: gradcheck_settings(0.005, 8),
+        steps,
+        loss: Box::new(CenterOfMass {
+            direction: Vector3::new(0.3, 1.0, 0.2),
+            time_average: false,
+            vertices: Some(ball.clone().collect()),
+        }),
+        controls: Controls::default(),
+        groups: (0..3)
+            .map(|axis| Group::BodyVelocity {
+                body: "ball".into(),
+                vertices: ball.clone(),
+                axis,
+            })
+            .chain([Group::InitialPositions])
+            .collect(),
+        model,
     })
 }
 
@@ -1179,6 +1282,7 @@ pub fn study(inp: &Inputs<'_>, out: &Path) -> Result<GradientsReport> {
         actuated(inp.steps)?,
         baymax_torques(inp.baymax_skeleton, inp.steps)?,
         baymax_ground(inp.baymax_skeleton, inp.steps)?,
+        ball_on_cloth(inp.steps)?,
     ];
     let checks = check_all(&cases, 2021);
     for c in &checks {

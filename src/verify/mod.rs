@@ -3,6 +3,7 @@
 //! and writes `reports/`.
 
 pub mod actuators;
+pub mod cloth;
 pub mod extremes;
 pub mod fd;
 pub mod gradients;
@@ -761,8 +762,14 @@ pub fn run_suite(suite_path: &Path, out: &Path) -> Result<SuiteBoundsReport> {
         write_json(out.join("extremes.json"), &ex)?;
         print!("{}", extremes::table(&ex));
     }
+    if let Some(c) = &suite.cloth {
+        println!("\ncloth study ({}):", c.scene.display());
+        let cl = cloth::study(&base.join(&c.scene), c.steps, &c.detection_sizes, out)?;
+        write_json(out.join("cloth.json"), &cl)?;
+        print!("{}", cloth::table(&cl));
+    }
     println!(
-        "wrote {}, {}, {}, {}, {}, gradients.json, tradeoff.json, extremes.json, t_scaling.svg, cantilever.svg, skeleton_*.svg, gradient_cost.svg, tradeoff_*.svg, actuator frames and {} sweep plots in {:.1} s",
+        "wrote {}, {}, {}, {}, {}, gradients.json, tradeoff.json, extremes.json, cloth.json, t_scaling.svg, cantilever.svg, skeleton_*.svg, gradient_cost.svg, tradeoff_*.svg, cloth_*.svg, actuator and cloth frames and {} sweep plots in {:.1} s",
         path.display(),
         out.join("jacobians.json").display(),
         out.join("physics.json").display(),

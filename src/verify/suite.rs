@@ -31,6 +31,22 @@ pub struct Suite {
     /// The extremes suite (absent: skipped).
     #[serde(default)]
     pub extremes: Option<ExtremesSuite>,
+    /// The cloth study: the paper's ball-on-cloth scene and collision-detection cost (absent:
+    /// skipped).
+    #[serde(default)]
+    pub cloth: Option<ClothSuite>,
+}
+
+/// The cloth study.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ClothSuite {
+    /// The scene (relative to the suite file).
+    pub scene: PathBuf,
+    /// Steps to run.
+    pub steps: usize,
+    /// Cloth cells per side of the detection-cost meshes.
+    pub detection_sizes: Vec<usize>,
 }
 
 /// The trade-off study: one sweep per scene.

@@ -1,0 +1,856 @@
+//! Collisions between bodies: soft-soft, soft-cloth and cloth-cloth (METHOD.md section 4, with
+//! both sides moving).
+//!
+//! Each body's collision surface is its boundary triangles (a tet mesh) or its triangles
+//! (cloth), with their edges and vertices. A step's candidate contacts are
+//!
+//! * **vertex-face** pairs (a surface vertex of one body, a triangle of another) whose distance
+//!   at the start of the step, minus how far their vertices may move during it, is below the
+//!   collision thickness plus a margin (each vertex keeps the closest pair per other body), and
+//! * after the step's iterations, every **vertex-face** or **edge-edge** pair (surface edges of
+//!   two bodies whose closest points are interior to both) that ended up violated; these join
+//!   and the iterations resume (contact rounds).
+//!
+//! A uniform spatial hash over the primitives' swept bounding boxes finds them in time linear in
+//! the surface size.
+//!
+//! A [`PairContact`] linearises its pair at the start of the step: the relative coordinate
+//! `r = sum_k c_k x_k` (`r = p - (u a + v b + w c)` for a vertex and the closest point of a face,
+//! `r = (a + s (b - a)) - (c + t (d - c))` for two edges), with the coefficients `c_k` and the
+//! unit normal `n` frozen at the start, and asks `n . r >= thickness`. The solver treats it
+//! like an obstacle contact on `r` (the same Coulomb cone, [`super::project`]); its impulse acts
+//! on every vertex of the pair with weight `c_k`, so both bodies feel it. Sticking means no
+//! relative tangential motion of the pair during the step.
+//!
+//! The coefficients and the normal are smooth functions of the start positions within a
+//! *regime* (which feature of the face is closest; interior edge points): [`PairContact::jacobian`]
+//! differentiates them by forward-mode dual numbers for the backward pass.
+
+use nalgebra::{RealField, Vector3};
+use num_dual::Dual64;
+use serde::Serialize;
+
+use crate::cloth::Cloth;
+use crate::solver::{Body, SolverError};
+
+/// Settings of collisions between bodies.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BodyCollision {
+    /// Distance the surfaces are kept apart (m).
+    pub thickness: f64,
+    /// Coulomb friction coefficient between bodies.
+    pub friction: f64,
+}
+
+impl BodyCollision {
+    /// Check the parameters.
+    pub fn validate(&self) -> Result<(), SolverError> {
+        if !(self.thickness.is_finite() && self.thickness > 0.0) {
+            return Err(SolverError::Input(format!(
+                "collision thickness must be finite and positive, got {}",
+                self.thickness
+            )));
+        }
+        if !(self.friction.is_finite() && self.friction >= 0.0) {
+            return Err(SolverError::Input(format!(
+                "collision friction must be finite and >= 0, got {}",
+                self.friction
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// The collision surfaces of every body (global vertex numbering).
+#[derive(Debug, Clone)]
+pub struct Colliders {
+    /// Settings.
+    pub settings: BodyCollision,
+    /// Body names (soft bodies first, then cloth), indexed by the `*_body` arrays.
+    pub names: Vec<String>,
+    /// Surface triangles.
+    pub triangles: Vec<[usize; 3]>,
+    /// Body of each triangle.
+    pub triangle_body: Vec<u32>,
+    /// Surface edges.
+    pub edges: Vec<[usize; 2]>,
+    /// Body of each edge.
+    pub edge_body: Vec<u32>,
+    /// Surface vertices.
+    pub vertices: Vec<usize>,
+    /// Body of each surface vertex.
+    pub vertex_body: Vec<u32>,
+    /// Dirichlet vertices (a pair made only of them is skipped).
+    pub fixed: Vec<bool>,
+    /// Mean surface edge length at rest (sets the spatial hash's cell size).
+    pub mean_edge: f64,
+}
+
+/// Boundary faces of a tet mesh (faces that belong to exactly one tet).
+pub fn boundary_faces(tets: &[[usize; 4]]) -> Vec<[usize; 3]> {
+    let mut faces: Vec<([usize; 3], [usize; 3])> = Vec::with_capacity(tets.len() * 4);
+    for t in tets {
+        for skip in 0..4 {
+            let f: Vec<usize> = (0..4).filter(|&k| k != skip).map(|k| t[k]).collect();
+            let face = [f[0], f[1], f[2]];
+            let mut key = face;
+            key.sort_unstable();
+            faces.push((key, face));
+        }
+    }
+    faces.sort_unstable_by_key(|f| f.0);
+    let mut out = Vec::new();
+    let mut i = 0;
+    while i < faces.len() {
+        let mut j = i + 1;
+        while j < faces.len() && faces[j].0 == faces[i].0 {
+            j += 1;
+        }
+        if j - i == 1 {
+            out.push(faces[i].1);
+        }
+        i = j;
+    }
+    out
+}
+
+impl Colliders {
+    /// Collect the surfaces of the soft bodies (`bodies`, `tets` in global numbering) and the
+    /// cloth.
+    pub fn new(
+        settings: BodyCollision,
+        bodies: &[Body],
+        tets: &[[usize; 4]],
+        cloth: Option<&Cloth>,
+        fixed: &[bool],
+        rest: &[Vector3<f64>],
+    ) -> Result<Self, SolverError> {
+        let n = rest.len();
+        settings.validate()?;
+        let mut c = Self {
+            settings,
+            names: Vec::new(),
+            triangles: Vec::new(),
+            triangle_body: Vec::new(),
+            edges: Vec::new(),
+            edge_body: Vec::new(),
+            vertices: Vec::new(),
+            vertex_body: Vec::new(),
+            fixed: fixed.to_vec(),
+            mean_edge: 0.0,
+        };
+        let mut surfaces: Vec<(String, Vec<[usize; 3]>)> = bodies
+            .iter()
+            .map(|b| (b.name.clone(), boundary_faces(&tets[b.tets.clone()])))
+            .collect();
+        if let Some(cl) = cloth {
+            for b in &cl.bodies {
+                surfaces.push((b.name.clone(), cl.triangles[b.triangles.clone()].to_vec()));
+            }
+        }
+        if surfaces.len() < 2 {
+            return Err(SolverError::Input(format!(
+                "collisions between bodies need at least two bodies, the scene has {}",
+                surfaces.len()
+            )));
+        }
+        let mut seen = vec![false; n];
+        for (b, (name, tris)) in surfaces.into_iter().enumerate() {
+            c.names.push(name);
+            let mut edges: Vec<[usize; 2]> = Vec::with_capacity(tris.len() * 3);
+            for t in &tris {
+                for k in 0..3 {
+                    let (i, j) = (t[k], t[(k + 1) % 3]);
+                    edges.push([i.min(j), i.max(j)]);
+                    if !seen[t[k]] {
+                        seen[t[k]] = true;
+                        c.vertices.push(t[k]);
+                        c.vertex_body.push(b as u32);
+                    }
+                }
+            }
+            edges.sort_unstable();
+            edges.dedup();
+            c.edge_body.extend(std::iter::repeat_n(b as u32, edges.len()));
+            c.edges.extend(edges);
+            c.triangle_body.extend(std::iter::repeat_n(b as u32, tris.len()));
+            c.triangles.extend(tris);
+        }
+        let s: f64 = c.edges.iter().map(|e| (rest[e[0]] - rest[e[1]]).norm()).sum();
+        c.mean_edge = s / c.edges.len().max(1) as f64;
+        Ok(c)
+    }
+}
+
+/// Which features of a pair are closest (fixed for a step; the pair's geometry is smooth in
+/// the start positions within it).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Regime {
+    /// A vertex and the interior of a face; the normal is the face normal times the sign.
+    Face(i8),
+    /// A vertex and an edge of a face (corners `k`, `(k + 1) % 3`).
+    Edge(u8),
+    /// A vertex and a corner of a face.
+    Corner(u8),
+    /// Two edges, closest points interior to both.
+    EdgeEdge,
+}
+
+/// A linearised contact between two bodies (see the module docs).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct PairContact {
+    /// `[p, a, b, c]` (vertex and face) or `[a, b, c, d]` (edge `ab`, edge `cd`), global.
+    pub vertices: [usize; 4],
+    /// Coefficients of the relative coordinate `r = sum c_k x_k`.
+    pub coefs: [f64; 4],
+    /// Unit normal at the start of the step.
+    pub normal: Vector3<f64>,
+    /// Distance `n . r` at the start of the step.
+    pub distance: f64,
+    /// Closest features.
+    pub regime: Regime,
+}
+
+impl PairContact {
+    /// `r = sum c_k x_k`.
+    pub fn relative(&self, x: &[Vector3<f64>]) -> Vector3<f64> {
+        (0..4).fold(Vector3::zeros(), |acc, k| acc + x[self.vertices[k]] * self.coefs[k])
+    }
+
+    /// A key identifying the pair (its kind and vertices).
+    pub fn key(&self) -> (bool, [usize; 4]) {
+        (self.regime == Regime::EdgeEdge, self.vertices)
+    }
+
+    /// Derivatives of the coefficients and the normal with respect to the start positions of
+    /// the pair's four vertices, within its regime: `(dc_k/dq_{j,d}, dn/dq_{j,d})` indexed
+    /// `[3 j + d]`.
+    pub fn jacobian(&self, q: &[Vector3<f64>]) -> ([[f64; 4]; 12], [Vector3<f64>; 12]) {
+        let mut dc = [[0.0; 4]; 12];
+        let mut dn = [Vector3::zeros(); 12];
+        for (j, (dcj, dnj)) in dc.chunks_mut(3).zip(dn.chunks_mut(3)).enumerate() {
+            for d in 0..3 {
+                let x: [Vector3<Dual64>; 4] = std::array::from_fn(|k| {
+                    let mut v = q[self.vertices[k]].map(Dual64::from);
+                    if k == j {
+                        v[d].eps = 1.0;
+                    }
+                    v
+                });
+                let (c, n) = geometry(self.regime, &x);
+                dcj[d] = std::array::from_fn(|k| c[k].eps);
+                dnj[d] = n.map(|v| v.eps);
+            }
+        }
+        (dc, dn)
+    }
+}
+
+/// Coefficients and unit normal of a pair in a regime (generic, for dual numbers).
+pub fn geometry<T: RealField + Copy>(regime: Regime, x: &[Vector3<T>; 4]) -> ([T; 4], Vector3<T>) {
+    let one = T::one();
+    let zero = T::zero();
+    match regime {
+        Regime::Face(sign) => {
+            let (p, a, b, c) = (x[0], x[1], x[2], x[3]);
+            let (e0, e1) = (b - a, c - a);
+            let nf = e0.cross(&e1);
+            let n = nf / nf.norm() * T::from_f64(sign as f64).unwrap();
+            let ap = p - a;
+            let (d00, d01, d11) = (e0.dot(&e0), e0.dot(&e1), e1.dot(&e1));
+            let (d20, d21) = (ap.dot(&e0), ap.dot(&e1));
+            let den = d00 * d11 - d01 * d01;
+            let v = (d11 * d20 - d01 * d21) / den;
+            let w = (d00 * d21 - d01 * d20) / den;
+            let u = one - v - w;
+            ([one, -u, -v, -w], n)
+        }
+        Regime::Edge(k) => {
+            let (k, l) = (k as usize, (k as usize + 1) % 3);
+            let (a, b) = (x[1 + k], x[1 + l]);
+            let e = b - a;
+            let t = (x[0] - a).dot(&e) / e.dot(&e);
+            let r = x[0] - (a + e * t);
+            let mut c = [one, zero, zero, zero];
+            c[1 + k] = -(one - t);
+            c[1 + l] = -t;
+            (c, r / r.norm())
+        }
+        Regime::Corner(k) => {
+            let r = x[0] - x[1 + k as usize];
+            let mut c = [one, zero, zero, zero];
+            c[1 + k as usize] = -one;
+            (c, r / r.norm())
+        }
+        Regime::EdgeEdge => {
+            let (a, b, c, d) = (x[0], x[1], x[2], x[3]);
+            let (d1, d2, r) = (b - a, d - c, a - c);
+            let (a11, a22, a12) = (d1.dot(&d1), d2.dot(&d2), d1.dot(&d2));
+            let (e1, e2) = (d1.dot(&r), d2.dot(&r));
+            let den = a11 * a22 - a12 * a12;
+            let s = (a12 * e2 - a22 * e1) / den;
+            let t = (a11 * e2 - a12 * e1) / den;
+            let gap = (a + d1 * s) - (c + d2 * t);
+            ([one - s, s, -(one - t), -t], gap / gap.norm())
+        }
+    }
+}
+
+/// The closest features of vertex `p` and face `abc` (Ericson 5.1.5) and the distance.
+pub fn vertex_face(p: &Vector3<f64>, a: &Vector3<f64>, b: &Vector3<f64>, c: &Vector3<f64>) -> Option<(Regime, f64)> {
+    let ab = b - a;
+    let ac = c - a;
+    let ap = p - a;
+    let (d1, d2) = (ab.dot(&ap), ac.dot(&ap));
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return Some((Regime::Corner(0), ap.norm()));
+    }
+    let bp = p - b;
+    let (d3, d4) = (ab.dot(&bp), ac.dot(&bp));
+    if d3 >= 0.0 && d4 <= d3 {
+        return Some((Regime::Corner(1), bp.norm()));
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        let v = d1 / (d1 - d3);
+        return Some((Regime::Edge(0), (p - (a + ab * v)).norm()));
+    }
+    let cp = p - c;
+    let (d5, d6) = (ab.dot(&cp), ac.dot(&cp));
+    if d6 >= 0.0 && d5 <= d6 {
+        return Some((Regime::Corner(2), cp.norm()));
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        let w = d2 / (d2 - d6);
+        return Some((Regime::Edge(2), (p - (a + ac * w)).norm()));
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
+        let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+        return Some((Regime::Edge(1), (p - (b + (c - b) * w)).norm()));
+    }
+    let nf = ab.cross(&ac);
+    let len = nf.norm();
+    if len == 0.0 {
+        return None;
+    }
+    let s = nf.dot(&ap) / len;
+    Some((Regime::Face(if s >= 0.0 { 1 } else { -1 }), s.abs()))
+}
+
+/// Closest points of segments `ab` and `cd` when they are interior to both (parameters in
+/// `(eps, 1 - eps)`) and the segments are not parallel: `(s, t, distance)`.
+pub fn edge_edge(a: &Vector3<f64>, b: &Vector3<f64>, c: &Vector3<f64>, d: &Vector3<f64>) -> Option<(f64, f64, f64)> {
+    let (d1, d2, r) = (b - a, d - c, a - c);
+    let (a11, a22, a12) = (d1.dot(&d1), d2.dot(&d2), d1.dot(&d2));
+    let den = a11 * a22 - a12 * a12;
+    if den.is_nan() || den <= 1e-12 * a11 * a22 {
+        return None;
+    }
+    let (e1, e2) = (d1.dot(&r), d2.dot(&r));
+    let s = (a12 * e2 - a22 * e1) / den;
+    let t = (a11 * e2 - a12 * e1) / den;
+    const EPS: f64 = 1e-6;
+    if !(EPS..=1.0 - EPS).contains(&s) || !(EPS..=1.0 - EPS).contains(&t) {
+        return None;
+    }
+    Some((s, t, ((a + d1 * s) - (c + d2 * t)).norm()))
+}
+
+/// A uniform spatial hash of axis-aligned boxes (reused between steps: no allocation once warm).
+#[derive(Debug, Clone, Default)]
+struct Grid {
+    inv_cell: f64,
+    entries: Vec<(u64, u32)>,
+}
+
+#[inline]
+fn cell_key(i: i64, j: i64, k: i64) -> u64 {
+    const M: u64 = (1 << 21) - 1;
+    (((i as u64) & M) << 42) | (((j as u64) & M) << 21) | ((k as u64) & M)
+}
+
+impl Grid {
+    fn cells(&self, lo: &Vector3<f64>, hi: &Vector3<f64>) -> ([i64; 3], [i64; 3]) {
+        let f = |x: f64| (x * self.inv_cell).floor() as i64;
+        ([f(lo.x), f(lo.y), f(lo.z)], [f(hi.x), f(hi.y), f(hi.z)])
+    }
+
+    /// Insert boxes `(lo, hi)` with ids; `cell` is the cell size.
+    fn build(&mut self, cell: f64, boxes: &[(Vector3<f64>, Vector3<f64>)]) {
+        self.inv_cell = 1.0 / cell;
+        self.entries.clear();
+        for (id, (lo, hi)) in boxes.iter().enumerate() {
+            let (a, b) = self.cells(lo, hi);
+            for i in a[0]..=b[0] {
+                for j in a[1]..=b[1] {
+                    for k in a[2]..=b[2] {
+                        self.entries.push((cell_key(i, j, k), id as u32));
+                    }
+                }
+            }
+        }
+        self.entries.sort_unstable();
+    }
+
+    /// Call `f` with every id whose cells meet the box (ids may repeat).
+    fn query(&self, lo: &Vector3<f64>, hi: &Vector3<f64>, mut f: impl FnMut(u32)) {
+        let (a, b) = self.cells(lo, hi);
+        for i in a[0]..=b[0] {
+            for j in a[1]..=b[1] {
+                for k in a[2]..=b[2] {
+                    let key = cell_key(i, j, k);
+                    let start = self.entries.partition_point(|e| e.0 < key);
+                    for e in &self.entries[start..] {
+                        if e.0 != key {
+                            break;
+                        }
+                        f(e.1);
+                    }
+                }
+            }
+        }
+    }
+}
+
+fn overlaps(a: &(Vector3<f64>, Vector3<f64>), b: &(Vector3<f64>, Vector3<f64>)) -> bool {
+    (0..3).all(|k| a.0[k] <= b.1[k] && b.0[k] <= a.1[k])
+}
+
+/// What a detection pass looks for.
+#[derive(Debug, Clone, Copy)]
+pub enum Query {
+    /// Pairs that may come within the thickness plus `margin` while moving from `q0` to `q1`.
+    Candidates {
+        /// Extra distance (m).
+        margin: f64,
+    },
+    /// Pairs (not already known) whose linearised gap at `q1` is below `-tolerance`.
+    Violations {
+        /// Allowed violation (m).
+        tolerance: f64,
+    },
+}
+
+/// Reusable buffers of the pair detection.
+#[derive(Debug, Clone, Default)]
+pub struct Detector {
+    grid: Grid,
+    tri_boxes: Vec<(Vector3<f64>, Vector3<f64>)>,
+    edge_boxes: Vec<(Vector3<f64>, Vector3<f64>)>,
+    stamp: Vec<u32>,
+    epoch: u32,
+    known: std::collections::HashSet<(bool, [usize; 4])>,
+    /// The closest pair found so far per other body (one query primitive at a time).
+    best: Vec<Option<PairContact>>,
+    /// Candidate pairs tested exactly in the last pass (for the cost study).
+    pub tested: usize,
+}
+
+fn swept_box(verts: &[usize], q0: &[Vector3<f64>], q1: &[Vector3<f64>], pad: f64) -> (Vector3<f64>, Vector3<f64>) {
+    let mut lo = Vector3::repeat(f64::INFINITY);
+    let mut hi = Vector3::repeat(f64::NEG_INFINITY);
+    for &v in verts {
+        lo = lo.inf(&q0[v]).inf(&q1[v]);
+        hi = hi.sup(&q0[v]).sup(&q1[v]);
+    }
+    (lo.add_scalar(-pad), hi.add_scalar(pad))
+}
+
+impl Detector {
+    /// Find pairs between bodies moving from `q0` to `q1` (see [`Query`]); with
+    /// [`Query::Violations`], pairs already in `known` (from [`Detector::remember`]) are skipped.
+    /// Results are appended to `out`.
+    pub fn detect(
+        &mut self,
+        col: &Colliders,
+        q0: &[Vector3<f64>],
+        q1: &[Vector3<f64>],
+        query: Query,
+        out: &mut Vec<PairContact>,
+    ) {
+        let th = col.settings.thickness;
+        let pad = match query {
+            Query::Candidates { margin } => 0.5 * (th + margin),
+            Query::Violations { .. } => 0.5 * th,
+        };
+        self.tested = 0;
+        self.best.clear();
+        self.best.resize(col.names.len(), None);
+        // Triangles, with the largest motion of their corners.
+        self.tri_boxes.clear();
+        let mut extent = 0.0;
+        for t in &col.triangles {
+            let b = swept_box(t, q0, q1, pad);
+            extent += (b.1 - b.0).max();
+            self.tri_boxes.push(b);
+        }
+        let cell = (extent / col.triangles.len().max(1) as f64)
+            .max(col.mean_edge)
+            .max(f64::MIN_POSITIVE);
+        self.grid.build(cell, &self.tri_boxes);
+        if self.stamp.len() != col.triangles.len().max(col.edges.len()) {
+            self.stamp = vec![0; col.triangles.len().max(col.edges.len())];
+            self.epoch = 0;
+        }
+        let motion = |v: usize| (q1[v] - q0[v]).norm();
+        for (vi, &p) in col.vertices.iter().enumerate() {
+            let vb = swept_box(&[p], q0, q1, pad);
+            self.epoch = self.epoch.wrapping_add(1);
+            if self.epoch == 0 {
+                self.stamp.iter_mut().for_each(|s| *s = 0);
+                self.epoch = 1;
+            }
+            let (grid, stamp, epoch, boxes) = (&self.grid, &mut self.stamp, self.epoch, &self.tri_boxes);
+            let best = &mut self.best;
+            let body = col.vertex_body[vi];
+            let mut tested = 0;
+            grid.query(&vb.0, &vb.1, |t| {
+                let t = t as usize;
+                if stamp[t] == epoch || col.triangle_body[t] == body || !overlaps(&vb, &boxes[t]) {
+                    return;
+                }
+                stamp[t] = epoch;
+                let tri = col.triangles[t];
+                if col.fixed[p] && tri.iter().all(|&v| col.fixed[v]) {
+                    return;
+                }
+                tested += 1;
+                let Some((regime, d0)) = vertex_face(&q0[p], &q0[tri[0]], &q0[tri[1]], &q0[tri[2]]) else {
+                    return;
+                };
+                let verts = [p, tri[0], tri[1], tri[2]];
+                let moved = motion(p) + tri.iter().map(|&v| motion(v)).fold(0.0, f64::max);
+                if let Some(c) = accept(col, q0, q1, verts, regime, d0, moved, query, &self.known) {
+                    keep_closest(best, col.triangle_body[t], c);
+                }
+            });
+            self.tested += tested;
+            out.extend(best.iter_mut().filter_map(|b| b.take()));
+        }
+        // Edges against edges of other bodies: only where a step ended with an edge through
+        // a face (vertex-face contacts already keep nearby surfaces apart; edge-edge
+        // candidates would mostly restate them and make the contact system redundant).
+        if matches!(query, Query::Candidates { .. }) {
+            return;
+        }
+        self.edge_boxes.clear();
+        let mut extent = 0.0;
+        for e in &col.edges {
+            let b = swept_box(e, q0, q1, pad);
+            extent += (b.1 - b.0).max();
+            self.edge_boxes.push(b);
+        }
+        let cell = (extent / col.edges.len().max(1) as f64)
+            .max(col.mean_edge)
+            .max(f64::MIN_POSITIVE);
+        self.grid.build(cell, &self.edge_boxes);
+        let known = &self.known;
+        for (ei, e) in col.edges.iter().enumerate() {
+            let eb = self.edge_boxes[ei];
+            let body = col.edge_body[ei];
+            self.epoch = self.epoch.wrapping_add(1);
+            if self.epoch == 0 {
+                self.stamp.iter_mut().for_each(|s| *s = 0);
+                self.epoch = 1;
+            }
+            let (grid, boxes, stamp, epoch) = (&self.grid, &self.edge_boxes, &mut self.stamp, self.epoch);
+            let best = &mut self.best;
+            let mut tested = 0;
+            grid.query(&eb.0, &eb.1, |f| {
+                let f = f as usize;
+                // Each unordered pair once: the edge of the lower body queries.
+                if stamp[f] == epoch || col.edge_body[f] <= body || !overlaps(&eb, &boxes[f]) {
+                    return;
+                }
+                stamp[f] = epoch;
+                let g = col.edges[f];
+                if [e[0], e[1], g[0], g[1]].iter().all(|&v| col.fixed[v]) {
+                    return;
+                }
+                tested += 1;
+                let Some((_, _, d0)) = edge_edge(&q0[e[0]], &q0[e[1]], &q0[g[0]], &q0[g[1]]) else {
+                    return;
+                };
+                let verts = [e[0], e[1], g[0], g[1]];
+                let moved = motion(e[0]).max(motion(e[1])) + motion(g[0]).max(motion(g[1]));
+                if let Some(c) = accept(col, q0, q1, verts, Regime::EdgeEdge, d0, moved, query, known) {
+                    keep_closest(best, col.edge_body[f], c);
+                }
+            });
+            self.tested += tested;
+            out.extend(best.iter_mut().filter_map(|b| b.take()));
+        }
+    }
+
+    /// Remember pairs already in use (for [`Query::Violations`]); `clear` forgets the old ones.
+    pub fn remember(&mut self, pairs: &[PairContact], clear: bool) {
+        if clear {
+            self.known.clear();
+        }
+        self.known.extend(pairs.iter().map(|c| c.key()));
+    }
+}
+
+/// Keep `c` if it is closer than the pair kept for its body.
+fn keep_closest(best: &mut [Option<PairContact>], body: u32, c: PairContact) {
+    let slot = &mut best[body as usize];
+    if slot.as_ref().is_none_or(|b| c.distance < b.distance) {
+        *slot = Some(c);
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+fn accept(
+    col: &Colliders,
+    q0: &[Vector3<f64>],
+    q1: &[Vector3<f64>],
+    verts: [usize; 4],
+    regime: Regime,
+    d0: f64,
+    moved: f64,
+    query: Query,
+    known: &std::collections::HashSet<(bool, [usize; 4])>,
+) -> Option<PairContact> {
+    let th = col.settings.thickness;
+    if let Query::Candidates { margin } = query {
+        if d0 - moved >= th + margin {
+            return None;
+        }
+    }
+    if d0 <= 0.0 {
+        return None;
+    }
+    let x: [Vector3<f64>; 4] = std::array::from_fn(|k| q0[verts[k]]);
+    let (coefs, normal) = geometry(regime, &x);
+    if !normal.iter().all(|v| v.is_finite()) {
+        return None;
+    }
+    let c = PairContact {
+        vertices: verts,
+        coefs,
+        normal,
+        distance: d0,
+        regime,
+    };
+    if let Query::Violations { tolerance } = query {
+        if known.contains(&c.key()) || normal.dot(&c.relative(q1)) - th >= -tolerance {
+            return None;
+        }
+    }
+    Some(c)
+}
+
+/// Closeness of the bodies' surfaces at positions `q`.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct Probe {
+    /// Smallest distance between primitives of different bodies within `reach` (`None`: none
+    /// that close).
+    pub min_distance: Option<f64>,
+    /// Surface edges of one body that cross a triangle of another (0: no interpenetration).
+    pub intersections: usize,
+    /// Deepest crossing: over crossing edges, the smaller distance of its two ends to the
+    /// crossed triangle's plane (m; 0 without crossings).
+    pub penetration: f64,
+}
+
+/// Segment `ab` crosses triangle `t` (Moller-Trumbore on the segment).
+pub fn segment_crosses(a: &Vector3<f64>, b: &Vector3<f64>, t: [&Vector3<f64>; 3]) -> bool {
+    let d = b - a;
+    let e1 = t[1] - t[0];
+    let e2 = t[2] - t[0];
+    let p = d.cross(&e2);
+    let det = e1.dot(&p);
+    if det.abs() < 1e-300 {
+        return false;
+    }
+    let inv = 1.0 / det;
+    let s = a - t[0];
+    let u = s.dot(&p) * inv;
+    if !(0.0..=1.0).contains(&u) {
+        return false;
+    }
+    let qv = s.cross(&e1);
+    let v = d.dot(&qv) * inv;
+    if v < 0.0 || u + v > 1.0 {
+        return false;
+    }
+    let tt = e2.dot(&qv) * inv;
+    (0.0..=1.0).contains(&tt)
+}
+
+impl Detector {
+    /// Distances and crossings between the bodies' surfaces at `q`, looking `reach` far.
+    pub fn probe(&mut self, col: &Colliders, q: &[Vector3<f64>], reach: f64) -> Probe {
+        let mut probe = Probe::default();
+        let mut best = f64::INFINITY;
+        self.tri_boxes.clear();
+        for t in &col.triangles {
+            self.tri_boxes.push(swept_box(t, q, q, 0.5 * reach));
+        }
+        self.grid
+            .build(col.mean_edge.max(reach).max(f64::MIN_POSITIVE), &self.tri_boxes);
+        for (vi, &p) in col.vertices.iter().enumerate() {
+            let vb = swept_box(&[p], q, q, 0.5 * reach);
+            let body = col.vertex_body[vi];
+            self.grid.query(&vb.0, &vb.1, |t| {
+                let t = t as usize;
+                if col.triangle_body[t] == body {
+                    return;
+                }
+                let tri = col.triangles[t];
+                if let Some((_, d)) = vertex_face(&q[p], &q[tri[0]], &q[tri[1]], &q[tri[2]]) {
+                    best = best.min(d);
+                }
+            });
+        }
+        for (ei, e) in col.edges.iter().enumerate() {
+            let eb = swept_box(e, q, q, 0.0);
+            let body = col.edge_body[ei];
+            self.grid.query(&eb.0, &eb.1, |t| {
+                let t = t as usize;
+                if col.triangle_body[t] == body {
+                    return;
+                }
+                let tri = col.triangles[t];
+                if tri.contains(&e[0]) || tri.contains(&e[1]) {
+                    return;
+                }
+                let (a, b, c) = (&q[tri[0]], &q[tri[1]], &q[tri[2]]);
+                if segment_crosses(&q[e[0]], &q[e[1]], [a, b, c]) {
+                    probe.intersections += 1;
+                    let n = (b - a).cross(&(c - a)).normalize();
+                    let depth = n.dot(&(q[e[0]] - a)).abs().min(n.dot(&(q[e[1]] - a)).abs());
+                    probe.penetration = probe.penetration.max(depth);
+                }
+            });
+        }
+        // Edge-edge distances.
+        self.edge_boxes.clear();
+        for e in &col.edges {
+            self.edge_boxes.push(swept_box(e, q, q, 0.5 * reach));
+        }
+        self.grid
+            .build(col.mean_edge.max(reach).max(f64::MIN_POSITIVE), &self.edge_boxes);
+        for (ei, e) in col.edges.iter().enumerate() {
+            let body = col.edge_body[ei];
+            let eb = self.edge_boxes[ei];
+            self.grid.query(&eb.0, &eb.1, |f| {
+                let f = f as usize;
+                if col.edge_body[f] <= body || !overlaps(&eb, &self.edge_boxes[f]) {
+                    return;
+                }
+                let g = col.edges[f];
+                if let Some((_, _, d)) = edge_edge(&q[e[0]], &q[e[1]], &q[g[0]], &q[g[1]]) {
+                    best = best.min(d);
+                }
+            });
+        }
+        probe.min_distance = (best <= reach).then_some(best);
+        probe
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn boundary_of_two_tets_has_six_faces() {
+        let faces = boundary_faces(&[[0, 1, 2, 3], [1, 2, 3, 4]]);
+        assert_eq!(faces.len(), 6);
+    }
+
+    #[test]
+    fn vertex_face_regimes_and_geometry_agree() {
+        let a = Vector3::new(0.0, 0.0, 0.0);
+        let b = Vector3::new(1.0, 0.0, 0.0);
+        let c = Vector3::new(0.0, 1.0, 0.0);
+        for (p, expect, dist) in [
+            (Vector3::new(0.2, 0.3, 0.5), Regime::Face(1), 0.5),
+            (Vector3::new(0.2, 0.3, -0.4), Regime::Face(-1), 0.4),
+            (Vector3::new(0.5, -1.0, 0.0), Regime::Edge(0), 1.0),
+            (Vector3::new(-1.0, -1.0, 0.0), Regime::Corner(0), 2f64.sqrt()),
+            (Vector3::new(1.0, 1.0, 0.0), Regime::Edge(1), 0.5f64.sqrt()),
+        ] {
+            let (r, d) = vertex_face(&p, &a, &b, &c).unwrap();
+            assert_eq!(r, expect, "{p}");
+            assert!((d - dist).abs() < 1e-12);
+            let (coefs, n) = geometry(r, &[p, a, b, c]);
+            let rel = p * coefs[0] + a * coefs[1] + b * coefs[2] + c * coefs[3];
+            assert!((n.dot(&rel) - d).abs() < 1e-12, "{r:?}");
+            assert!((rel - n * d).norm() < 1e-12, "{r:?}: relative vector along the normal");
+        }
+    }
+
+    #[test]
+    fn pair_jacobian_matches_differences() {
+        let q = vec![
+            Vector3::new(0.21, 0.33, 0.45),
+            Vector3::new(0.0, 0.02, -0.01),
+            Vector3::new(1.0, 0.1, 0.05),
+            Vector3::new(0.1, 1.1, -0.02),
+            Vector3::new(0.9, 0.2, 0.4),
+        ];
+        for (verts, regime) in [
+            ([0, 1, 2, 3], Regime::Face(1)),
+            ([0, 1, 2, 3], Regime::Edge(1)),
+            ([0, 1, 2, 3], Regime::Corner(2)),
+            ([0, 4, 1, 3], Regime::EdgeEdge),
+        ] {
+            let x: [Vector3<f64>; 4] = std::array::from_fn(|k| q[verts[k]]);
+            let (coefs, normal) = geometry(regime, &x);
+            let c = PairContact {
+                vertices: verts,
+                coefs,
+                normal,
+                distance: 0.0,
+                regime,
+            };
+            let (dc, dn) = c.jacobian(&q);
+            let h = 1e-6;
+            for j in 0..4 {
+                for d in 0..3 {
+                    let mut xp = x;
+                    let mut xm = x;
+                    xp[j][d] += h;
+                    xm[j][d] -= h;
+                    let (cp, np) = geometry(regime, &xp);
+                    let (cm, nm) = geometry(regime, &xm);
+                    for k in 0..4 {
+                        assert!(((cp[k] - cm[k]) / (2.0 * h) - dc[3 * j + d][k]).abs() < 1e-7);
+                    }
+                    assert!(((np - nm) / (2.0 * h) - dn[3 * j + d]).norm() < 1e-7);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn segment_crossing() {
+        let t = [
+            Vector3::new(0.0, 0.0, 0.0),
+            Vector3::new(1.0, 0.0, 0.0),
+            Vector3::new(0.0, 1.0, 0.0),
+        ];
+        let tr = [&t[0], &t[1], &t[2]];
+        assert!(segment_crosses(
+            &Vector3::new(0.2, 0.2, -1.0),
+            &Vector3::new(0.2, 0.2, 1.0),
+            tr
+        ));
+        assert!(!segment_crosses(
+            &Vector3::new(0.2, 0.2, 0.1),
+            &Vector3::new(0.2, 0.2, 1.0),
+            tr
+        ));
+        assert!(!segment_crosses(
+            &Vector3::new(0.8, 0.8, -1.0),
+            &Vector3::new(0.8, 0.8, 1.0),
+            tr
+        ));
+    }
+}
