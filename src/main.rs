@@ -175,9 +175,9 @@ enum Command {
     /// ball on cloth), probed every step, and the cost of collision detection against mesh size
     /// (reports/cloth.json format); exits 1 if a claim fails.
     Cloth {
-        /// Scene with cloth and collisions between bodies.
+        /// Scenes with cloth and collisions between bodies.
         #[arg(long, default_value = "verification/paper/cloth_ball/cloth_ball.json")]
-        scene: PathBuf,
+        scene: Vec<PathBuf>,
         /// Steps to run.
         #[arg(long, default_value_t = 100)]
         steps: usize,
@@ -538,7 +538,8 @@ fn run(command: Command) -> Result<()> {
             json,
         } => {
             use diffsoft::verify::cloth;
-            let r = cloth::study(&scene, steps, &sizes, &out)?;
+            let scenes: Vec<(PathBuf, usize)> = scene.into_iter().map(|p| (p, steps)).collect();
+            let r = cloth::study(&scenes, &sizes, &out)?;
             print!("{}", cloth::table(&r));
             if let Some(path) = json {
                 write_json(&path, &r)?;

@@ -135,8 +135,8 @@ pub struct ClothReport {
     /// Schema and crate version.
     #[serde(flatten)]
     pub header: Header,
-    /// The paper's scene from its file.
-    pub paper: ClothRun,
+    /// The scenes: the paper's from its file first.
+    pub runs: Vec<ClothRun>,
     /// Collision-detection cost against size.
     pub detection: Vec<DetectionCost>,
     /// Fitted exponent of detection time against surface size.
@@ -374,63 +374,48 @@ fn loglog_slope(xs: &[f64], ys: &[f64]) -> f64 {
     num / den
 }
 
-/// The study: the paper's scene for `steps` steps (frames and plots into `out`) and the
-/// detection cost at `sizes` cloth cells per side.
-pub fn study(scene_path: &Path, steps: usize, sizes: &[usize], out: &Path) -> Result<ClothReport> {
+/// The study: each scene for its steps (frames and plots into `out`, named after the scene's
+/// file) and the detection cost at `sizes` cloth cells per side.
+pub fn study(scenes: &[(std::path::PathBuf, usize)], sizes: &[usize], out: &Path) -> Result<ClothReport> {
     let t0 = Instant::now();
-    let paper = run(scene_path, steps, Some((&out.join("frames/cloth_ball"), 5)))?;
+    let mut runs = Vec::new();
+    let mut verdicts = Vec::new();
+    for (path, steps) in scenes {
+        let name = path.file_stem().and_then(|s| s.to_str()).unwrap_or("scene").to_string();
+        let r = run(path, *steps, Some((&out.join("frames").join(&name), 5)))?;
+        verdicts.extend(run_verdicts(&name, &r, *steps));
+        write_plots(&name, &r, out)?;
+        runs.push(r);
+    }
     let detection: Vec<DetectionCost> = sizes.iter().map(|&n| detection_cost(n, 7)).collect::<Result<_>>()?;
     let size_of = |d: &DetectionCost| (d.triangles + d.edges + d.vertices) as f64;
     let exponent = loglog_slope(
         &detection.iter().map(size_of).collect::<Vec<_>>(),
         &detection.iter().map(|d| d.median_ms).collect::<Vec<_>>(),
     );
-    let th = paper.thickness;
-    let verdicts = vec![
-        Verdict::new(
-            "The run from the paper's file completes without a solver error",
-            paper.error.is_none() && paper.steps == steps,
-            Some(paper.steps as f64),
-            Some(steps as f64),
-            "steps run == steps asked",
-        ),
-        Verdict::new(
-            "The ball reaches the cloth (contacts between the bodies occur)",
-            paper.first_contact_step.is_some(),
-            paper.first_contact_step.map(|s| s as f64),
-            None,
-            "first step with contacts between the bodies",
-        ),
-        Verdict::at_most(
-            "No penetration: no surface edge of one body crosses a face of the other at any step's end (max penetration, m)",
-            paper.max_penetration,
-            0.0,
-        ),
-        Verdict::below(
-            "Contact stays within the collision thickness: the surfaces never touch (thickness - smallest distance < thickness)",
-            paper.thickness_intrusion,
-            th,
-        ),
-        Verdict::new(
-            "Both bodies deform: the cloth's principal stretches and the ball's leave [0.99, 1.01]",
-            paper.body_max_strain > 0.01
-                && (paper.cloth_stretch_range.0 > 1.01 || paper.cloth_stretch_range.1 < 0.99),
-            Some(paper.body_max_strain.min(paper.cloth_stretch_range.0 - 1.0)),
-            Some(0.01),
-            "min(ball's largest |sigma - 1|, cloth's largest stretch - 1) > threshold",
-        ),
-        Verdict::at_most(
-            "Collision detection cost grows near-linearly with mesh size (fitted exponent of time against surface primitives)",
-            exponent,
-            1.25,
-        ),
-    ];
-    // Plots: a side view of the run, distances and stretches over time, detection cost.
-    let times: Vec<f64> = paper.series.iter().map(|s| s.time).collect();
-    write_plots(&paper, &detection, &times, out)?;
+    verdicts.push(Verdict::at_most(
+        "Collision detection cost grows near-linearly with mesh size (fitted exponent of time against surface primitives)",
+        exponent,
+        1.25,
+    ));
+    if !detection.is_empty() {
+        plot::write_svg(
+            &out.join("cloth_detection.svg"),
+            &LogLogChart {
+                title: "Collision detection cost against surface size".into(),
+                x_label: "surface primitives (triangles + edges + vertices)".into(),
+                y_label: "ms per step (candidate + violation passes)".into(),
+                series: vec![Series {
+                    label: "measured (median of 7)".into(),
+                    points: detection.iter().map(|d| (size_of(d), d.median_ms)).collect(),
+                }],
+                ..Default::default()
+            },
+        )?;
+    }
     Ok(ClothReport {
         header: Header::new(CLOTH_SCHEMA),
-        paper,
+        runs,
         detection,
         detection_exponent: exponent,
         verdicts,
@@ -438,15 +423,53 @@ pub fn study(scene_path: &Path, steps: usize, sizes: &[usize], out: &Path) -> Re
     })
 }
 
-fn write_plots(run: &ClothRun, detection: &[DetectionCost], times: &[f64], out: &Path) -> Result<()> {
+/// The claims on one run.
+pub fn run_verdicts(name: &str, r: &ClothRun, steps: usize) -> Vec<Verdict> {
+    vec![
+        Verdict::new(
+            format!("{name}: the run completes without a solver error"),
+            r.error.is_none() && r.steps == steps,
+            Some(r.steps as f64),
+            Some(steps as f64),
+            "steps run == steps asked",
+        ),
+        Verdict::new(
+            format!("{name}: the ball reaches the cloth (contacts between the bodies occur)"),
+            r.first_contact_step.is_some(),
+            r.first_contact_step.map(|s| s as f64),
+            None,
+            "first step with contacts between the bodies",
+        ),
+        Verdict::at_most(
+            format!("{name}: no penetration: no surface edge of one body crosses a face of the other at any step's end (max penetration, m)"),
+            r.max_penetration,
+            0.0,
+        ),
+        Verdict::below(
+            format!("{name}: contact stays within the collision thickness: the surfaces never touch (thickness - smallest distance < thickness)"),
+            r.thickness_intrusion,
+            r.thickness,
+        ),
+        Verdict::new(
+            format!("{name}: both bodies deform: the cloth's principal stretches and the ball's leave [0.99, 1.01]"),
+            r.body_max_strain > 0.01 && (r.cloth_stretch_range.0 > 1.01 || r.cloth_stretch_range.1 < 0.99),
+            Some(r.body_max_strain.min((r.cloth_stretch_range.0 - 1.0).max(1.0 - r.cloth_stretch_range.1))),
+            Some(0.01),
+            "min(ball's largest |sigma - 1|, cloth's largest |stretch - 1|) > threshold",
+        ),
+    ]
+}
+
+fn write_plots(name: &str, run: &ClothRun, out: &Path) -> Result<()> {
+    let times: Vec<f64> = run.series.iter().map(|s| s.time).collect();
     let series = |label: &str, f: &dyn Fn(&ClothStep) -> f64| Series {
         label: label.into(),
         points: times.iter().zip(&run.series).map(|(&t, s)| (t, f(s))).collect(),
     };
     plot::write_linear_svg(
-        &out.join("cloth_stretch.svg"),
+        &out.join(format!("cloth_{name}_stretch.svg")),
         &LinearChart {
-            title: "Ball on cloth: principal stretches".into(),
+            title: format!("{name}: principal stretches"),
             x_label: "time (s)".into(),
             y_label: "stretch".into(),
             series: vec![
@@ -456,37 +479,23 @@ fn write_plots(run: &ClothRun, detection: &[DetectionCost], times: &[f64], out: 
             ],
         },
     )?;
-    plot::write_linear_svg(
-        &out.join("cloth_distance.svg"),
-        &LinearChart {
-            title: format!(
-                "Ball on cloth: smallest distance between the surfaces (thickness {:.0e} m)",
-                run.thickness
-            ),
-            x_label: "time (s)".into(),
-            y_label: "m".into(),
-            series: vec![
-                series("smallest distance", &|s| s.min_distance.unwrap_or(f64::NAN)),
-                series("thickness", &|_| run.thickness),
-            ],
-        },
-    )?;
-    plot::write_svg(
-        &out.join("cloth_detection.svg"),
-        &LogLogChart {
-            title: "Collision detection cost against surface size".into(),
-            x_label: "surface primitives (triangles + edges + vertices)".into(),
-            y_label: "ms per step (candidate + violation passes)".into(),
-            series: vec![Series {
-                label: "measured (median of 7)".into(),
-                points: detection
-                    .iter()
-                    .map(|d| ((d.triangles + d.edges + d.vertices) as f64, d.median_ms))
-                    .collect(),
-            }],
-            ..Default::default()
-        },
-    )?;
+    if run.series.iter().any(|s| s.min_distance.is_some()) {
+        plot::write_linear_svg(
+            &out.join(format!("cloth_{name}_distance.svg")),
+            &LinearChart {
+                title: format!(
+                    "{name}: smallest distance between the surfaces (thickness {:.0e} m)",
+                    run.thickness
+                ),
+                x_label: "time (s)".into(),
+                y_label: "m".into(),
+                series: vec![
+                    series("smallest distance", &|s| s.min_distance.unwrap_or(f64::NAN)),
+                    series("thickness", &|_| run.thickness),
+                ],
+            },
+        )?;
+    }
     // Side view (x, y) of the ball and the cloth at six times.
     let panels: Vec<Panel> = run
         .snapshots
@@ -502,9 +511,9 @@ fn write_plots(run: &ClothRun, detection: &[DetectionCost], times: &[f64], out: 
         hi = (hi.0.max(p.0), hi.1.max(p.1));
     }
     plot::write_snapshots_svg(
-        &out.join("cloth_frames.svg"),
+        &out.join(format!("cloth_{name}_frames.svg")),
         &Snapshots {
-            title: "Ball on cloth (paper's cloth_ball.json): side view (x, y) of all vertices".into(),
+            title: format!("{name}: side view (x, y) of all vertices"),
             rows: vec![panels],
             x_range: (lo.0, hi.0),
             y_range: (lo.1, hi.1),
@@ -516,35 +525,36 @@ fn write_plots(run: &ClothRun, detection: &[DetectionCost], times: &[f64], out: 
 /// The console summary of the study.
 pub fn table(r: &ClothReport) -> String {
     use std::fmt::Write as _;
-    let p = &r.paper;
     let mut s = String::new();
-    let _ = writeln!(
-        s,
-        "  {}: {} vertices, {} tets, {} cloth triangles, {} steps of {} s; first contact at step {}",
-        p.scene,
-        p.size.0,
-        p.size.1,
-        p.size.2,
-        p.steps,
-        p.dt,
-        p.first_contact_step.map_or("-".into(), |k| k.to_string())
-    );
-    let _ = writeln!(
-        s,
-        "  max penetration {:.3e} m ({} crossing edge-face pairs); smallest distance {:.3e} m (thickness {:.0e} m); cloth stretch {:.3}..{:.3}, ball strain {:.3}",
-        p.max_penetration,
-        p.intersections,
-        p.min_separation.unwrap_or(f64::NAN),
-        p.thickness,
-        p.cloth_stretch_range.1,
-        p.cloth_stretch_range.0,
-        p.body_max_strain
-    );
-    let _ = writeln!(
-        s,
-        "  {:.2} ms per step median ({:.2} mean); in contact {:.2} median ({:.2} mean), up to {} contacts between the bodies",
-        p.ms_per_step.0, p.ms_per_step.1, p.ms_per_contact_step.0, p.ms_per_contact_step.1, p.max_pair_contacts
-    );
+    for p in &r.runs {
+        let _ = writeln!(
+            s,
+            "  {}: {} vertices, {} tets, {} cloth triangles, {} steps of {} s; first contact at step {}",
+            p.scene,
+            p.size.0,
+            p.size.1,
+            p.size.2,
+            p.steps,
+            p.dt,
+            p.first_contact_step.map_or("-".into(), |k| k.to_string())
+        );
+        let _ = writeln!(
+            s,
+            "    max penetration {:.3e} m ({} crossing edge-face pairs); smallest distance {:.3e} m (thickness {:.0e} m); cloth stretch {:.3}..{:.3}, ball strain {:.3}",
+            p.max_penetration,
+            p.intersections,
+            p.min_separation.unwrap_or(f64::NAN),
+            p.thickness,
+            p.cloth_stretch_range.1,
+            p.cloth_stretch_range.0,
+            p.body_max_strain
+        );
+        let _ = writeln!(
+            s,
+            "    {:.2} ms per step median ({:.2} mean); in contact {:.2} median ({:.2} mean), up to {} contacts between the bodies",
+            p.ms_per_step.0, p.ms_per_step.1, p.ms_per_contact_step.0, p.ms_per_contact_step.1, p.max_pair_contacts
+        );
+    }
     for d in &r.detection {
         let _ = writeln!(
             s,

@@ -763,8 +763,10 @@ pub fn run_suite(suite_path: &Path, out: &Path) -> Result<SuiteBoundsReport> {
         print!("{}", extremes::table(&ex));
     }
     if let Some(c) = &suite.cloth {
-        println!("\ncloth study ({}):", c.scene.display());
-        let cl = cloth::study(&base.join(&c.scene), c.steps, &c.detection_sizes, out)?;
+        println!("\ncloth study:");
+        let scenes: Vec<(std::path::PathBuf, usize)> =
+            c.scenes.iter().map(|s| (base.join(&s.scene), s.steps)).collect();
+        let cl = cloth::study(&scenes, &c.detection_sizes, out)?;
         write_json(out.join("cloth.json"), &cl)?;
         print!("{}", cloth::table(&cl));
     }

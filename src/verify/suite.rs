@@ -41,10 +41,8 @@ pub struct Suite {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ClothSuite {
-    /// The scene (relative to the suite file).
-    pub scene: PathBuf,
-    /// Steps to run.
-    pub steps: usize,
+    /// The scenes (relative to the suite file) and their steps; the first is the paper's.
+    pub scenes: Vec<SuiteScene>,
     /// Cloth cells per side of the detection-cost meshes.
     pub detection_sizes: Vec<usize>,
 }
