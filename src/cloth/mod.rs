@@ -372,6 +372,27 @@ fn bending_stencils(s: &TriSurface, geometry: &[TriangleGeometry]) -> Vec<(Vec<u
     out
 }
 
+/// A square cloth of `n x n` cells of side `size`, centred at the origin in the plane y = 0
+/// (vertex `(i, j)` is `j (n + 1) + i`; each cell split along its diagonal).
+pub fn grid(n: usize, size: f64) -> TriSurface {
+    let mut vertices = Vec::with_capacity((n + 1) * (n + 1));
+    for j in 0..=n {
+        for i in 0..=n {
+            let t = |k: usize| k as f64 * size / n as f64 - 0.5 * size;
+            vertices.push(Vector3::new(t(i), 0.0, t(j)));
+        }
+    }
+    let id = |i: usize, j: usize| j * (n + 1) + i;
+    let mut triangles = Vec::with_capacity(2 * n * n);
+    for j in 0..n {
+        for i in 0..n {
+            triangles.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
+            triangles.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
+        }
+    }
+    TriSurface { vertices, triangles }
+}
+
 impl Cloth {
     /// Number of triangles.
     pub fn num_triangles(&self) -> usize {

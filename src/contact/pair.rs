@@ -499,11 +499,7 @@ impl Detector {
         let motion = |v: usize| (q1[v] - q0[v]).norm();
         for (vi, &p) in col.vertices.iter().enumerate() {
             let vb = swept_box(&[p], q0, q1, pad);
-            self.epoch = self.epoch.wrapping_add(1);
-            if self.epoch == 0 {
-                self.stamp.iter_mut().for_each(|s| *s = 0);
-                self.epoch = 1;
-            }
+            self.next_epoch();
             let (grid, stamp, epoch, boxes) = (&self.grid, &mut self.stamp, self.epoch, &self.tri_boxes);
             let best = &mut self.best;
             let body = col.vertex_body[vi];
@@ -548,15 +544,10 @@ impl Detector {
             .max(col.mean_edge)
             .max(f64::MIN_POSITIVE);
         self.grid.build(cell, &self.edge_boxes);
-        let known = &self.known;
         for (ei, e) in col.edges.iter().enumerate() {
             let eb = self.edge_boxes[ei];
             let body = col.edge_body[ei];
-            self.epoch = self.epoch.wrapping_add(1);
-            if self.epoch == 0 {
-                self.stamp.iter_mut().for_each(|s| *s = 0);
-                self.epoch = 1;
-            }
+            self.next_epoch();
             let (grid, boxes, stamp, epoch) = (&self.grid, &self.edge_boxes, &mut self.stamp, self.epoch);
             let best = &mut self.best;
             let mut tested = 0;
@@ -577,12 +568,21 @@ impl Detector {
                 };
                 let verts = [e[0], e[1], g[0], g[1]];
                 let moved = motion(e[0]).max(motion(e[1])) + motion(g[0]).max(motion(g[1]));
-                if let Some(c) = accept(col, q0, q1, verts, Regime::EdgeEdge, d0, moved, query, known) {
+                if let Some(c) = accept(col, q0, q1, verts, Regime::EdgeEdge, d0, moved, query, &self.known) {
                     keep_closest(best, col.edge_body[f], c);
                 }
             });
             self.tested += tested;
             out.extend(best.iter_mut().filter_map(|b| b.take()));
+        }
+    }
+
+    /// A fresh stamp for one query's deduplication.
+    fn next_epoch(&mut self) {
+        self.epoch = self.epoch.wrapping_add(1);
+        if self.epoch == 0 {
+            self.stamp.iter_mut().for_each(|s| *s = 0);
+            self.epoch = 1;
         }
     }
 

@@ -197,6 +197,16 @@ impl Ctx<'_> {
                 .ok_or_else(|| self.invalid(format!("{where_}: \"{key}\" must be a number, got {v}"))),
         }
     }
+    /// A list of vertex indices under `key`.
+    fn indices(&self, v: &Value, where_: &str, key: &str) -> Result<Vec<usize>, SceneError> {
+        v.as_array()
+            .and_then(|a| {
+                a.iter()
+                    .map(|x| x.as_u64().map(|u| u as usize))
+                    .collect::<Option<Vec<_>>>()
+            })
+            .ok_or_else(|| self.invalid(format!("{where_}: \"{key}\" must be a list of vertex indices")))
+    }
     fn resolve(&self, file: &str) -> Result<PathBuf, SceneError> {
         let dir = self.path.parent().unwrap_or(Path::new("."));
         let candidates = [dir.parent().unwrap_or(dir).join(file), dir.join(file)];
@@ -306,14 +316,7 @@ pub fn import(path: &Path, value: &Value, opts: LoadOptions) -> Result<Scene, Sc
         let mut spec = BodySpec::new(&name, m, material, MassSpec::Total(total));
         spec.gravity = cx.number(mj, "Enable Gravity", 1.0, &w)? != 0.0;
         if let Some(av) = mj.get("Attach Verts") {
-            let ids: Vec<usize> = av
-                .as_array()
-                .and_then(|a| {
-                    a.iter()
-                        .map(|x| x.as_u64().map(|u| u as usize))
-                        .collect::<Option<Vec<_>>>()
-                })
-                .ok_or_else(|| cx.invalid(format!("{w}: \"Attach Verts\" must be a list of vertex indices")))?;
+            let ids = cx.indices(av, &w, "Attach Verts")?;
             let stiffness = mj
                 .get("Attach Stiffness")
                 .and_then(|s| s.as_f64())
@@ -478,14 +481,7 @@ fn paper_cloth(cx: &mut Ctx<'_>, k: usize, cj: &Value) -> Result<crate::cloth::C
     let mut spec = crate::cloth::ClothSpec::new(&name, surface, stretching, bending, area_density);
     spec.source = path.display().to_string();
     if let Some(av) = cj.get("Attach Verts") {
-        let ids: Vec<usize> = av
-            .as_array()
-            .and_then(|a| {
-                a.iter()
-                    .map(|x| x.as_u64().map(|u| u as usize))
-                    .collect::<Option<Vec<_>>>()
-            })
-            .ok_or_else(|| cx.invalid(format!("{w}: \"Attach Verts\" must be a list of vertex indices")))?;
+        let ids = cx.indices(av, &w, "Attach Verts")?;
         let n = spec.surface.vertices.len();
         if let Some(bad) = ids.iter().find(|&&v| v >= n) {
             return Err(cx.invalid(format!(

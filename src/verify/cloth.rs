@@ -18,7 +18,6 @@ use crate::cloth::ClothSpec;
 use crate::constraint::svd::svd3;
 use crate::contact::pair::{BodyCollision, Detector, Query};
 use crate::mesh::generate::BoxSpec;
-use crate::mesh::surface::TriSurface;
 use crate::output::FrameWriter;
 use crate::plot::{self, LinearChart, LogLogChart, Panel, Series, Snapshots};
 use crate::report::{Header, Verdict};
@@ -280,25 +279,6 @@ pub fn run(scene_path: &Path, steps: usize, frames: Option<(&Path, usize)>) -> R
 /// A cloth grid of `n x n` cells (1 m square, in the plane y = 0) under a box of
 /// `n/4 x n/8 x n/4` cells resting 0.5 mm above it: the collision surfaces for the cost study.
 pub fn detection_scene(n: usize) -> Result<Model> {
-    let size = 1.0;
-    let mut vertices = Vec::new();
-    for j in 0..=n {
-        for i in 0..=n {
-            vertices.push(Vector3::new(
-                i as f64 * size / n as f64 - 0.5,
-                0.0,
-                j as f64 * size / n as f64 - 0.5,
-            ));
-        }
-    }
-    let id = |i: usize, j: usize| j * (n + 1) + i;
-    let mut triangles = Vec::new();
-    for j in 0..n {
-        for i in 0..n {
-            triangles.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
-            triangles.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
-        }
-    }
     let m = (n / 4).max(1);
     let mesh = BoxSpec::new([m, (m / 2).max(1), m], [0.5, 0.25, 0.5])
         .origin([-0.23, 5e-4, -0.27])
@@ -314,13 +294,7 @@ pub fn detection_scene(n: usize) -> Result<Model> {
     );
     Ok(ModelBuilder::new()
         .body(body)
-        .cloth(ClothSpec::new(
-            "cloth",
-            TriSurface { vertices, triangles },
-            100.0,
-            0.0,
-            1.0,
-        ))
+        .cloth(ClothSpec::new("cloth", crate::cloth::grid(n, 1.0), 100.0, 0.0, 1.0))
         .collisions(BodyCollision {
             thickness: 1e-3,
             friction: 0.1,

@@ -734,33 +734,10 @@ pub fn ground_contact(steps: usize) -> Result<Case> {
 /// the box's vertices and the cloth's collide (vertex-face pairs in both directions, friction).
 /// The loss is a weighted sum of the box's final barycentre coordinates.
 pub fn ball_on_cloth(steps: usize) -> Result<Case> {
-    let (n, size) = (6, 0.6);
-    let mut vertices = Vec::new();
-    for j in 0..=n {
-        for i in 0..=n {
-            let (x, z) = (
-                i as f64 * size / n as f64 - 0.5 * size,
-                j as f64 * size / n as f64 - 0.5 * size,
-            );
-            vertices.push(Vector3::new(x, 0.0, z));
-        }
-    }
+    let n = 6;
     let id = |i: usize, j: usize| j * (n + 1) + i;
-    let mut triangles = Vec::new();
-    for j in 0..n {
-        for i in 0..n {
-            triangles.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
-            triangles.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
-        }
-    }
     let corners = [id(0, 0), id(n, 0), id(0, n), id(n, n)];
-    let mut cloth = crate::cloth::ClothSpec::new(
-        "cloth",
-        crate::mesh::surface::TriSurface { vertices, triangles },
-        200.0,
-        5e-4,
-        3.0,
-    );
+    let mut cloth = crate::cloth::ClothSpec::new("cloth", crate::cloth::grid(n, 0.6), 200.0, 5e-4, 3.0);
     cloth.attachments = corners.iter().map(|&v| (v, 1e4)).collect();
     let mesh = BoxSpec::new([2, 1, 2], [0.16, 0.08, 0.16])
         .jitter(0.1, 11)
