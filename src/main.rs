@@ -487,6 +487,7 @@ fn run(command: Command) -> Result<()> {
                 verify::gradients::baymax_torques(&root.join("scenes/baymax_skeleton.json"), steps)?,
                 verify::gradients::baymax_ground(&root.join("scenes/baymax_skeleton.json"), steps)?,
                 verify::gradients::ball_on_cloth(steps)?,
+                verify::gradients::paper_ball_on_cloth(&root.join("scenes/ball_on_cloth.json"), steps)?,
             ];
             let checks = verify::gradients::check_all(&cases, 2021);
             let mut failed = 0;

@@ -29,6 +29,21 @@ fn ball_on_cloth_gradients_match_finite_differences() {
 }
 
 #[test]
+fn paper_ball_gradients_through_cloth_contact_match_finite_differences() {
+    let path = common::root().join("verification/scenes/ball_on_cloth.json");
+    let case = gradients::paper_ball_on_cloth(&path, 12).unwrap();
+    let c = check_case(&case, 7);
+    assert!(c.error.is_none(), "{:?}", c.error);
+    for g in &c.modes[0].groups {
+        eprintln!(
+            "{}: analytic {:e}, best fd {:e} (step {:e}), rel {:e}",
+            g.group, g.analytic, g.fd_best, g.step_best, g.rel_error_best
+        );
+        assert!(g.passes, "{}", g.group);
+    }
+}
+
+#[test]
 fn paper_ball_on_cloth_runs_from_its_file_without_penetration() {
     use diffsoft::verify::cloth;
     let path = common::root().join("verification/paper/cloth_ball/cloth_ball.json");

@@ -786,6 +786,55 @@ pub fn ball_on_cloth(steps: usize) -> Result<Case> {
     })
 }
 
+/// The paper's ball (43 vertices, 80 tets) thrown onto the paper's flag cloth pinned along its
+/// edges (`verification/scenes/ball_on_cloth.json`), starting 2 mm above it so that contact
+/// acts within a few steps; loss: a weighted sum of the ball's final barycentre coordinates.
+pub fn paper_ball_on_cloth(scene_path: &Path, steps: usize) -> Result<Case> {
+    let sc =
+        scene::load(scene_path, LoadOptions::default()).with_context(|| format!("loading {}", scene_path.display()))?;
+    let model = sc.model;
+    let ball = model.bodies[0].vertices.clone();
+    let cloth_top = model
+        .cloth
+        .as_ref()
+        .context("the scene has no cloth")?
+        .bodies
+        .iter()
+        .flat_map(|b| b.vertices.clone())
+        .map(|v| model.rest[v].y)
+        .fold(f64::NEG_INFINITY, f64::max);
+    let bottom = ball.clone().map(|v| model.rest[v].y).fold(f64::INFINITY, f64::min);
+    let mut q = model.rest.clone();
+    let mut v = model.initial_velocity.clone();
+    for i in ball.clone() {
+        q[i].y += cloth_top + 2e-3 - bottom;
+        v[i] = Vector3::new(0.2, -1.0, 0.1);
+    }
+    Ok(Case {
+        name: "paper_ball_on_cloth".into(),
+        description: "the paper's ball (80 tets, 5 kPa) thrown at 1 m/s onto the paper's flag cloth (128 triangles) pinned along its edges, from 2 mm above: contacts between the bodies both ways with friction 0.3; loss: 0.3 x + y + 0.2 z of the ball's final barycentre".into(),
+        settings: gradcheck_settings(sc.settings.dt, 8),
+        steps,
+        loss: Box::new(CenterOfMass {
+            direction: Vector3::new(0.3, 1.0, 0.2),
+            time_average: false,
+            vertices: Some(ball.clone().collect()),
+        }),
+        controls: Controls {
+            initial: Some((q, v)),
+            ..Controls::default()
+        },
+        groups: (0..3)
+            .map(|axis| Group::BodyVelocity {
+                body: "ball".into(),
+                vertices: ball.clone(),
+                axis,
+            })
+            .collect(),
+        model,
+    })
+}
+
 /// A beam held by attachment springs at one end, bent by a pneumatic group (top layer) and a
 /// muscle group (bottom layer) with time-varying activations.
 pub fn actuated(steps: usize) -> Result<Case> {
@@ -1238,6 +1287,8 @@ pub struct Inputs<'a> {
     pub memory_scene: &'a Path,
     /// Horizons of the memory study.
     pub memory_steps: &'a [usize],
+    /// The paper's ball on its flag cloth (diffsoft scene).
+    pub ball_on_cloth: &'a Path,
     /// Steps of the checks.
     pub steps: usize,
     /// Steps of the system identification.
@@ -1260,6 +1311,7 @@ pub fn study(inp: &Inputs<'_>, out: &Path) -> Result<GradientsReport> {
         baymax_torques(inp.baymax_skeleton, inp.steps)?,
         baymax_ground(inp.baymax_skeleton, inp.steps)?,
         ball_on_cloth(inp.steps)?,
+        paper_ball_on_cloth(inp.ball_on_cloth, inp.steps)?,
     ];
     let checks = check_all(&cases, 2021);
     for c in &checks {

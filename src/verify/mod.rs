@@ -741,6 +741,7 @@ pub fn run_suite(suite_path: &Path, out: &Path) -> Result<SuiteBoundsReport> {
         &gradients::Inputs {
             bridgesus: &base.join(&gs.bridgesus),
             baymax_skeleton: &base.join(&gs.baymax_skeleton),
+            ball_on_cloth: &base.join(&gs.ball_on_cloth),
             memory_scene: &base.join(&gs.memory_scene),
             memory_steps: &gs.memory_steps,
             steps: gs.steps,

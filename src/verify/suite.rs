@@ -71,6 +71,8 @@ pub struct GradientSuite {
     pub bridgesus: PathBuf,
     /// The Baymax skeleton scene.
     pub baymax_skeleton: PathBuf,
+    /// The ball-on-cloth scene (diffsoft format).
+    pub ball_on_cloth: PathBuf,
     /// Scene of the memory study.
     pub memory_scene: PathBuf,
     /// Horizons of the memory study.
