@@ -125,8 +125,8 @@ enum Command {
         /// Override the local-global iteration cap.
         #[arg(long)]
         max_iterations: Option<usize>,
-        /// Paper scenes: simulate the bodies without features not supported yet (cloth)
-        /// instead of failing.
+        /// Paper scenes: drop features this version cannot simulate, with a note, instead of
+        /// failing (every feature of the paper's own files is simulated now).
         #[arg(long)]
         passive: bool,
         /// Hold an actuator group at an activation for the whole run, `NAME=VALUE` (repeatable;

@@ -104,8 +104,8 @@ pub struct Scene {
 /// Options for reading scenes.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct LoadOptions {
-    /// Paper scenes: drop features this version cannot simulate (skeletons, actuators, cloth)
-    /// with a note instead of an error.
+    /// Paper scenes: drop features this version cannot simulate with a note instead of an
+    /// error (none of the paper's own files needs it).
     pub passive: bool,
 }
 
