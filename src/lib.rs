@@ -45,12 +45,14 @@
 pub mod actuator;
 pub mod alloc;
 pub mod analysis;
+pub mod base;
 pub mod cloth;
 pub mod constraint;
 pub mod contact;
 pub mod diff;
 pub mod fem;
 pub mod mesh;
+pub mod model;
 pub mod output;
 pub mod plot;
 pub mod report;

@@ -6,9 +6,9 @@ mod common;
 
 use common::{cube_scene, root, tmp_dir};
 use diffsoft::actuator::{fibres_along, ActuatorSpec};
+use diffsoft::base::Schedule;
 use diffsoft::mesh::generate::BoxSpec;
 use diffsoft::scene::{self, LoadOptions};
-use diffsoft::skeleton::Schedule;
 use diffsoft::solver::{BodySpec, MassSpec, Material, ModelBuilder, Settings, Simulator, SolverError};
 use diffsoft::verify::actuators::{drone, muscle_bar, octopus, pneumatic_beam, pneumatic_cube};
 use nalgebra::Vector3;
@@ -64,7 +64,7 @@ fn cube_model(actuators: Vec<ActuatorSpec>) -> Result<diffsoft::solver::Model, S
     );
     b.gravity = false;
     b.actuators = actuators;
-    ModelBuilder::new().body(b).build()
+    Ok(ModelBuilder::new().body(b).build()?)
 }
 
 #[test]

@@ -148,11 +148,12 @@ fn zero_thickness_mesh_obstacle_is_refused() {
         friction: 0.5,
         thickness,
     };
-    let e = ModelBuilder::new()
+    let e: SolverError = ModelBuilder::new()
         .body(body())
         .obstacle(obstacle(0.0))
         .build()
-        .unwrap_err();
+        .unwrap_err()
+        .into();
     assert!(matches!(e, SolverError::Input(_)));
     let m = e.to_string();
     assert!(

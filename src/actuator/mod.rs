@@ -21,9 +21,9 @@
 use nalgebra::Vector3;
 use serde::Serialize;
 
+use crate::base::InputError;
+use crate::base::Schedule;
 use crate::mesh::TetMesh;
-use crate::skeleton::Schedule;
-use crate::solver::SolverError;
 
 /// The kind of a group.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -146,10 +146,10 @@ impl Actuators {
         t0: usize,
         num_tets: usize,
         volumes: &[f64],
-    ) -> Result<(), SolverError> {
+    ) -> Result<(), InputError> {
         for spec in specs {
             let what = format!("body '{body}', actuator '{}'", spec.name);
-            let bad = |m: String| Err(SolverError::Input(format!("{what}: {m}")));
+            let bad = |m: String| Err(InputError::new(format!("{what}: {m}")));
             if self.groups.iter().any(|g| g.name == spec.name) {
                 return bad("duplicate actuator name".into());
             }

@@ -25,8 +25,8 @@ use std::ops::Range;
 use nalgebra::{Matrix2, Vector2, Vector3};
 use serde::Serialize;
 
+use crate::base::InputError;
 use crate::mesh::surface::TriSurface;
-use crate::solver::SolverError;
 
 /// Smallest normalised triangle quality `2 A / l_max^2` accepted (an equilateral triangle has
 /// `sqrt(3)/2`).
@@ -254,9 +254,9 @@ pub(crate) struct Prepared {
 }
 
 /// Validate a cloth spec and compute its rest geometry (body-local numbering).
-pub(crate) fn prepare(spec: &ClothSpec) -> Result<Prepared, SolverError> {
+pub(crate) fn prepare(spec: &ClothSpec) -> Result<Prepared, InputError> {
     let what = format!("cloth '{}' ({})", spec.name, spec.source);
-    let bad = |m: String| SolverError::Input(format!("{what}: {m}"));
+    let bad = |m: String| InputError::new(format!("{what}: {m}"));
     for (name, v) in [
         ("stretching stiffness", spec.stretching),
         ("area density", spec.area_density),

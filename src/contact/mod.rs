@@ -21,7 +21,7 @@ pub use trimesh::TriMeshObstacle;
 use nalgebra::Vector3;
 use serde::Serialize;
 
-use crate::solver::SolverError;
+use crate::base::InputError;
 
 /// Obstacle geometry.
 #[derive(Debug, Clone)]
@@ -65,8 +65,8 @@ impl Obstacle {
     }
 
     /// Check the parameters.
-    pub fn validate(&self) -> Result<(), SolverError> {
-        let bad = |m: String| Err(SolverError::Input(format!("obstacle '{}': {m}", self.name)));
+    pub fn validate(&self) -> Result<(), InputError> {
+        let bad = |m: String| Err(InputError::new(format!("obstacle '{}': {m}", self.name)));
         if !(self.friction.is_finite() && self.friction >= 0.0) {
             return bad(format!("friction must be finite and >= 0, got {}", self.friction));
         }

@@ -30,8 +30,8 @@ use nalgebra::{RealField, Vector3};
 use num_dual::Dual64;
 use serde::Serialize;
 
+use crate::base::{Body, InputError};
 use crate::cloth::Cloth;
-use crate::solver::{Body, SolverError};
 
 /// Settings of collisions between bodies.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, serde::Deserialize)]
@@ -45,15 +45,15 @@ pub struct BodyCollision {
 
 impl BodyCollision {
     /// Check the parameters.
-    pub fn validate(&self) -> Result<(), SolverError> {
+    pub fn validate(&self) -> Result<(), InputError> {
         if !(self.thickness.is_finite() && self.thickness > 0.0) {
-            return Err(SolverError::Input(format!(
+            return Err(InputError::new(format!(
                 "collision thickness must be finite and positive, got {}",
                 self.thickness
             )));
         }
         if !(self.friction.is_finite() && self.friction >= 0.0) {
-            return Err(SolverError::Input(format!(
+            return Err(InputError::new(format!(
                 "collision friction must be finite and >= 0, got {}",
                 self.friction
             )));
@@ -125,7 +125,7 @@ impl Colliders {
         cloth: Option<&Cloth>,
         fixed: &[bool],
         rest: &[Vector3<f64>],
-    ) -> Result<Self, SolverError> {
+    ) -> Result<Self, InputError> {
         let n = rest.len();
         settings.validate()?;
         let mut c = Self {
@@ -150,7 +150,7 @@ impl Colliders {
             }
         }
         if surfaces.len() < 2 {
-            return Err(SolverError::Input(format!(
+            return Err(InputError::new(format!(
                 "collisions between bodies need at least two bodies, the scene has {}",
                 surfaces.len()
             )));

@@ -5,7 +5,7 @@
 
 use nalgebra::Vector3;
 
-use crate::solver::SolverError;
+use crate::base::InputError;
 
 #[derive(Debug, Clone, Copy)]
 struct Aabb {
@@ -134,24 +134,24 @@ fn segment_hits_triangle(
 impl TriMeshObstacle {
     /// Build from vertices and triangles (validates indices, finiteness and non-degenerate
     /// triangles).
-    pub fn new(vertices: Vec<Vector3<f64>>, triangles: Vec<[usize; 3]>) -> Result<Self, SolverError> {
+    pub fn new(vertices: Vec<Vector3<f64>>, triangles: Vec<[usize; 3]>) -> Result<Self, InputError> {
         if triangles.is_empty() {
-            return Err(SolverError::Input("obstacle mesh has no triangles".into()));
+            return Err(InputError::new("obstacle mesh has no triangles"));
         }
         if !vertices.iter().all(|v| v.iter().all(|c| c.is_finite())) {
-            return Err(SolverError::Input("obstacle mesh has non-finite vertices".into()));
+            return Err(InputError::new("obstacle mesh has non-finite vertices"));
         }
         let mut normals = Vec::with_capacity(triangles.len());
         for (k, t) in triangles.iter().enumerate() {
             if t.iter().any(|&i| i >= vertices.len()) {
-                return Err(SolverError::Input(format!(
+                return Err(InputError::new(format!(
                     "obstacle triangle {k} has a vertex index out of range ({} vertices)",
                     vertices.len()
                 )));
             }
             let n = (vertices[t[1]] - vertices[t[0]]).cross(&(vertices[t[2]] - vertices[t[0]]));
             if n.norm() == 0.0 || n.norm().is_nan() {
-                return Err(SolverError::Input(format!(
+                return Err(InputError::new(format!(
                     "obstacle triangle {k} is degenerate (zero area)"
                 )));
             }

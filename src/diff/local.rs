@@ -22,7 +22,7 @@ use crate::actuator::ActuatorKind;
 use crate::constraint::actuator::{muscle_jacobian, nearest_product_jacobian, pair_coefficients};
 use crate::constraint::svd::{svd3_warm, svd3_warm_batch, Svd3, LANES};
 use crate::constraint::volume;
-use crate::solver::Model;
+use crate::model::Model;
 
 use super::DiffError;
 

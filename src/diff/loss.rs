@@ -3,7 +3,7 @@
 
 use nalgebra::Vector3;
 
-use crate::solver::Model;
+use crate::model::Model;
 
 use super::DiffError;
 

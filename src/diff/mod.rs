@@ -45,9 +45,10 @@ use std::time::Instant;
 use nalgebra::Vector3;
 use serde::Serialize;
 
+use crate::model::Model;
 use crate::solver::direct::Direct;
 use crate::solver::global::{FreeContact, GlobalSystem, InnerControl};
-use crate::solver::{Model, Settings, Simulator, SolverError, SolverKind};
+use crate::solver::{Settings, Simulator, SolverError, SolverKind};
 
 use contact::ContactAdjoint;
 use local::{Linearize, LocalAdjoint};
@@ -71,6 +72,12 @@ pub enum DiffError {
     /// The forward simulation failed.
     #[error(transparent)]
     Solver(#[from] SolverError),
+}
+
+impl From<crate::base::InputError> for DiffError {
+    fn from(e: crate::base::InputError) -> Self {
+        DiffError::Solver(SolverError::Input(e))
+    }
 }
 
 /// How steps are differentiated.

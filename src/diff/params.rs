@@ -4,7 +4,7 @@
 use std::fmt;
 use std::str::FromStr;
 
-use crate::solver::Model;
+use crate::model::Model;
 
 use super::{DiffError, Gradient};
 

@@ -36,10 +36,11 @@ use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
 use super::contact::project_jacobian;
 use super::local::{Linearize, LocalAdjoint};
 use super::{Backward, DiffError, Gradient};
+use crate::model::Model;
 use crate::skeleton::Skeleton;
 use crate::solver::global::FreeContact;
 use crate::solver::skeletal::Skeletal;
-use crate::solver::{Model, Recording};
+use crate::solver::Recording;
 
 /// Buffers of the skeleton's backward pass.
 #[derive(Debug, Clone)]

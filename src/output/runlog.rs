@@ -3,9 +3,10 @@
 
 use serde::Serialize;
 
+use crate::base::Body;
 use crate::cloth::ClothBody;
 use crate::report::Header;
-use crate::solver::{Body, Certificate, Settings, StepStats};
+use crate::solver::{Certificate, Settings, StepStats};
 
 /// Schema of the run log.
 pub const RUN_SCHEMA: &str = "diffsoft.run/1";

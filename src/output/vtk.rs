@@ -10,7 +10,7 @@ use vtkio::model::{
     VertexNumbers, Vtk,
 };
 
-use crate::solver::Model;
+use crate::model::Model;
 
 /// Writes numbered frames into a directory and keeps the time collection up to date.
 #[derive(Debug)]

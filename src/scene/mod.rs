@@ -20,10 +20,12 @@ use std::path::{Path, PathBuf};
 use nalgebra::{Rotation3, Vector3};
 use serde::Serialize;
 
+use crate::base::{InputError, Material};
 use crate::contact::{Obstacle, Shape, TriMeshObstacle};
 use crate::mesh::{self, MeshInfo, TetMesh};
+use crate::model::{BodySpec, MassSpec, Model, ModelBuilder};
 use crate::skeleton::BoneSpec;
-use crate::solver::{BodySpec, MassSpec, Material, Model, ModelBuilder, Settings, SolverError};
+use crate::solver::Settings;
 use format::{SceneFile, VertexSelector, SCENE_SCHEMA};
 
 /// Errors reading a scene; each names the scene file.
@@ -65,12 +67,12 @@ pub enum SceneError {
     #[error("{0}")]
     Mesh(#[from] mesh::MeshError),
     /// The assembled model is invalid.
-    #[error("{path}: {source}")]
+    #[error("{path}: invalid input: {source}")]
     Model {
         /// Scene path.
         path: String,
         /// Cause.
-        source: SolverError,
+        source: InputError,
     },
 }
 
@@ -250,7 +252,8 @@ fn bones_from_file(
     mesh: &TetMesh,
     info: &MeshInfo,
 ) -> Result<Vec<BoneSpec>, SceneError> {
-    use crate::skeleton::{fixed::Fixed, free::Free, prismatic::Prismatic, rotational::Rotational, Joint, Schedule};
+    use crate::base::Schedule;
+    use crate::skeleton::{fixed::Fixed, free::Free, prismatic::Prismatic, rotational::Rotational, Joint};
     use format::JointFile;
     let invalid = |message: String| SceneError::Invalid {
         path: scene.to_string(),
@@ -390,7 +393,7 @@ fn actuator_from_file(
     info: &MeshInfo,
 ) -> Result<crate::actuator::ActuatorSpec, SceneError> {
     use crate::actuator::{fibres_along, fibres_from_polyline, ActuatorSpec};
-    use crate::skeleton::Schedule;
+    use crate::base::Schedule;
     let what = format!("body '{body}', actuator '{}'", a.name);
     let invalid = |message: String| SceneError::Invalid {
         path: scene.to_string(),

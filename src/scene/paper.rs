@@ -36,9 +36,11 @@ use nalgebra::Vector3;
 use serde_json::Value;
 
 use super::{LoadOptions, Scene, SceneError, SceneFormat};
+use crate::base::Material;
 use crate::contact::{Obstacle, Shape, TriMeshObstacle};
 use crate::mesh;
-use crate::solver::{BodySpec, MassSpec, Material, ModelBuilder, Settings};
+use crate::model::{BodySpec, MassSpec, ModelBuilder};
+use crate::solver::Settings;
 
 /// Attach stiffness at or above which attachments become Dirichlet vertices.
 pub const DIRICHLET_STIFFNESS: f64 = 1e12;
@@ -626,7 +628,7 @@ fn paper_pneumatic(
     stiffness: f64,
 ) -> Result<Vec<crate::actuator::ActuatorSpec>, SceneError> {
     use crate::actuator::{tets_of_vertices, ActuatorSpec};
-    use crate::skeleton::Schedule;
+    use crate::base::Schedule;
     let list = groups
         .as_array()
         .ok_or_else(|| cx.invalid(format!("{w}: \"Volume Verts\" must be a list of vertex lists")))?;
@@ -678,7 +680,7 @@ fn paper_muscles(
     stiffness: f64,
 ) -> Result<Vec<crate::actuator::ActuatorSpec>, SceneError> {
     use crate::actuator::{nearest_segments, ActuatorSpec};
-    use crate::skeleton::Schedule;
+    use crate::base::Schedule;
     let shown = path.display().to_string();
     let text = std::fs::read_to_string(path).map_err(|e| SceneError::Io {
         path: shown.clone(),

@@ -21,60 +21,13 @@ pub mod rotational;
 
 pub use joint::Joint;
 
+#[doc(hidden)]
+pub use crate::base::Schedule;
+
 use nalgebra::{DMatrix, Matrix4, Vector3, Vector4};
 use num_dual::Dual64;
-use serde::Serialize;
 
-use crate::solver::SolverError;
-
-/// Piecewise-linear time series (constant before the first and after the last sample).
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct Schedule {
-    /// Sample times, increasing.
-    pub times: Vec<f64>,
-    /// Values at those times.
-    pub values: Vec<f64>,
-}
-
-impl Schedule {
-    /// A constant value.
-    pub fn constant(v: f64) -> Self {
-        Self {
-            times: vec![0.0],
-            values: vec![v],
-        }
-    }
-
-    /// Check lengths, order and finiteness.
-    pub fn validate(&self, what: &str) -> Result<(), SolverError> {
-        let bad = |m: &str| Err(SolverError::Input(format!("{what}: {m}")));
-        if self.times.is_empty() || self.times.len() != self.values.len() {
-            return bad("needs as many values as times, at least one");
-        }
-        if !self.times.iter().chain(&self.values).all(|v| v.is_finite()) {
-            return bad("times and values must be finite");
-        }
-        if self.times.windows(2).any(|w| w[1] <= w[0]) {
-            return bad("times must increase");
-        }
-        Ok(())
-    }
-
-    /// Value at time `t`.
-    pub fn at(&self, t: f64) -> f64 {
-        let n = self.times.len();
-        if t <= self.times[0] {
-            return self.values[0];
-        }
-        if t >= self.times[n - 1] {
-            return self.values[n - 1];
-        }
-        let k = self.times.partition_point(|&s| s <= t);
-        let (t0, t1) = (self.times[k - 1], self.times[k]);
-        let a = (t - t0) / (t1 - t0);
-        self.values[k - 1] * (1.0 - a) + self.values[k] * a
-    }
-}
+use crate::base::InputError;
 
 /// A bone as given by a scene.
 #[derive(Debug)]
@@ -141,18 +94,18 @@ pub struct Skeleton {
 impl Skeleton {
     /// Build from specs: reorders parents before children, checks indices, that no vertex is in
     /// two bones, and torque schedules.
-    pub fn new(specs: Vec<BoneSpec>, rest: &[Vector3<f64>]) -> Result<Self, SolverError> {
+    pub fn new(specs: Vec<BoneSpec>, rest: &[Vector3<f64>]) -> Result<Self, InputError> {
         let n = specs.len();
         for (i, s) in specs.iter().enumerate() {
             if let Some(p) = s.parent {
                 if p >= n {
-                    return Err(SolverError::Input(format!(
+                    return Err(InputError::new(format!(
                         "bone '{}': parent {p} does not exist ({n} bones)",
                         s.name
                     )));
                 }
                 if p == i {
-                    return Err(SolverError::Input(format!("bone '{}' is its own parent", s.name)));
+                    return Err(InputError::new(format!("bone '{}' is its own parent", s.name)));
                 }
             }
         }
@@ -169,7 +122,7 @@ impl Skeleton {
             }
             if order.len() == before {
                 let stuck: Vec<&str> = (0..n).filter(|&i| !placed[i]).map(|i| specs[i].name.as_str()).collect();
-                return Err(SolverError::Input(format!("the bones {stuck:?} form a cycle")));
+                return Err(InputError::new(format!("the bones {stuck:?} form a cycle")));
             }
         }
         let mut new_index = vec![0usize; n];
@@ -185,14 +138,14 @@ impl Skeleton {
             let s = slots[i].take().expect("each bone placed once");
             for &v in &s.vertices {
                 if v >= rest.len() {
-                    return Err(SolverError::Input(format!(
+                    return Err(InputError::new(format!(
                         "bone '{}': vertex {v} out of range ({} vertices)",
                         s.name,
                         rest.len()
                     )));
                 }
                 if owner[v] != usize::MAX {
-                    return Err(SolverError::Input(format!(
+                    return Err(InputError::new(format!(
                         "vertex {v} belongs to two bones ('{}' and another)",
                         s.name
                     )));
@@ -202,7 +155,7 @@ impl Skeleton {
             if let Some(t) = &s.torque {
                 t.validate(&format!("bone '{}' torque", s.name))?;
                 if s.joint.dofs() != 1 {
-                    return Err(SolverError::Input(format!(
+                    return Err(InputError::new(format!(
                         "bone '{}': torques act on 1-DoF joints, this one is {}",
                         s.name,
                         s.joint.kind()
@@ -357,37 +310,35 @@ impl Skeleton {
 
     /// Set (or with `None` release) the torque on coordinate `dof`, which must belong to a
     /// one-DoF joint, overriding its schedule.
-    pub fn set_torque(&mut self, dof: usize, value: Option<f64>) -> Result<(), SolverError> {
+    pub fn set_torque(&mut self, dof: usize, value: Option<f64>) -> Result<(), InputError> {
         let b = self
             .bones
             .iter()
             .find(|b| dof >= b.dof_offset && dof < b.dof_offset + b.joint.dofs())
-            .ok_or_else(|| {
-                SolverError::Input(format!("coordinate {dof} does not exist ({} coordinates)", self.dofs))
-            })?;
+            .ok_or_else(|| InputError::new(format!("coordinate {dof} does not exist ({} coordinates)", self.dofs)))?;
         if b.joint.dofs() != 1 {
-            return Err(SolverError::Input(format!(
+            return Err(InputError::new(format!(
                 "bone '{}': torques act on one-DoF joints, this one is {}",
                 b.name,
                 b.joint.kind()
             )));
         }
         if value.is_some_and(|v| !v.is_finite()) {
-            return Err(SolverError::Input(format!("bone '{}': torque must be finite", b.name)));
+            return Err(InputError::new(format!("bone '{}': torque must be finite", b.name)));
         }
         self.torque_override[dof] = value;
         Ok(())
     }
 
     /// The coordinate of the one-DoF joint of bone `name`.
-    pub fn scalar_dof(&self, name: &str) -> Result<usize, SolverError> {
+    pub fn scalar_dof(&self, name: &str) -> Result<usize, InputError> {
         let b = self
             .bones
             .iter()
             .find(|b| b.name == name)
-            .ok_or_else(|| SolverError::Input(format!("no bone named '{name}'")))?;
+            .ok_or_else(|| InputError::new(format!("no bone named '{name}'")))?;
         if b.joint.dofs() != 1 {
-            return Err(SolverError::Input(format!(
+            return Err(InputError::new(format!(
                 "bone '{name}': a {} joint has no single coordinate",
                 b.joint.kind()
             )));
@@ -413,9 +364,9 @@ impl Skeleton {
     }
 
     /// Restore a state written by [`Skeleton::save_state`].
-    pub fn load_state(&mut self, s: &[f64]) -> Result<(), SolverError> {
+    pub fn load_state(&mut self, s: &[f64]) -> Result<(), InputError> {
         if s.len() != self.state_len() || !s.iter().all(|v| v.is_finite()) {
-            return Err(SolverError::Input(format!(
+            return Err(InputError::new(format!(
                 "skeleton state: expected {} finite numbers, got {}",
                 self.state_len(),
                 s.len()

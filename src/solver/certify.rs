@@ -101,7 +101,7 @@ pub fn certify(
         return Ok(cert);
     }
     let it = IterationSystem::from_parts(sys.l.clone(), sys.mass.clone(), sys.attachment.clone())
-        .map_err(|e| SolverError::Input(e.to_string()))?;
+        .map_err(|e| SolverError::input(e.to_string()))?;
     let spectral = |e: crate::analysis::AnalysisError| SolverError::Certification(e.to_string());
     let need_check = policy != CertifyPolicy::Off || requested == SolverKind::Chebyshev;
     if !need_check {

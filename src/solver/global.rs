@@ -14,10 +14,10 @@
 use nalgebra::Vector3;
 use serde::Serialize;
 
-use super::model::Model;
 use super::SolverError;
 use crate::contact::{project, Contact};
 use crate::fem::SymCsc;
+use crate::model::Model;
 
 /// Which global solver.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, serde::Deserialize, clap::ValueEnum)]
@@ -70,7 +70,7 @@ impl GlobalSystem {
     /// Assemble for time step `h`.
     pub fn new(model: &Model, h: f64) -> Result<Self, SolverError> {
         if !(h.is_finite() && h > 0.0) {
-            return Err(SolverError::Input(format!(
+            return Err(SolverError::input(format!(
                 "time step must be finite and positive, got {h}"
             )));
         }

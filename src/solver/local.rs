@@ -6,12 +6,12 @@
 use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
 
-use super::model::Model;
 use super::SolverError;
 use crate::actuator::ActuatorKind;
 use crate::constraint::actuator::{muscle_target, pneumatic_target};
 use crate::constraint::svd::{self, LANES};
 use crate::constraint::{volume, ProjectionError};
+use crate::model::Model;
 
 /// One tet's decomposition at a local step: the SVD of `F` and the volume projection's target
 /// singular values (zero where the tet has no volume constraint). Recorded for the backward pass,
@@ -171,7 +171,7 @@ impl LocalStep {
     ) -> Result<f64, SolverError> {
         let tets = &model.tets;
         if record.as_ref().is_some_and(|r| r.len() != tets.len()) {
-            return Err(SolverError::Input(format!(
+            return Err(SolverError::input(format!(
                 "local step record has {} entries for {} tets",
                 record.map_or(0, |r| r.len()),
                 tets.len()

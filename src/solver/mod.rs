@@ -22,7 +22,6 @@ pub mod certify;
 pub mod direct;
 pub mod global;
 pub mod local;
-pub mod model;
 pub mod skeletal;
 pub mod warm;
 
@@ -31,11 +30,13 @@ use std::time::Instant;
 use nalgebra::Vector3;
 use serde::Serialize;
 
+pub use crate::base::{Body, Material};
+pub use crate::model::{BodySpec, MassSpec, Model, ModelBuilder};
 pub use certify::{Certificate, CertifyPolicy};
 pub use global::{GlobalSolver, GlobalStats, GlobalSystem, SolverKind};
-pub use model::{Body, BodySpec, MassSpec, Material, Model, ModelBuilder};
 
 use crate::analysis::spectral::EigenMethod;
+use crate::base::InputError;
 use crate::constraint::ProjectionError;
 use crate::contact::pair::{BodyCollision, Detector, PairContact, Query as PairQuery};
 use crate::contact::{self, Contact};
@@ -47,7 +48,7 @@ use local::LocalStep;
 pub enum SolverError {
     /// Physically meaningless or inconsistent input.
     #[error("invalid input: {0}")]
-    Input(String),
+    Input(#[from] InputError),
     /// The chosen iteration diverges at this time step (certified check).
     #[error("time step rejected by certification: {0}")]
     Uncertified(String),
@@ -114,6 +115,13 @@ pub struct Settings {
     pub anderson: usize,
 }
 
+impl SolverError {
+    /// An input error with this message.
+    pub(crate) fn input(message: impl Into<String>) -> Self {
+        Self::Input(InputError::new(message))
+    }
+}
+
 impl Default for Settings {
     fn default() -> Self {
         Self {
@@ -135,7 +143,7 @@ impl Default for Settings {
 
 impl Settings {
     fn validate(&self) -> Result<(), SolverError> {
-        let bad = |m: String| Err(SolverError::Input(m));
+        let bad = |m: String| Err(SolverError::input(m));
         if !(self.dt.is_finite() && self.dt > 0.0) {
             return bad(format!("time step must be finite and positive, got {}", self.dt));
         }
@@ -529,8 +537,8 @@ fn build_solver(
     system: &GlobalSystem,
 ) -> Result<(Box<dyn GlobalSolver>, Certificate), SolverError> {
     if model.collision.is_some() && model.skeleton.is_some() {
-        return Err(SolverError::Input(
-            "collisions between bodies with a skeleton are not supported yet (bone vertices in a pair contact)".into(),
+        return Err(SolverError::input(
+            "collisions between bodies with a skeleton are not supported yet (bone vertices in a pair contact)",
         ));
     }
     let cert = if model.collision.is_some() && settings.solver != SolverKind::Direct {
@@ -670,7 +678,7 @@ impl Simulator {
     /// Replace the state (positions and velocities must have the model's vertex count).
     pub fn set_state(&mut self, q: Vec<Vector3<f64>>, v: Vec<Vector3<f64>>) -> Result<(), SolverError> {
         if q.len() != self.model.n() || v.len() != self.model.n() {
-            return Err(SolverError::Input(format!(
+            return Err(SolverError::input(format!(
                 "state has {} positions and {} velocities, the model {} vertices",
                 q.len(),
                 v.len(),
@@ -678,7 +686,7 @@ impl Simulator {
             )));
         }
         if !q.iter().chain(&v).all(|x| x.iter().all(|c| c.is_finite())) {
-            return Err(SolverError::Input("state has non-finite entries".into()));
+            return Err(SolverError::input("state has non-finite entries"));
         }
         self.state.q = q;
         self.state.v = v;
@@ -691,14 +699,14 @@ impl Simulator {
         let (sk, _) = self
             .skeleton
             .as_mut()
-            .ok_or_else(|| SolverError::Input("the model has no skeleton".into()))?;
+            .ok_or_else(|| SolverError::input("the model has no skeleton"))?;
         let b = sk
             .bones
             .iter_mut()
             .find(|b| b.name == bone)
-            .ok_or_else(|| SolverError::Input(format!("no bone named '{bone}'")))?;
+            .ok_or_else(|| SolverError::input(format!("no bone named '{bone}'")))?;
         if c.len() != b.joint.coordinates().len() || !c.iter().all(|v| v.is_finite()) {
-            return Err(SolverError::Input(format!(
+            return Err(SolverError::input(format!(
                 "bone '{bone}': expected {} finite coordinates, got {c:?}",
                 b.joint.coordinates().len()
             )));
@@ -720,13 +728,13 @@ impl Simulator {
             .model
             .actuators
             .as_ref()
-            .ok_or_else(|| SolverError::Input("the model has no actuators".into()))?;
+            .ok_or_else(|| SolverError::input("the model has no actuators"))?;
         let g = act
             .group(name)
-            .ok_or_else(|| SolverError::Input(format!("no actuator group named '{name}'")))?;
+            .ok_or_else(|| SolverError::input(format!("no actuator group named '{name}'")))?;
         let kind = act.groups[g].kind;
         if !kind.admits(a) {
-            return Err(SolverError::Input(format!(
+            return Err(SolverError::input(format!(
                 "actuator '{name}': activation {a} out of range ({})",
                 kind.range()
             )));
@@ -742,7 +750,7 @@ impl Simulator {
             .actuators
             .as_ref()
             .and_then(|a| a.group(name))
-            .ok_or_else(|| SolverError::Input(format!("no actuator group named '{name}'")))?;
+            .ok_or_else(|| SolverError::input(format!("no actuator group named '{name}'")))?;
         self.activation_override[g] = None;
         Ok(())
     }
@@ -798,8 +806,8 @@ impl Simulator {
         let (sk, _) = self
             .skeleton
             .as_mut()
-            .ok_or_else(|| SolverError::Input("the model has no skeleton".into()))?;
-        sk.load_state(s)
+            .ok_or_else(|| SolverError::input("the model has no skeleton"))?;
+        Ok(sk.load_state(s)?)
     }
 
     /// Set the torque on the one-DoF joint of bone `bone` from the next step on (`None`: follow
@@ -808,9 +816,9 @@ impl Simulator {
         let (sk, _) = self
             .skeleton
             .as_mut()
-            .ok_or_else(|| SolverError::Input("the model has no skeleton".into()))?;
+            .ok_or_else(|| SolverError::input("the model has no skeleton"))?;
         let dof = sk.scalar_dof(bone)?;
-        sk.set_torque(dof, value)
+        Ok(sk.set_torque(dof, value)?)
     }
 
     /// Set the torque on reduced coordinate `dof` (a one-DoF joint's) from the next step on.
@@ -818,8 +826,8 @@ impl Simulator {
         let (sk, _) = self
             .skeleton
             .as_mut()
-            .ok_or_else(|| SolverError::Input("the model has no skeleton".into()))?;
-        sk.set_torque(dof, value)
+            .ok_or_else(|| SolverError::input("the model has no skeleton"))?;
+        Ok(sk.set_torque(dof, value)?)
     }
 
     /// The skeleton's current state, if the model has one.

@@ -379,7 +379,7 @@ pub fn solver_agreement() -> Result<Vec<AgreementRow>, SolverError> {
                 0.4,
             ));
         }
-        b.build()
+        Ok(b.build()?)
     };
     let settings = |solver, certify| Settings {
         dt: 1e-3,

@@ -1,0 +1,19 @@
+//! The bottom layer: plain data and the input-validation error that every other module builds
+//! on. Nothing here imports the rest of the crate.
+//!
+//! * [`InputError`]: what every `validate()` and builder returns for physically meaningless or
+//!   inconsistent input; the errors of higher layers wrap it (`#[from]`).
+//! * [`Material`]: a body's elastic material and its constraint weights (docs/method.md
+//!   section 2).
+//! * [`Body`]: where one body lives in the assembled system.
+//! * [`Schedule`]: a piecewise-linear time series (activations, torques).
+
+mod body;
+mod error;
+mod material;
+mod schedule;
+
+pub use body::Body;
+pub use error::InputError;
+pub use material::Material;
+pub use schedule::Schedule;

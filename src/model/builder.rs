@@ -1,0 +1,326 @@
+//! Assembling a [`Model`] from bodies, cloth, obstacles and gravity, with validation.
+
+use nalgebra::Vector3;
+use serde::Serialize;
+
+use super::{Model, VertexTets};
+use crate::actuator::{ActuatorSpec, Actuators};
+use crate::base::{Body, InputError, Material};
+use crate::cloth::ClothSpec;
+use crate::constraint::attachment::Attachment;
+use crate::contact::pair::{BodyCollision, Colliders};
+use crate::contact::Obstacle;
+use crate::fem::{Coefficient, FemOperators};
+use crate::mesh::TetMesh;
+use crate::skeleton::{BoneSpec, Skeleton};
+
+/// How a body's mass is given.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum MassSpec {
+    /// Density (kg/m^3), lumped `rho V / 4` per tet corner.
+    Density(f64),
+    /// Total mass (kg), lumped by volume (the paper's "Mass").
+    Total(f64),
+}
+
+/// One body as given to the builder.
+#[derive(Debug)]
+pub struct BodySpec {
+    /// Name (reports, output files).
+    pub name: String,
+    /// The mesh in simulation coordinates (already scaled / placed).
+    pub mesh: TetMesh,
+    /// Material.
+    pub material: Material,
+    /// Mass.
+    pub mass: MassSpec,
+    /// Whether gravity acts on the body.
+    pub gravity: bool,
+    /// Initial velocity of every vertex.
+    pub initial_velocity: Vector3<f64>,
+    /// Vertices held fixed at their rest position (Dirichlet), body numbering.
+    pub fixed: Vec<usize>,
+    /// Penalty attachments to the rest position: (vertex, weight), body numbering.
+    pub attachments: Vec<(usize, f64)>,
+    /// Enable the volume constraint (weight `nu E/(1+nu) V`).
+    pub volume_constraint: bool,
+    /// Bones embedded in the body (vertex indices and parents are body-local).
+    pub bones: Vec<BoneSpec>,
+    /// Actuator groups (tets are body-local).
+    pub actuators: Vec<ActuatorSpec>,
+}
+
+impl BodySpec {
+    /// A body with gravity, zero initial velocity, no pins and the volume constraint on.
+    pub fn new(name: &str, mesh: TetMesh, material: Material, mass: MassSpec) -> Self {
+        Self {
+            name: name.to_string(),
+            mesh,
+            material,
+            mass,
+            gravity: true,
+            initial_velocity: Vector3::zeros(),
+            fixed: Vec::new(),
+            attachments: Vec::new(),
+            volume_constraint: true,
+            bones: Vec::new(),
+            actuators: Vec::new(),
+        }
+    }
+}
+
+/// Smallest thickness of a triangle-mesh obstacle, relative to the bodies' length scale: well
+/// above the round-off of a contact solve (a cube resting on a plate of thickness 1e-12 m fell
+/// through it; 1e-9 m held).
+pub const MIN_MESH_THICKNESS: f64 = 1e-6;
+
+/// Builds a [`Model`] from bodies, obstacles and gravity.
+#[derive(Debug, Default)]
+pub struct ModelBuilder {
+    pub(super) bodies: Vec<BodySpec>,
+    pub(super) cloths: Vec<ClothSpec>,
+    pub(super) obstacles: Vec<Obstacle>,
+    pub(super) gravity: Vector3<f64>,
+    pub(super) collision: Option<BodyCollision>,
+}
+
+impl ModelBuilder {
+    /// An empty model with no gravity.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Gravitational acceleration (m/s^2), applied to bodies with `gravity` enabled.
+    pub fn gravity(mut self, g: Vector3<f64>) -> Self {
+        self.gravity = g;
+        self
+    }
+
+    /// Add a body.
+    pub fn body(mut self, b: BodySpec) -> Self {
+        self.bodies.push(b);
+        self
+    }
+
+    /// Add a cloth body.
+    pub fn cloth(mut self, c: ClothSpec) -> Self {
+        self.cloths.push(c);
+        self
+    }
+
+    /// Let the bodies (soft and cloth) collide with each other, keeping `thickness` apart, with
+    /// Coulomb friction `friction`.
+    pub fn collisions(mut self, c: BodyCollision) -> Self {
+        self.collision = Some(c);
+        self
+    }
+
+    /// Add an obstacle.
+    pub fn obstacle(mut self, o: Obstacle) -> Self {
+        self.obstacles.push(o);
+        self
+    }
+
+    /// Validate and assemble.
+    pub fn build(mut self) -> Result<Model, InputError> {
+        if self.bodies.is_empty() && self.cloths.is_empty() {
+            return Err(InputError::new("the scene has no bodies"));
+        }
+        if !self.gravity.iter().all(|g| g.is_finite()) {
+            return Err(InputError::new(format!(
+                "gravity must be finite, got {:?}",
+                self.gravity
+            )));
+        }
+        let mut rest = Vec::new();
+        let mut tets = Vec::new();
+        let mut w_rot = Vec::new();
+        let mut w_vol = Vec::new();
+        let mut bodies = Vec::new();
+        let mut initial_velocity = Vec::new();
+        let mut accel = Vec::new();
+        let mut fixed = Vec::new();
+        let mut attachments = Vec::new();
+        let mut mass = Vec::new();
+        let mut bones: Vec<BoneSpec> = Vec::new();
+        let mut actuators = Actuators {
+            groups: Vec::new(),
+            cells: Vec::new(),
+        };
+        let mut volumes = Vec::new();
+        for b in &mut self.bodies {
+            b.material.validate(&b.name)?;
+            if !b.initial_velocity.iter().all(|v| v.is_finite()) {
+                return Err(InputError::new(format!(
+                    "body '{}': initial velocity must be finite",
+                    b.name
+                )));
+            }
+            let v0 = rest.len();
+            let t0 = tets.len();
+            let nb = b.mesh.num_vertices();
+            let fem = FemOperators::new(&b.mesh).map_err(|e| InputError::new(format!("body '{}': {e}", b.name)))?;
+            let total_volume = fem.total_volume();
+            let rho = match b.mass {
+                MassSpec::Density(rho) => rho,
+                MassSpec::Total(m) => m / total_volume,
+            };
+            if !(rho.is_finite() && rho > 0.0) {
+                return Err(InputError::new(format!(
+                    "body '{}': density and total mass must be finite and positive (density {rho})",
+                    b.name
+                )));
+            }
+            let m = fem.lumped_mass(Coefficient::Uniform(rho)).expect("density validated");
+            let body_mass: f64 = m.iter().sum();
+            mass.extend(m);
+            for g in &fem.geometry {
+                volumes.push(g.volume);
+                w_rot.push(b.material.rotation_stiffness() * g.volume);
+                w_vol.push(if b.volume_constraint {
+                    b.material.volume_stiffness() * g.volume
+                } else {
+                    0.0
+                });
+            }
+            rest.extend(b.mesh.vertices.iter().copied());
+            tets.extend(b.mesh.tets.iter().map(|t| t.map(|i| i + v0)));
+            initial_velocity.extend(std::iter::repeat_n(b.initial_velocity, nb));
+            accel.extend(std::iter::repeat_n(
+                if b.gravity { self.gravity } else { Vector3::zeros() },
+                nb,
+            ));
+            let mut is_fixed = vec![false; nb];
+            for &v in &b.fixed {
+                if v >= nb {
+                    return Err(InputError::new(format!(
+                        "body '{}': fixed vertex {v} out of range ({nb} vertices)",
+                        b.name
+                    )));
+                }
+                is_fixed[v] = true;
+            }
+            fixed.extend(is_fixed);
+            for &(v, w) in &b.attachments {
+                if v >= nb {
+                    return Err(InputError::new(format!(
+                        "body '{}': attached vertex {v} out of range ({nb} vertices)",
+                        b.name
+                    )));
+                }
+                if !(w.is_finite() && w > 0.0) {
+                    return Err(InputError::new(format!(
+                        "body '{}': attachment stiffness must be finite and positive, got {w}",
+                        b.name
+                    )));
+                }
+                attachments.push(Attachment {
+                    vertex: v + v0,
+                    target: b.mesh.vertices[v],
+                    weight: w,
+                });
+            }
+            let bone0 = bones.len();
+            for mut bone in std::mem::take(&mut b.bones) {
+                for v in &mut bone.vertices {
+                    if *v >= nb {
+                        return Err(InputError::new(format!(
+                            "body '{}', bone '{}': vertex {v} out of range ({nb} vertices)",
+                            b.name, bone.name
+                        )));
+                    }
+                    if b.fixed.contains(v) {
+                        return Err(InputError::new(format!(
+                            "body '{}', bone '{}': vertex {v} is also a fixed (Dirichlet) vertex",
+                            b.name, bone.name
+                        )));
+                    }
+                    *v += v0;
+                }
+                bone.parent = bone.parent.map(|p| p + bone0);
+                bones.push(bone);
+            }
+            actuators.push_body(
+                &b.name,
+                std::mem::take(&mut b.actuators),
+                t0,
+                b.mesh.num_tets(),
+                &volumes,
+            )?;
+            bodies.push(Body {
+                name: b.name.clone(),
+                vertices: v0..v0 + nb,
+                tets: t0..t0 + b.mesh.num_tets(),
+                material: b.material,
+                mass: body_mass,
+                density: rho,
+                gravity: b.gravity,
+                volume_constraint: b.volume_constraint,
+            });
+        }
+        let cloth_parts = self.add_cloth(
+            &mut rest,
+            &mut initial_velocity,
+            &mut accel,
+            &mut fixed,
+            &mut attachments,
+            &mut mass,
+        )?;
+        if fixed.iter().all(|&f| f) {
+            return Err(InputError::new("every vertex is fixed: nothing to simulate"));
+        }
+        for o in &self.obstacles {
+            o.validate()?;
+        }
+        let all = TetMesh {
+            vertices: rest.clone(),
+            tets: tets.clone(),
+        };
+        let mut fem = FemOperators::new(&all).map_err(|e| InputError::new(e.to_string()))?;
+        let cloth = cloth_parts.map(|c| c.assemble(&mut fem, &rest));
+        let (lo, hi) = all.bounding_box();
+        let length_scale = (hi - lo).norm().max(f64::MIN_POSITIVE);
+        for o in &self.obstacles {
+            // A mesh obstacle is two-sided: a vertex resting on a zero-thickness surface is on
+            // neither side, and round-off can put it on the far side, through the surface.
+            let min = MIN_MESH_THICKNESS * length_scale;
+            if matches!(o.shape, crate::contact::Shape::TriMesh(_)) && o.thickness < min {
+                return Err(InputError::new(format!(
+                    "obstacle '{}': a triangle-mesh obstacle is two-sided, so its thickness must be at least {MIN_MESH_THICKNESS:e} x the bodies' length scale ({min:.3e} m) for vertices resting on it to stay on their side despite round-off; got {} (the paper's scenes use 1e-4 m)",
+                    o.name, o.thickness
+                )));
+            }
+        }
+        let vertex_tets = VertexTets::new(rest.len(), &tets);
+        let collision = match self.collision {
+            Some(c) => Some(Colliders::new(c, &bodies, &tets, cloth.as_ref(), &fixed, &rest)?),
+            None => None,
+        };
+        let skeleton = if bones.is_empty() {
+            None
+        } else {
+            Some(Skeleton::new(bones, &rest)?)
+        };
+        Ok(Model {
+            rest,
+            initial_velocity,
+            tets,
+            fem,
+            w_rot,
+            w_vol,
+            mass,
+            accel,
+            attachments,
+            fixed,
+            obstacles: self.obstacles,
+            bodies,
+            vertex_tets,
+            skeleton,
+            actuators: (!actuators.groups.is_empty()).then_some(actuators),
+            cloth,
+            collision,
+            length_scale,
+        })
+    }
+}
