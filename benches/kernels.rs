@@ -2,8 +2,8 @@
 //! volume projection.
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use diffsoft::constraint::svd::{svd3, svd3_nalgebra, svd3_warm, svd3_warm_batch, LANES};
-use diffsoft::constraint::volume::nearest_product;
+use diffsoft::kernel::svd::{svd3, svd3_nalgebra, svd3_warm, svd3_warm_batch, LANES};
+use diffsoft::kernel::volume::nearest_product;
 use nalgebra::{Matrix3, Rotation3, Vector3};
 use std::hint::black_box;
 

@@ -51,6 +51,7 @@ pub mod constraint;
 pub mod contact;
 pub mod diff;
 pub mod fem;
+pub mod kernel;
 pub mod mesh;
 pub mod model;
 pub mod output;

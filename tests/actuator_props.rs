@@ -13,15 +13,15 @@
 //! singular values for the Jacobi-based dual SVD; `s_2 + s_3 -> 0` where the Jacobian has a
 //! pole) are tested separately below.
 
-use diffsoft::constraint::actuator::{
+use diffsoft::kernel::actuator::{
     muscle_energy, muscle_energy_gradient, muscle_jacobian, muscle_jacobian_dual, muscle_target, nearest_product_dual,
     nearest_product_jacobian, pair_coefficients, pneumatic_energy, pneumatic_energy_gradient,
     pneumatic_energy_gradient_dual, pneumatic_jacobian, pneumatic_jacobian_dual, pneumatic_target, pneumatic_target_of,
     ActuatorError,
 };
-use diffsoft::constraint::svd::svd3;
-use diffsoft::constraint::volume::nearest_product;
-use diffsoft::constraint::ProjectionError;
+use diffsoft::kernel::svd::svd3;
+use diffsoft::kernel::volume::nearest_product;
+use diffsoft::kernel::ProjectionError;
 use diffsoft::verify::fd::sweep;
 use diffsoft::verify::jacobians::{check_muscle, check_pneumatic, JacobianCheck, PNEUMATIC_ACTIVATIONS};
 use nalgebra::{Matrix3, Rotation3, Vector3};

@@ -1,8 +1,8 @@
 //! Properties of the constraint kernels: the signed SVD (single, warm-started and batched)
 //! against nalgebra, and the volume projection's optimality.
 
-use diffsoft::constraint::svd::{svd3, svd3_nalgebra, svd3_warm, svd3_warm_batch, Svd3, LANES};
-use diffsoft::constraint::volume::{nearest_product, nearest_product_batch, nearest_product_batch_warm};
+use diffsoft::kernel::svd::{svd3, svd3_nalgebra, svd3_warm, svd3_warm_batch, Svd3, LANES};
+use diffsoft::kernel::volume::{nearest_product, nearest_product_batch, nearest_product_batch_warm};
 use nalgebra::{Matrix3, Rotation3, Vector3};
 use proptest::prelude::*;
 use proptest::test_runner::FileFailurePersistence;

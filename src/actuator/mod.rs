@@ -4,7 +4,7 @@
 //! A group owns tets. A pneumatic group adds, per tet, the constraint of seed Eqs. 39-40 with
 //! weight `k_p V` (the tet's singular values pulled to a product `a`); a muscle group adds, per
 //! tet, a fibre along a rest direction `m` with weight `k_m V`, pulled to length `1 - a`
-//! ([`crate::constraint::actuator`]). Both are ordinary projective constraints: their weights
+//! ([`crate::kernel::actuator`]). Both are ordinary projective constraints: their weights
 //! enter the constant global matrix once, and each local step projects them in parallel.
 //! Activations are piecewise-linear time series ([`Schedule`]) or set per step through
 //! [`Simulator::set_activation`](crate::solver::Simulator::set_activation).

@@ -13,9 +13,8 @@
 //! * **Mass**: area density `rho_A` (kg/m^2), `rho_A A / 3` on each triangle corner.
 //!
 //! All weights enter the constant global matrix; the local step projects triangles and bending
-//! stencils in parallel ([`ClothStep`]). Gradients of the projections are in [`polar32`].
+//! stencils in parallel ([`ClothStep`]). Gradients of the projections are in [`crate::kernel::polar32`].
 
-pub mod polar32;
 mod step;
 
 pub use step::ClothStep;
@@ -411,7 +410,7 @@ impl Cloth {
         let mut hi: f64 = 0.0;
         for (tri, g) in self.triangles.iter().zip(&self.geometry) {
             let f = deformation_gradient(q, tri, g);
-            let (s1, s2) = polar32::singular_values(&f);
+            let (s1, s2) = crate::kernel::polar32::singular_values(&f);
             hi = hi.max(s1);
             lo = lo.min(s2);
         }
@@ -488,7 +487,7 @@ mod tests {
         assert!((g.area - expected).abs() < 1e-15);
         // Scaling the triangle by 2 doubles both singular values.
         let y: Vec<_> = x.iter().map(|v| v * 2.0).collect();
-        let (s1, s2) = polar32::singular_values(&deformation_gradient(&y, &[0, 1, 2], &g));
+        let (s1, s2) = crate::kernel::polar32::singular_values(&deformation_gradient(&y, &[0, 1, 2], &g));
         assert!((s1 - 2.0).abs() < 1e-12 && (s2 - 2.0).abs() < 1e-12);
         assert!(TriangleGeometry::new(&x[0], &x[1], &(x[0] * 0.5 + x[1] * 0.5)).is_none());
     }

@@ -4,8 +4,8 @@
 use nalgebra::{Matrix3x2, Vector3};
 use rayon::prelude::*;
 
-use super::polar32::Polar;
 use super::{deformation_gradient, Cloth};
+use crate::kernel::polar32::Polar;
 use crate::solver::SolverError;
 
 /// Buffers of the cloth projections.

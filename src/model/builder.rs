@@ -3,11 +3,11 @@
 use nalgebra::Vector3;
 use serde::Serialize;
 
+use super::Attachment;
 use super::{Model, VertexTets};
 use crate::actuator::{ActuatorSpec, Actuators};
 use crate::base::{Body, InputError, Material};
 use crate::cloth::ClothSpec;
-use crate::constraint::attachment::Attachment;
 use crate::contact::pair::{BodyCollision, Colliders};
 use crate::contact::Obstacle;
 use crate::fem::{Coefficient, FemOperators};

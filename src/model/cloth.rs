@@ -3,10 +3,10 @@
 
 use nalgebra::Vector3;
 
+use super::Attachment;
 use super::ModelBuilder;
 use crate::base::InputError;
 use crate::cloth::{Bends, Cloth, ClothBody, Incidence};
-use crate::constraint::attachment::Attachment;
 use crate::fem::FemOperators;
 
 impl ModelBuilder {

@@ -4,10 +4,12 @@
 //! [`Simulator`](crate::solver::Simulator) never changes it. Its fields are read through
 //! accessors.
 
+mod attachment;
 mod builder;
 mod cloth;
 mod vertex_tets;
 
+pub use attachment::Attachment;
 pub use builder::{BodySpec, MassSpec, ModelBuilder, MIN_MESH_THICKNESS};
 pub use vertex_tets::VertexTets;
 
@@ -16,7 +18,6 @@ use nalgebra::Vector3;
 use crate::actuator::{ActuatorKind, Actuators};
 use crate::base::Body;
 use crate::cloth::Cloth;
-use crate::constraint::attachment::Attachment;
 use crate::contact::pair::Colliders;
 use crate::contact::Obstacle;
 use crate::fem::{Coefficient, FemOperators};

@@ -63,7 +63,7 @@ impl Joint for Free {
         let t = Self::increment(&self.transform(), &w, &l);
         let m: Matrix3<f64> = t.fixed_view::<3, 3>(0, 0).into_owned();
         // Project back onto the rotations: R = U V^T with det = +1.
-        let svd = crate::constraint::svd::svd3(&m);
+        let svd = crate::kernel::svd::svd3(&m);
         self.rotation = svd.rotation();
         self.translation = t.fixed_view::<3, 1>(0, 3).into_owned();
     }
@@ -128,7 +128,7 @@ impl Joint for Free {
         let l = Vector3::new(dz[3], dz[4], dz[5]);
         let iw = Matrix3::identity() + skew(&w);
         let m = iw * self.rotation;
-        let r1 = crate::constraint::svd::svd3(&m).rotation();
+        let r1 = crate::kernel::svd::svd3(&m).rotation();
         let t1 = iw * self.translation + l;
         let s = r1.transpose() * m;
         let s = (s + s.transpose()) * 0.5;

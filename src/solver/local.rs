@@ -8,9 +8,9 @@ use rayon::prelude::*;
 
 use super::SolverError;
 use crate::actuator::ActuatorKind;
-use crate::constraint::actuator::{muscle_target, pneumatic_target};
-use crate::constraint::svd::{self, LANES};
-use crate::constraint::{volume, ProjectionError};
+use crate::kernel::actuator::{muscle_target, pneumatic_target};
+use crate::kernel::svd::{self, LANES};
+use crate::kernel::{volume, ProjectionError};
 use crate::model::Model;
 
 /// One tet's decomposition at a local step: the SVD of `F` and the volume projection's target
@@ -100,13 +100,13 @@ impl ActuatorStep {
                 match group.kind {
                     ActuatorKind::Pneumatic => {
                         if !f.iter().all(|x| x.is_finite()) {
-                            return Err(fail(crate::constraint::actuator::ActuatorError::NonFinite));
+                            return Err(fail(crate::kernel::actuator::ActuatorError::NonFinite));
                         }
                         let d = svd::svd3_warm(&f, v);
                         *v = d.v;
                         let p = pneumatic_target(&d, a).map_err(fail)?;
                         *out = p * c.weight;
-                        *e = crate::constraint::energy(c.weight, &f, &p);
+                        *e = crate::kernel::energy(c.weight, &f, &p);
                     }
                     ActuatorKind::Muscle => {
                         let fm = f * c.direction;

@@ -37,9 +37,9 @@ pub use global::{GlobalSolver, GlobalStats, GlobalSystem, SolverKind};
 
 use crate::analysis::spectral::EigenMethod;
 use crate::base::InputError;
-use crate::constraint::ProjectionError;
 use crate::contact::pair::{BodyCollision, Detector, PairContact, Query as PairQuery};
 use crate::contact::{self, Contact};
+use crate::kernel::ProjectionError;
 use global::{FreeContact, InnerControl, Stationary};
 use local::LocalStep;
 
@@ -74,7 +74,7 @@ pub enum SolverError {
         /// Tet index.
         tet: usize,
         /// Cause.
-        source: crate::constraint::actuator::ActuatorError,
+        source: crate::kernel::actuator::ActuatorError,
     },
     /// A NaN or infinity appeared.
     #[error("non-finite value: {0}")]

@@ -642,7 +642,7 @@ pub fn muscle_energy_gradient_dual(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::constraint::svd::svd3;
+    use crate::kernel::svd::svd3;
 
     fn rot(axis: Vector3<f64>, angle: f64) -> Matrix3<f64> {
         *nalgebra::Rotation3::from_axis_angle(&nalgebra::Unit::new_normalize(axis), angle).matrix()
