@@ -13,11 +13,8 @@
 //! * **Mass**: area density `rho_A` (kg/m^2), `rho_A A / 3` on each triangle corner.
 //!
 //! All weights enter the constant global matrix; the local step projects triangles and bending
-//! stencils in parallel ([`ClothStep`]). Gradients of the projections are in [`crate::kernel::polar32`].
-
-mod step;
-
-pub use step::ClothStep;
+//! stencils in parallel (`constraint::cloth_stretch`, `constraint::cloth_bend`). The 3 x 2 polar
+//! decomposition and its differential are in [`crate::kernel::polar32`].
 
 use std::ops::Range;
 

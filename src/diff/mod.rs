@@ -50,8 +50,8 @@ use crate::solver::direct::Direct;
 use crate::solver::global::{FreeContact, GlobalSystem, InnerControl};
 use crate::solver::{Settings, Simulator, SolverError, SolverKind};
 
+use crate::constraint::{Constraints, Linearize, ParamGrads};
 use contact::ContactAdjoint;
-use local::{Linearize, LocalAdjoint};
 use loss::{Loss, LossGrad};
 use skeletal::SkeletalAdjoint;
 
@@ -72,6 +72,12 @@ pub enum DiffError {
     /// The forward simulation failed.
     #[error(transparent)]
     Solver(#[from] SolverError),
+}
+
+impl From<crate::constraint::NotDifferentiable> for DiffError {
+    fn from(e: crate::constraint::NotDifferentiable) -> Self {
+        DiffError::NotDifferentiable(e.0)
+    }
 }
 
 impl From<crate::base::InputError> for DiffError {
@@ -526,7 +532,7 @@ struct Backward<'a> {
     model: &'a Model,
     sys: GlobalSystem,
     direct: Direct,
-    local: LocalAdjoint,
+    local: Constraints,
     contact: ContactAdjoint,
     opts: Options,
     n: usize,
@@ -566,7 +572,7 @@ impl<'a> Backward<'a> {
         let mut b = Self {
             skel: None,
             contact_ms: 0.0,
-            local: LocalAdjoint::new(model),
+            local: Constraints::new(model),
             contact: ContactAdjoint::default(),
             xbar: vec![Vector3::zeros(); nf],
             z: vec![Vector3::zeros(); nf],
@@ -703,7 +709,7 @@ impl<'a> Backward<'a> {
                     Self::scatter(&self.sys, model, &rec.iterates[k], &mut self.q_full, false);
                     Self::scatter(&self.sys, model, x_next, &mut self.xn_full, false);
                     Self::scatter(&self.sys, model, &self.z, &mut self.y_full, true);
-                    self.local.backward(
+                    self.local.adjoint(
                         model,
                         &self.q_full,
                         &self.y_full,
@@ -711,9 +717,11 @@ impl<'a> Backward<'a> {
                         activations,
                         rec.svds.get(k).map_or(Linearize::Recompute, |s| Linearize::Recorded(s)),
                         &mut self.out_full,
-                        &mut g.w_rot,
-                        &mut g.w_vol,
-                        &mut act_grad,
+                        ParamGrads {
+                            w_rot: &mut g.w_rot,
+                            w_vol: &mut g.w_vol,
+                            activations: &mut act_grad,
+                        },
                     )?;
                     for (k2, &v) in self.sys.free.iter().enumerate() {
                         self.xbar[k2] = self.out_full[v];
@@ -788,7 +796,7 @@ impl<'a> Backward<'a> {
                 // Parameter adjoints at the fixed point.
                 self.accumulate_solve(&x_star, ih2, g);
                 Self::scatter(&self.sys, model, &self.z, &mut self.y_full, true);
-                self.local.backward(
+                self.local.adjoint(
                     model,
                     q_next,
                     &self.y_full,
@@ -796,9 +804,11 @@ impl<'a> Backward<'a> {
                     activations,
                     Linearize::Cached,
                     &mut self.out_full,
-                    &mut g.w_rot,
-                    &mut g.w_vol,
-                    &mut act_grad,
+                    ParamGrads {
+                        w_rot: &mut g.w_rot,
+                        w_vol: &mut g.w_vol,
+                        activations: &mut act_grad,
+                    },
                 )?;
                 for (k, &v) in self.sys.free.iter().enumerate() {
                     let sbar = self.base_acc[k] * (model.mass[v] * ih2);
@@ -812,12 +822,10 @@ impl<'a> Backward<'a> {
         for (k, &v) in self.sys.free.iter().enumerate() {
             g.mass[v] += self.base_acc[k].dot(&self.s[v]) * ih2;
         }
-        for (a, t) in model.attachments.iter().zip(g.attachment_targets.iter_mut()) {
-            let k = self.sys.index[a.vertex];
-            if k != usize::MAX {
-                *t += self.base_acc[k] * a.weight;
-            }
-        }
+        let (index, base_acc) = (&self.sys.index, &self.base_acc);
+        let adjoint = |v: usize| (index[v] != usize::MAX).then(|| base_acc[index[v]]);
+        self.local
+            .constant_rhs_adjoint(model, &adjoint, &mut g.attachment_targets);
         Ok(())
     }
 
@@ -832,7 +840,7 @@ impl<'a> Backward<'a> {
     ) -> Result<(), DiffError> {
         Self::scatter(&self.sys, model, y, &mut self.y_full, true);
         self.scratch_act.iter_mut().for_each(|a| *a = 0.0);
-        self.local.backward(
+        self.local.adjoint(
             model,
             q_next,
             &self.y_full,
@@ -840,10 +848,13 @@ impl<'a> Backward<'a> {
             activations,
             Linearize::Cached,
             &mut self.out_full,
-            &mut self.scratch_rot,
-            &mut self.scratch_vol,
-            &mut self.scratch_act,
-        )
+            ParamGrads {
+                w_rot: &mut self.scratch_rot,
+                w_vol: &mut self.scratch_vol,
+                activations: &mut self.scratch_act,
+            },
+        )?;
+        Ok(())
     }
 
     /// `(A - K) r = b` by conjugate gradients preconditioned with `A^-1` (`K` the cached local

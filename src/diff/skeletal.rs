@@ -34,8 +34,8 @@
 use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
 
 use super::contact::project_jacobian;
-use super::local::{Linearize, LocalAdjoint};
 use super::{Backward, DiffError, Gradient};
+use crate::constraint::{Linearize, ParamGrads};
 use crate::model::Model;
 use crate::skeleton::Skeleton;
 use crate::solver::global::FreeContact;
@@ -666,11 +666,14 @@ impl Backward<'_> {
             sa.gamma[v] = sa.q_r_next[rr] - sa.tmp_r[rr];
             sa.q_prime[v] = sa.q_r_next[rr];
         }
-        LocalAdjoint::matrix_terms(
+        self.local.matrix_terms(
             model,
             &[(&sa.alpha, &sa.gamma), (&sa.y_tilde, &sa.q_prime)],
-            &mut g.w_rot,
-            &mut g.w_vol,
+            ParamGrads {
+                w_rot: &mut g.w_rot,
+                w_vol: &mut g.w_vol,
+                activations: &mut [],
+            },
         );
         for i in 0..self.n {
             if !model.fixed[i] {
@@ -687,7 +690,7 @@ impl Backward<'_> {
             self.q_full[v] = if it.at_start { q_n[v] } else { sa.q_r[rr] };
             self.y_full[v] = sa.beta[rr];
         }
-        self.local.backward(
+        self.local.adjoint(
             model,
             &self.q_full,
             &self.y_full,
@@ -695,9 +698,11 @@ impl Backward<'_> {
             activations,
             rec.svds.get(k).map_or(Linearize::Recompute, |s| Linearize::Recorded(s)),
             &mut self.out_full,
-            &mut g.w_rot,
-            &mut g.w_vol,
-            act_grad,
+            ParamGrads {
+                w_rot: &mut g.w_rot,
+                w_vol: &mut g.w_vol,
+                activations: act_grad,
+            },
         )?;
         for (f, &v) in self.sys.free.iter().enumerate() {
             self.xbar[f] = self.out_full[v];

@@ -37,6 +37,18 @@ pub struct TetLinearization {
 pub const PAIRS: [(usize, usize); 3] = [(0, 1), (0, 2), (1, 2)];
 
 impl TetLinearization {
+    /// The zero map (a placeholder in buffers).
+    pub fn zero() -> Self {
+        Self {
+            u: Matrix3::identity(),
+            v: Matrix3::identity(),
+            diag: Matrix3::zeros(),
+            pairs: [(0.0, 0.0); 3],
+            rotation: Matrix3::zeros(),
+            volume: Matrix3::zeros(),
+        }
+    }
+
     /// Linearize `w_rot U V^T + w_vol U X V^T` at the SVD of `F`. Fails where the projection
     /// is not differentiable (`s_i + s_j = 0`, a volume projection on a branch point).
     pub fn new(svd: &Svd3, w_rot: f64, w_vol: f64) -> Result<Self, &'static str> {

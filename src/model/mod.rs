@@ -13,14 +13,14 @@ pub use attachment::Attachment;
 pub use builder::{BodySpec, MassSpec, ModelBuilder, MIN_MESH_THICKNESS};
 pub use vertex_tets::VertexTets;
 
-use nalgebra::Vector3;
+use nalgebra::{Matrix3, Vector3};
 
-use crate::actuator::{ActuatorKind, Actuators};
+use crate::actuator::Actuators;
 use crate::base::Body;
 use crate::cloth::Cloth;
 use crate::contact::pair::Colliders;
 use crate::contact::Obstacle;
-use crate::fem::{Coefficient, FemOperators};
+use crate::fem::FemOperators;
 use crate::skeleton::Skeleton;
 
 /// Everything a simulation needs that does not change while it runs.
@@ -71,61 +71,13 @@ impl Model {
         self.rest.len()
     }
 
-    /// `L = sum_t (w_rot + w_vol + w_pneumatic) A_t^T A_t + sum_fibres w (A_t m)(A_t m)^T +
-    /// attachments` (per axis), values in the pattern.
-    pub fn stiffness_values(&self) -> Vec<f64> {
-        let mut k: Vec<f64> = (0..self.tets.len())
-            .map(|t| (self.w_rot[t] + self.w_vol[t]) / self.fem.geometry[t].volume)
-            .collect();
-        let mut fibres = Vec::new();
-        if let Some(act) = &self.actuators {
-            for c in &act.cells {
-                match act.groups[c.group].kind {
-                    ActuatorKind::Pneumatic => k[c.tet] += c.weight / self.fem.geometry[c.tet].volume,
-                    ActuatorKind::Muscle => fibres.push(c),
-                }
-            }
-        }
-        let mut values = self
-            .fem
-            .laplacian_values(Coefficient::PerTet(&k))
-            .expect("weights validated");
-        // A fibre's constraint is on F m = sum_a x_a (a_a . m): a rank-one block.
-        for c in fibres {
-            let g = &self.fem.geometry[c.tet];
-            let gm: [f64; 4] = std::array::from_fn(|a| g.grads[a].dot(&c.direction));
-            let slots = &self.fem.pattern.tet_slots[c.tet];
-            for a in 0..4 {
-                for b in 0..4 {
-                    values[slots[4 * a + b] as usize] += c.weight * gm[a] * gm[b];
-                }
-            }
-        }
-        if let Some(cl) = &self.cloth {
-            for ((g, slots), w) in cl.geometry.iter().zip(&cl.tri_slots).zip(&cl.w_stretch) {
-                let k = g.local_laplacian();
-                for a in 0..3 {
-                    for b in 0..3 {
-                        values[slots[3 * a + b] as usize] += w * k[a][b];
-                    }
-                }
-            }
-            let bends = &cl.bends;
-            for i in 0..bends.len() {
-                let (_, c) = bends.stencil(i);
-                let slots = &bends.slots[bends.slot_offsets[i]..bends.slot_offsets[i + 1]];
-                let k = c.len();
-                for a in 0..k {
-                    for b in 0..k {
-                        values[slots[k * a + b] as usize] += bends.weight[i] * c[a] * c[b];
-                    }
-                }
-            }
-        }
-        for a in &self.attachments {
-            values[self.fem.pattern.diag_slot[a.vertex]] += a.weight;
-        }
-        values
+    /// `F_t(x) = sum_a x_a a_{t,a}^T`: the deformation gradient of tet `t` at positions `x`
+    /// (all vertices), or the adjoint of its projection when `x` is an adjoint.
+    #[inline]
+    pub fn tet_deformation(&self, t: usize, x: &[Vector3<f64>]) -> Matrix3<f64> {
+        let [i0, i1, i2, i3] = self.tets[t];
+        let x0 = x[i0];
+        Matrix3::from_columns(&[x[i1] - x0, x[i2] - x0, x[i3] - x0]) * self.fem.geometry[t].p_inv
     }
 
     /// Number of cloth triangles (0 without cloth).

@@ -75,7 +75,7 @@ impl GlobalSystem {
             )));
         }
         let n = model.n();
-        let full = model.fem.pattern.to_sym_csc(model.stiffness_values());
+        let full = model.fem.pattern.to_sym_csc(crate::constraint::stiffness_values(model));
         let rigid: Vec<usize> = model.skeleton.as_ref().map_or(Vec::new(), |s| s.rigid.clone());
         let mut rigid_index = vec![usize::MAX; n];
         for (k, &v) in rigid.iter().enumerate() {

@@ -21,7 +21,6 @@ pub mod anderson;
 pub mod certify;
 pub mod direct;
 pub mod global;
-pub mod local;
 pub mod skeletal;
 pub mod warm;
 
@@ -37,11 +36,11 @@ pub use global::{GlobalSolver, GlobalStats, GlobalSystem, SolverKind};
 
 use crate::analysis::spectral::EigenMethod;
 use crate::base::InputError;
+use crate::constraint::{Constraints, TetSvd};
 use crate::contact::pair::{BodyCollision, Detector, PairContact, Query as PairQuery};
 use crate::contact::{self, Contact};
 use crate::kernel::ProjectionError;
 use global::{FreeContact, InnerControl, Stationary};
-use local::LocalStep;
 
 /// Errors of the solver: bad input, a time step the certification rejects, divergence.
 #[derive(Debug, Clone, thiserror::Error)]
@@ -113,6 +112,17 @@ pub struct Settings {
     /// Anderson acceleration memory of the local-global iteration (0: off, the paper's plain
     /// iteration).
     pub anderson: usize,
+}
+
+impl From<crate::constraint::ConstraintError> for SolverError {
+    fn from(e: crate::constraint::ConstraintError) -> Self {
+        use crate::constraint::ConstraintError as C;
+        match e {
+            C::Projection { tet, source } => SolverError::Projection { tet, source },
+            C::Actuator { group, tet, source } => SolverError::Actuator { group, tet, source },
+            C::NonFinite(m) => SolverError::NonFinite(m),
+        }
+    }
 }
 
 impl SolverError {
@@ -292,9 +302,9 @@ pub struct Recording {
     pub rigid_contacts: Vec<Vec<RigidContact>>,
     /// With `keep_iterates`: every tet's decomposition at each iterate's local step (aligned
     /// with `iterates`, one fewer), so the backward pass need not decompose again.
-    pub svds: Vec<Vec<local::TetSvd>>,
+    pub svds: Vec<Vec<TetSvd>>,
     /// Buffers of `svds` kept for reuse.
-    svd_pool: Vec<Vec<local::TetSvd>>,
+    svd_pool: Vec<Vec<TetSvd>>,
     /// Whether `svds` are recorded (with `keep_iterates`).
     pub keep_decompositions: bool,
 }
@@ -344,11 +354,7 @@ impl Recording {
                 .iter()
                 .map(|x| x.len() * (size_of::<Contact>() + 40))
                 .sum::<usize>()
-            + self
-                .svds
-                .iter()
-                .map(|x| x.len() * size_of::<local::TetSvd>())
-                .sum::<usize>()
+            + self.svds.iter().map(|x| x.len() * size_of::<TetSvd>()).sum::<usize>()
     }
 
     fn clear(&mut self) {
@@ -384,7 +390,9 @@ pub struct Simulator {
     system: GlobalSystem,
     solver: Box<dyn GlobalSolver>,
     certificate: Certificate,
-    local: LocalStep,
+    constraints: Constraints,
+    /// Activation of each actuator group in the current step.
+    activations: Vec<f64>,
     work: Work,
     energy_scale: f64,
     /// The skeleton's current state (joint coordinates), and its reduced step.
@@ -420,7 +428,8 @@ fn joint_scalars(sk: &crate::skeleton::Skeleton, c: &mut [f64]) {
 /// The local step at `q`; with a recording that keeps iterates, every tet's decomposition is
 /// recorded too (`replace_last`: the iteration's earlier record is replaced).
 fn project_local(
-    local: &mut LocalStep,
+    constraints: &mut Constraints,
+    activations: &[f64],
     recording: Option<&mut Recording>,
     model: &Model,
     q: &[Vector3<f64>],
@@ -434,12 +443,12 @@ fn project_local(
                 }
             }
             let mut buf = r.svd_pool.pop().unwrap_or_default();
-            buf.resize(model.tets.len(), local::TetSvd::default());
-            let e = local.project_recording(model, q, Some(&mut buf));
+            buf.resize(model.tets.len(), TetSvd::default());
+            let e = constraints.project(model, q, activations, Some(&mut buf));
             r.svds.push(buf);
-            e
+            Ok(e?)
         }
-        None => local.project(model, q),
+        None => Ok(constraints.project(model, q, activations, None)?),
     }
 }
 
@@ -625,7 +634,11 @@ impl Simulator {
         Ok(Self {
             recording: None,
             activation_override: vec![None; groups],
-            local: LocalStep::for_model(&model),
+            constraints: Constraints::new(&model),
+            activations: model
+                .actuators
+                .as_ref()
+                .map_or(Vec::new(), |a| a.groups.iter().map(|g| g.activation.at(0.0)).collect()),
             work: Work {
                 q_start: vec![Vector3::zeros(); n],
                 s: vec![Vector3::zeros(); n],
@@ -757,7 +770,7 @@ impl Simulator {
 
     /// The activations used by the last step, per group (`None` without actuators).
     pub fn activations(&self) -> Option<&[f64]> {
-        self.local.actuators.as_ref().map(|a| a.activations.as_slice())
+        self.model.actuators.as_ref().map(|_| self.activations.as_slice())
     }
 
     /// Record every following step's iterations for the backward pass (`keep_iterates`: all
@@ -877,12 +890,12 @@ impl Simulator {
             w.base[k] = w.s[v] * (model.mass[v] * ih2) + sys.coupling[k];
             w.x[k] = w.s[v];
         }
-        for a in &model.attachments {
-            let k = sys.index[a.vertex];
+        self.constraints.constant_rhs(model, &mut |v, b| {
+            let k = sys.index[v];
             if k != usize::MAX {
-                w.base[k] += a.target * a.weight;
+                w.base[k] += b;
             }
-        }
+        });
         w.full.copy_from_slice(&w.s);
         if let Some((_, sp)) = self.skeleton.as_mut() {
             // Bone vertices start where the skeleton is.
@@ -944,9 +957,9 @@ impl Simulator {
         let nf = sys.n();
         let rms = (nf.max(1) as f64).sqrt();
         // Activations at the end of the step (implicit Euler), unless set through the API.
-        if let (Some(act), Some(ls)) = (model.actuators.as_ref(), self.local.actuators.as_mut()) {
+        if let Some(act) = model.actuators.as_ref() {
             for (g, group) in act.groups.iter().enumerate() {
-                ls.activations[g] = self.activation_override[g].unwrap_or_else(|| group.activation.at(st.time + h));
+                self.activations[g] = self.activation_override[g].unwrap_or_else(|| group.activation.at(st.time + h));
             }
         }
         // Joint coordinates at the start of the step, for the torques' potential.
@@ -975,7 +988,14 @@ impl Simulator {
                     w.full[v] = w.x[k];
                 }
                 let tl = Instant::now();
-                stats.elastic_energy = project_local(&mut self.local, self.recording.as_mut(), model, &w.full, false)?;
+                stats.elastic_energy = project_local(
+                    &mut self.constraints,
+                    &self.activations,
+                    self.recording.as_mut(),
+                    model,
+                    &w.full,
+                    false,
+                )?;
                 if let Some(aa) = self.anderson.as_mut() {
                     // Safeguard: an accelerated iterate must lower the step's objective;
                     // otherwise fall back to the plain update and forget the history.
@@ -995,8 +1015,14 @@ impl Simulator {
                         for (k, &v) in sys.free.iter().enumerate() {
                             w.full[v] = w.x[k];
                         }
-                        stats.elastic_energy =
-                            project_local(&mut self.local, self.recording.as_mut(), model, &w.full, true)?;
+                        stats.elastic_energy = project_local(
+                            &mut self.constraints,
+                            &self.activations,
+                            self.recording.as_mut(),
+                            model,
+                            &w.full,
+                            true,
+                        )?;
                         e = step_objective(
                             model,
                             &w.full,
@@ -1012,7 +1038,7 @@ impl Simulator {
                     }
                     energy_prev = e;
                 }
-                self.local.gather(model, &mut w.gathered);
+                self.constraints.gather(model, &mut w.gathered);
                 stats.local_ms += tl.elapsed().as_secs_f64() * 1e3;
                 for (k, &v) in sys.free.iter().enumerate() {
                     w.rhs[k] = w.base[k] + w.gathered[v];
@@ -1020,7 +1046,8 @@ impl Simulator {
                 w.x_prev.copy_from_slice(&w.x);
                 let tg = Instant::now();
                 let direct_only = self.solver.as_direct().is_some();
-                let (skeleton, solver, settings) = (&mut self.skeleton, &mut self.solver, &self.settings);
+                let (skeleton, solver, settings, constraints) =
+                    (&mut self.skeleton, &mut self.solver, &self.settings, &self.constraints);
                 let mut global = || -> Result<_, SolverError> {
                     Ok(match skeleton.as_mut() {
                         None => solver.solve(sys, &w.rhs, &mut w.x, &w.free_contacts)?,
@@ -1028,11 +1055,11 @@ impl Simulator {
                             for (r, &v) in sys.rigid.iter().enumerate() {
                                 w.b_rigid[r] = w.s[v] * (model.mass[v] * ih2) + w.gathered[v] + sys.coupling_rigid[r];
                             }
-                            for a in &model.attachments {
-                                if let Some(r) = sys.rigid.iter().position(|&v| v == a.vertex) {
-                                    w.b_rigid[r] += a.target * a.weight;
+                            constraints.constant_rhs(model, &mut |v, b| {
+                                if let Some(r) = sys.rigid.iter().position(|&u| u == v) {
+                                    w.b_rigid[r] += b;
                                 }
-                            }
+                            });
                             let direct = solver.as_direct().expect("skeleton scenes use the direct solver");
                             let control = InnerControl {
                                 tolerance: settings.inner_tolerance * model.length_scale,

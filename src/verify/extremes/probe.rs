@@ -285,7 +285,7 @@ impl Probe {
 /// global matrix `M/h^2 + L` relative to `M/h^2`: a solve's round-off is about `eps kappa` of
 /// the coordinates.
 pub fn condition_estimate(model: &Model, dt: f64) -> f64 {
-    let values = model.stiffness_values();
+    let values = crate::constraint::stiffness_values(model);
     let worst = model
         .fem
         .pattern

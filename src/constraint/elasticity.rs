@@ -1,0 +1,351 @@
+//! Tet elasticity: per tet a corotated constraint (`F` onto the rotations, weight `w_rot`) and
+//! a volume constraint (`F` onto `det F = 1`, weight `w_vol`), both on the deformation gradient
+//! (docs/method.md section 2). Their weighted projections combine into one matrix per tet,
+//! `p = w_rot U V^T + w_vol U X V^T = U diag(w_rot + w_vol x) V^T`, computed `LANES` tets at a
+//! time by one fused kernel (warm-started SVD, volume projection, composition; AVX2 where the
+//! CPU has it), chunks in parallel, into preallocated buffers. The adjoint applies the
+//! projection's spectral-function differential ([`TetLinearization`], Eq. G2) with the same
+//! batched kernels.
+
+use nalgebra::{Matrix3, Vector3};
+use rayon::prelude::*;
+
+use super::{
+    AdjointContext, ConstraintError, ConstraintSet, Linearize, NotDifferentiable, ParamGrads, ProjectContext,
+    VectorPair,
+};
+use crate::kernel::linearization::TetLinearization;
+use crate::kernel::svd::{self, svd3_warm, svd3_warm_batch, LANES};
+use crate::kernel::{volume, ProjectionError};
+use crate::model::Model;
+
+/// One tet's decomposition at a local step: the SVD of `F` and the volume projection's target
+/// singular values (zero where the tet has no volume constraint). Recorded for the backward pass,
+/// which linearizes the projection at the same point.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TetSvd {
+    /// `F = U diag(sigma) V^T`.
+    pub svd: svd::Svd3,
+    /// Target singular values of the volume constraint.
+    pub target: Vector3<f64>,
+}
+
+impl Default for TetSvd {
+    fn default() -> Self {
+        Self {
+            svd: svd::Svd3 {
+                u: Matrix3::identity(),
+                sigma: Vector3::repeat(1.0),
+                v: Matrix3::identity(),
+            },
+            target: Vector3::zeros(),
+        }
+    }
+}
+
+/// The corotated and volume constraints of every tet, with their buffers.
+#[derive(Debug, Clone)]
+pub(crate) struct Elasticity {
+    /// Last `V` of each tet's SVD (warm start of the next local step).
+    v_warm: Vec<Matrix3<f64>>,
+    /// Constraint energy per tet.
+    energy: Vec<f64>,
+    /// Last volume-projection multiplier of each tet (warm start).
+    t_warm: Vec<f64>,
+    /// Warm start of the adjoint's SVDs.
+    v_warm_adjoint: Vec<Matrix3<f64>>,
+    /// Linearizations at one point (implicit mode: one point, many applications).
+    cache: Vec<TetLinearization>,
+}
+
+impl Elasticity {
+    /// Buffers for the tets of `model`.
+    pub(crate) fn new(model: &Model) -> Self {
+        let n = model.tets.len();
+        Self {
+            v_warm: vec![Matrix3::identity(); n],
+            energy: vec![0.0; n],
+            t_warm: vec![0.0; n],
+            v_warm_adjoint: vec![Matrix3::identity(); n],
+            cache: Vec::new(),
+        }
+    }
+}
+
+impl ConstraintSet for Elasticity {
+    fn name(&self) -> &'static str {
+        "elasticity"
+    }
+
+    fn tet_coefficients(&self, model: &Model, k: &mut [f64]) {
+        for (t, k) in k.iter_mut().enumerate() {
+            *k = (model.w_rot[t] + model.w_vol[t]) / model.fem.geometry[t].volume;
+        }
+    }
+
+    fn project(
+        &mut self,
+        model: &Model,
+        q: &[Vector3<f64>],
+        ctx: &mut ProjectContext<'_>,
+    ) -> Result<f64, ConstraintError> {
+        let tets = &model.tets;
+        let record = ctx.record.as_deref_mut();
+        if record.as_ref().is_some_and(|r| r.len() != tets.len()) {
+            return Err(ConstraintError::NonFinite(format!(
+                "local step record has {} entries for {} tets",
+                record.map_or(0, |r| r.len()),
+                tets.len()
+            )));
+        }
+        let geo = &model.fem.geometry;
+        let (w_rot, w_vol) = (&model.w_rot, &model.w_vol);
+        type Bufs<'b> = (
+            ((&'b mut [Matrix3<f64>], &'b mut [Matrix3<f64>]), &'b mut [f64]),
+            &'b mut [f64],
+        );
+        let body = |chunk: usize, (((out, v), e), tw): Bufs<'_>, svd_out: Option<&mut [TetSvd]>| {
+            let t0 = chunk * LANES;
+            let len = out.len();
+            let f: [Matrix3<f64>; LANES] = std::array::from_fn(|k| {
+                if k < len {
+                    let [i0, i1, i2, i3] = tets[t0 + k];
+                    let x0 = q[i0];
+                    Matrix3::from_columns(&[q[i1] - x0, q[i2] - x0, q[i3] - x0]) * geo[t0 + k].p_inv
+                } else {
+                    Matrix3::identity()
+                }
+            });
+            let chunk = Chunk {
+                w_rot: &w_rot[t0..t0 + len],
+                w_vol: &w_vol[t0..t0 + len],
+                v_warm: v,
+                t_warm: tw,
+                out,
+                energy: e,
+                svd_out,
+            };
+            project_chunk(&f, chunk).map_err(|(k, err)| match err {
+                Some(source) => ConstraintError::Projection { tet: t0 + k, source },
+                None => ConstraintError::NonFinite(format!("tet {}: deformation gradient is not finite", t0 + k)),
+            })
+        };
+        let bufs = ctx
+            .per_tet
+            .par_chunks_mut(LANES)
+            .zip(self.v_warm.par_chunks_mut(LANES))
+            .zip(self.energy.par_chunks_mut(LANES))
+            .zip(self.t_warm.par_chunks_mut(LANES));
+        match record {
+            Some(rec) => bufs
+                .zip(rec.par_chunks_mut(LANES))
+                .enumerate()
+                .with_min_len(32)
+                .try_for_each(|(chunk, (b, r))| body(chunk, b, Some(r)))?,
+            None => bufs
+                .enumerate()
+                .with_min_len(32)
+                .try_for_each(|(chunk, b)| body(chunk, b, None))?,
+        }
+        Ok(self.energy.iter().sum())
+    }
+
+    fn linearize(&mut self, model: &Model, q: &[Vector3<f64>]) -> Result<(), NotDifferentiable> {
+        let (w_rot, w_vol) = (&model.w_rot, &model.w_vol);
+        let n = model.tets.len();
+        if self.cache.len() != n {
+            // Sized once, on the first linearization.
+            self.cache.resize(n, TetLinearization::zero());
+        }
+        self.v_warm_adjoint
+            .par_iter_mut()
+            .zip(self.cache.par_iter_mut())
+            .enumerate()
+            .with_min_len(64)
+            .try_for_each(|(t, (vw, lin))| {
+                let s = svd3_warm(&model.tet_deformation(t, q), vw);
+                *vw = s.v;
+                *lin = TetLinearization::new(&s, w_rot[t], w_vol[t])
+                    .map_err(|m| NotDifferentiable(format!("tet {t}: {m}")))?;
+                Ok(())
+            })
+    }
+
+    fn adjoint(&mut self, model: &Model, ctx: &mut AdjointContext<'_, '_>) -> Result<(), NotDifferentiable> {
+        let (w_rot, w_vol) = (&model.w_rot, &model.w_vol);
+        let cache = &self.cache;
+        let any_vol = w_vol.iter().any(|&w| w > 0.0);
+        let fail = |t: usize, m: &str| NotDifferentiable(format!("tet {t}: {m}"));
+        let (q, y, x_next, lin) = (ctx.q, ctx.y, ctx.x_next, ctx.lin);
+        // LANES tets at a time: batched (AVX2) SVD and volume projection, as the forward.
+        ctx.per_tet
+            .par_chunks_mut(LANES)
+            .zip(self.v_warm_adjoint.par_chunks_mut(LANES))
+            .zip(
+                ctx.grads
+                    .w_rot
+                    .par_chunks_mut(LANES)
+                    .zip(ctx.grads.w_vol.par_chunks_mut(LANES)),
+            )
+            .enumerate()
+            .with_min_len(8)
+            .try_for_each(|(chunk, ((dp, vw), (gr, gv)))| {
+                let t0 = chunk * LANES;
+                let len = dp.len();
+                let mut process = |k: usize, lin: &TetLinearization| {
+                    let t = t0 + k;
+                    let fy = model.tet_deformation(t, y);
+                    dp[k] = lin.apply(&fy);
+                    // d(J p)/dw minus dA/dw x_next (L_t = w A_t^T A_t per weight).
+                    let a_term = x_next.map_or(0.0, |x| fy.dot(&model.tet_deformation(t, x)));
+                    gr[k] += fy.dot(&lin.rotation) - a_term;
+                    gv[k] += fy.dot(&lin.volume) - a_term;
+                };
+                if let Linearize::Cached = lin {
+                    for k in 0..len {
+                        process(k, &cache[t0 + k]);
+                    }
+                } else if let Linearize::Recorded(rec) = lin {
+                    for k in 0..len {
+                        let t = t0 + k;
+                        let r = rec.get(t).ok_or_else(|| fail(t, "no recorded decomposition"))?;
+                        let x = (w_vol[t] > 0.0).then_some(r.target);
+                        let lin =
+                            TetLinearization::with_target(&r.svd, x, w_rot[t], w_vol[t]).map_err(|m| fail(t, m))?;
+                        process(k, &lin);
+                    }
+                } else {
+                    let f: [Matrix3<f64>; LANES] = std::array::from_fn(|k| {
+                        if k < len {
+                            model.tet_deformation(t0 + k, q)
+                        } else {
+                            Matrix3::identity()
+                        }
+                    });
+                    let v0: [Matrix3<f64>; LANES] =
+                        std::array::from_fn(|k| if k < len { vw[k] } else { Matrix3::identity() });
+                    if !f.iter().all(|m| m.iter().all(|x| x.is_finite())) {
+                        return Err(fail(t0, "non-finite deformation gradient in this chunk"));
+                    }
+                    let svds = svd3_warm_batch(&f, &v0);
+                    let xs = if any_vol {
+                        let sig: [Vector3<f64>; LANES] = std::array::from_fn(|k| svds[k].sigma);
+                        let mut tw = [0.0; LANES];
+                        Some(
+                            volume::nearest_product_batch_warm(&sig, 1.0, &mut tw)
+                                .map_err(|e| fail(t0, &e.to_string()))?,
+                        )
+                    } else {
+                        None
+                    };
+                    for k in 0..len {
+                        vw[k] = svds[k].v;
+                        let t = t0 + k;
+                        let x = xs.as_ref().filter(|_| w_vol[t] > 0.0).map(|x| x[k]);
+                        let lin =
+                            TetLinearization::with_target(&svds[k], x, w_rot[t], w_vol[t]).map_err(|m| fail(t, m))?;
+                        process(k, &lin);
+                    }
+                }
+                Ok(())
+            })
+    }
+
+    fn matrix_terms(&self, model: &Model, pairs: &[VectorPair<'_>], grads: &mut ParamGrads<'_>) {
+        grads
+            .w_rot
+            .par_iter_mut()
+            .zip(grads.w_vol.par_iter_mut())
+            .enumerate()
+            .with_min_len(64)
+            .for_each(|(t, (gr, gv))| {
+                let mut s = 0.0;
+                for (a, b) in pairs {
+                    s += model.tet_deformation(t, a).dot(&model.tet_deformation(t, b));
+                }
+                *gr -= s;
+                *gv -= s;
+            });
+    }
+}
+
+/// One chunk's inputs and outputs (`len <= LANES` tets).
+struct Chunk<'a> {
+    w_rot: &'a [f64],
+    w_vol: &'a [f64],
+    v_warm: &'a mut [Matrix3<f64>],
+    t_warm: &'a mut [f64],
+    out: &'a mut [Matrix3<f64>],
+    energy: &'a mut [f64],
+    svd_out: Option<&'a mut [TetSvd]>,
+}
+
+/// A failed tet of a chunk: its lane and the projection error (`None`: non-finite `F`).
+type ChunkError = (usize, Option<ProjectionError>);
+
+/// Dispatch to the AVX2 build of [`chunk_kernel`] when the CPU has it.
+fn project_chunk(f: &[Matrix3<f64>; LANES], c: Chunk<'_>) -> Result<(), ChunkError> {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU supports AVX2, checked just above.
+            return unsafe { chunk_avx2(f, c) };
+        }
+    }
+    chunk_kernel(f, c)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn chunk_avx2(f: &[Matrix3<f64>; LANES], c: Chunk<'_>) -> Result<(), ChunkError> {
+    chunk_kernel(f, c)
+}
+
+/// SVD (warm-started), volume projection (warm-started) and
+/// `p = w_rot U V^T + w_vol U X V^T = U diag(w_rot + w_vol x) V^T` per tet, with the energies
+/// from the singular values: `|F - U V^T|^2 = sum (s - 1)^2`, `|F - U X V^T|^2 = sum (s - x)^2`.
+/// Everything is inlined into one function so the AVX2 build covers all of it and the
+/// per-lane arrays stay in registers or on this frame.
+#[inline(always)]
+fn chunk_kernel(f: &[Matrix3<f64>; LANES], mut c: Chunk<'_>) -> Result<(), ChunkError> {
+    let len = c.out.len();
+    let v0: [Matrix3<f64>; LANES] = std::array::from_fn(|k| if k < len { c.v_warm[k] } else { Matrix3::identity() });
+    let svds = svd::batch_generic(f, &v0);
+    let sig: [Vector3<f64>; LANES] = std::array::from_fn(|k| svds[k].sigma);
+    let targets = if c.w_vol.iter().any(|&w| w > 0.0) {
+        let mut t: [f64; LANES] = std::array::from_fn(|k| if k < len { c.t_warm[k] } else { 0.0 });
+        let x = volume::batch_generic(&sig, 1.0, &mut t).map_err(|err| (0, Some(err)))?;
+        c.t_warm.copy_from_slice(&t[..len]);
+        Some(x)
+    } else {
+        None
+    };
+    for k in 0..len {
+        let svd = &svds[k];
+        c.v_warm[k] = svd.v;
+        let s = svd.sigma;
+        let mut diag = Vector3::repeat(c.w_rot[k]);
+        let mut en = 0.5 * c.w_rot[k] * (s - Vector3::repeat(1.0)).norm_squared();
+        if let Some(x) = &targets {
+            if c.w_vol[k] > 0.0 {
+                diag += x[k] * c.w_vol[k];
+                en += 0.5 * c.w_vol[k] * (s - x[k]).norm_squared();
+            }
+        }
+        if !en.is_finite() {
+            return Err((k, None));
+        }
+        c.out[k] = svd.compose(&diag);
+        c.energy[k] = en;
+        if let Some(rec) = c.svd_out.as_deref_mut() {
+            rec[k] = TetSvd {
+                svd: *svd,
+                target: match (&targets, c.w_vol[k] > 0.0) {
+                    (Some(x), true) => x[k],
+                    _ => Vector3::zeros(),
+                },
+            };
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,168 @@
+//! The local step, the stiffness assembly and the local step's adjoint, each one loop over the
+//! model's constraint sets.
+
+use nalgebra::{Matrix3, Vector3};
+use rayon::prelude::*;
+
+use super::{
+    sets_for, AdjointContext, ConstraintError, ConstraintSet, Linearize, NotDifferentiable, ParamGrads, ProjectContext,
+    TetSvd, VectorPair,
+};
+use crate::fem::Coefficient;
+use crate::model::Model;
+
+/// Every constraint set of a model with the shared per-tet buffer of the gather.
+pub(crate) struct Constraints {
+    sets: Vec<Box<dyn ConstraintSet>>,
+    /// `w p` (forward) or `dp` (adjoint) per tet.
+    per_tet: Vec<Matrix3<f64>>,
+}
+
+impl std::fmt::Debug for Constraints {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Constraints")
+            .field("kinds", &self.sets.iter().map(|s| s.name()).collect::<Vec<_>>())
+            .field("tets", &self.per_tet.len())
+            .finish()
+    }
+}
+
+impl Constraints {
+    /// The sets of `model` (see [`sets_for`]) and the per-tet buffer.
+    pub(crate) fn new(model: &Model) -> Self {
+        Self {
+            sets: sets_for(model),
+            per_tet: vec![Matrix3::zeros(); model.tets.len()],
+        }
+    }
+
+    /// `L` (per axis) as values in the model's stiffness pattern: the isotropic tet terms
+    /// first (Eq. 22), then every set's other blocks.
+    pub(crate) fn stiffness_values(model: &Model, sets: &[Box<dyn ConstraintSet>]) -> Vec<f64> {
+        let mut k = vec![0.0; model.tets.len()];
+        for s in sets {
+            s.tet_coefficients(model, &mut k);
+        }
+        let mut values = model
+            .fem
+            .laplacian_values(Coefficient::PerTet(&k))
+            .expect("weights validated");
+        for s in sets {
+            s.add_blocks(model, &mut values);
+        }
+        values
+    }
+
+    /// The local step at positions `q` (all vertices): project every set's elements; returns
+    /// the total constraint energy. With `record`, every tet's decomposition is written there.
+    pub(crate) fn project(
+        &mut self,
+        model: &Model,
+        q: &[Vector3<f64>],
+        activations: &[f64],
+        record: Option<&mut [TetSvd]>,
+    ) -> Result<f64, ConstraintError> {
+        let mut ctx = ProjectContext {
+            per_tet: &mut self.per_tet,
+            activations,
+            record,
+        };
+        let mut energy = 0.0;
+        for s in &mut self.sets {
+            energy += s.project(model, q, &mut ctx)?;
+        }
+        Ok(energy)
+    }
+
+    /// `rhs = J p` for every vertex, from the last [`Constraints::project`].
+    pub(crate) fn gather(&self, model: &Model, rhs: &mut [Vector3<f64>]) {
+        gather_tets(model, &self.per_tet, rhs);
+        for s in &self.sets {
+            s.gather_add(model, rhs);
+        }
+    }
+
+    /// Call `add(vertex, w p)` for every projection that does not depend on the positions.
+    pub(crate) fn constant_rhs(&self, model: &Model, add: &mut dyn FnMut(usize, Vector3<f64>)) {
+        for s in &self.sets {
+            s.constant_rhs(model, add);
+        }
+    }
+
+    /// The adjoint of [`Constraints::constant_rhs`] (attachment targets).
+    pub(crate) fn constant_rhs_adjoint(
+        &self,
+        model: &Model,
+        adjoint: &dyn Fn(usize) -> Option<Vector3<f64>>,
+        targets: &mut [Vector3<f64>],
+    ) {
+        for s in &self.sets {
+            s.constant_rhs_adjoint(model, adjoint, targets);
+        }
+    }
+
+    /// Linearize every set at `q` (implicit mode).
+    pub(crate) fn linearize(&mut self, model: &Model, q: &[Vector3<f64>]) -> Result<(), NotDifferentiable> {
+        for s in &mut self.sets {
+            s.linearize(model, q)?;
+        }
+        Ok(())
+    }
+
+    /// The backward of one local step at positions `q` (all vertices): given the adjoint `y` of
+    /// the gathered right-hand side (all vertices, zero at fixed ones), write
+    /// `out = J (dp/dq)^T J^T y` per vertex and add the parameter adjoints: the weights'
+    /// `<F_t(y), P_t/w_t> - <F_t(y), F_t(x_next)>` (right-hand side minus matrix term of the
+    /// solve whose solution is `x_next`; without `x_next` the matrix term is left out, see
+    /// [`Constraints::matrix_terms`]) and the activations'.
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn adjoint(
+        &mut self,
+        model: &Model,
+        q: &[Vector3<f64>],
+        y: &[Vector3<f64>],
+        x_next: Option<&[Vector3<f64>]>,
+        activations: &[f64],
+        lin: Linearize<'_>,
+        out: &mut [Vector3<f64>],
+        grads: ParamGrads<'_>,
+    ) -> Result<(), NotDifferentiable> {
+        let mut ctx = AdjointContext {
+            q,
+            y,
+            x_next,
+            activations,
+            lin,
+            per_tet: &mut self.per_tet,
+            grads,
+        };
+        for s in &mut self.sets {
+            s.adjoint(model, &mut ctx)?;
+        }
+        gather_tets(model, &self.per_tet, out);
+        for s in &mut self.sets {
+            s.adjoint_gather_add(model, q, y, out)?;
+        }
+        Ok(())
+    }
+
+    /// Subtract every set's weight matrix terms `sum_pairs a^T (dL/dw) b` (Eq. G3).
+    pub(crate) fn matrix_terms(&self, model: &Model, pairs: &[VectorPair<'_>], mut grads: ParamGrads<'_>) {
+        for s in &self.sets {
+            s.matrix_terms(model, pairs, &mut grads);
+        }
+    }
+}
+
+/// `out[v] = sum over tets t of v: m_t a_{t, corner(v)}` (`J` applied per tet).
+pub(crate) fn gather_tets(model: &Model, per_tet: &[Matrix3<f64>], out: &mut [Vector3<f64>]) {
+    let geo = &model.fem.geometry;
+    let adj = &model.vertex_tets;
+    out.par_iter_mut().enumerate().with_min_len(256).for_each(|(v, r)| {
+        let mut s = Vector3::zeros();
+        for &(t, a) in adj.of(v) {
+            s += per_tet[t as usize] * geo[t as usize].grads[a as usize];
+        }
+        *r = s;
+    });
+}
