@@ -22,7 +22,7 @@ use nalgebra::{Matrix3, Vector3};
 
 use crate::contact::Contact;
 use crate::solver::direct::Direct;
-use crate::solver::global::FreeContact;
+use crate::solver::free_contact::FreeContact;
 
 use super::DiffError;
 

@@ -33,14 +33,15 @@
 
 use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
 
+use super::backward::Backward;
 use super::contact::project_jacobian;
-use super::{Backward, DiffError, Gradient};
+use super::recording::Recording;
+use super::{DiffError, Gradient};
 use crate::constraint::{Linearize, ParamGrads};
 use crate::model::Model;
 use crate::skeleton::Skeleton;
-use crate::solver::global::FreeContact;
+use crate::solver::free_contact::FreeContact;
 use crate::solver::skeletal::Skeletal;
-use crate::solver::Recording;
 
 /// Buffers of the skeleton's backward pass.
 #[derive(Debug, Clone)]
@@ -156,7 +157,7 @@ struct Iteration<'r> {
 
 /// Check that `rec` holds a skeleton step's recording; its number of iterations.
 fn check_recording(rec: &Recording, step: usize) -> Result<usize, DiffError> {
-    let iters = rec.solves.len();
+    let iters = rec.solves();
     if rec.iterates.len() != iters + 1
         || rec.skeleton_states.len() != iters + 1
         || rec.increments.len() != iters
@@ -173,8 +174,7 @@ fn check_recording(rec: &Recording, step: usize) -> Result<usize, DiffError> {
 
 /// Solve `k`'s contact set and impulses.
 fn contacts_of(rec: &Recording, k: usize) -> (&[FreeContact], &[Vector3<f64>]) {
-    let (set, imp) = &rec.solves[k];
-    (rec.contact_sets.get(*set).map_or(&[][..], |c| &c[..]), imp)
+    rec.solve(k)
 }
 
 impl Backward<'_> {
@@ -184,7 +184,6 @@ impl Backward<'_> {
     #[allow(clippy::too_many_arguments)]
     pub(super) fn skeletal_step(
         &mut self,
-        h: f64,
         q_n: &[Vector3<f64>],
         rec: &Recording,
         activations: &[f64],
@@ -196,34 +195,32 @@ impl Backward<'_> {
         implicit: bool,
     ) -> Result<(), DiffError> {
         let model = self.model;
-        let ih2 = 1.0 / (h * h);
+        let ih2 = self.integrator.inv_h2();
         let mut sa = self
             .skel
             .take()
             .ok_or_else(|| DiffError::Unsupported("skeleton buffers missing".into()))?;
         let r = if implicit {
-            self.skeletal_fixed_point(&mut sa, h, q_n, rec, activations, qbar, g, step, act_grad)
+            self.skeletal_fixed_point(&mut sa, q_n, rec, activations, qbar, g, step, act_grad)
         } else {
-            self.skeletal_iterations(&mut sa, h, q_n, rec, activations, qbar, g, step, act_grad)
+            self.skeletal_iterations(&mut sa, q_n, rec, activations, qbar, g, step, act_grad)
         };
         if r.is_ok() {
             // x_0 = s on free vertices (unrolled mode), and s enters b on every vertex.
             let x0 = if implicit { 0.0 } else { 1.0 };
             for (k, &v) in self.sys.free.iter().enumerate() {
                 let sbar = self.xbar[k] * x0 + self.base_acc[k] * (model.mass[v] * ih2);
-                self.add_s_adjoint(v, sbar, h, qbar, vbar, g);
+                self.add_s_adjoint(v, sbar, qbar, vbar, g);
             }
             for (r, &v) in self.sys.rigid.iter().enumerate() {
                 let sbar = sa.base_acc[r] * (model.mass[v] * ih2);
-                self.add_s_adjoint(v, sbar, h, qbar, vbar, g);
+                self.add_s_adjoint(v, sbar, qbar, vbar, g);
                 g.mass[v] += sa.base_acc[r].dot(&self.s[v]) * ih2;
             }
-            for (a, t) in model.attachments.iter().zip(g.attachment_targets.iter_mut()) {
-                let r = self.sys.rigid_index[a.vertex];
-                if r != usize::MAX {
-                    *t += sa.base_acc[r] * a.weight;
-                }
-            }
+            let (rigid_index, base_acc) = (&self.sys.rigid_index, &sa.base_acc);
+            let adjoint = |v: usize| (rigid_index[v] != usize::MAX).then(|| base_acc[rigid_index[v]]);
+            self.local
+                .constant_rhs_adjoint(model, &adjoint, &mut g.attachment_targets);
         }
         self.skel = Some(sa);
         r
@@ -238,7 +235,6 @@ impl Backward<'_> {
     fn skeletal_fixed_point(
         &mut self,
         sa: &mut SkeletalAdjoint,
-        h: f64,
         q_n: &[Vector3<f64>],
         rec: &Recording,
         activations: &[f64],
@@ -273,7 +269,6 @@ impl Backward<'_> {
             count += 1;
             self.skeletal_iteration(
                 sa,
-                h,
                 q_n,
                 rec,
                 it,
@@ -314,14 +309,13 @@ impl Backward<'_> {
         sa.fp_prev = None;
         g.stats.backward_iterations += count;
         g.stats.implicit_residual = g.stats.implicit_residual.max(residual);
-        super::fixed_point_converged(residual, count, step)?;
+        super::implicit::fixed_point_converged(residual, count, step)?;
         // The parameter adjoints with the converged r.
         self.base_acc.iter_mut().for_each(|b| *b = Vector3::zeros());
         sa.base_acc.iter_mut().for_each(|b| *b = Vector3::zeros());
         let mut torque_acc = vec![0.0; dofs];
         self.skeletal_iteration(
             sa,
-            h,
             q_n,
             rec,
             it,
@@ -346,7 +340,6 @@ impl Backward<'_> {
     fn skeletal_iterations(
         &mut self,
         sa: &mut SkeletalAdjoint,
-        h: f64,
         q_n: &[Vector3<f64>],
         rec: &Recording,
         activations: &[f64],
@@ -372,7 +365,6 @@ impl Backward<'_> {
             };
             self.skeletal_iteration(
                 sa,
-                h,
                 q_n,
                 rec,
                 it,
@@ -401,7 +393,6 @@ impl Backward<'_> {
     fn skeletal_iteration(
         &mut self,
         sa: &mut SkeletalAdjoint,
-        h: f64,
         q_n: &[Vector3<f64>],
         rec: &Recording,
         it: Iteration<'_>,
@@ -414,7 +405,7 @@ impl Backward<'_> {
         torque_acc: &mut [f64],
     ) -> Result<(), DiffError> {
         let model = self.model;
-        let ih2 = 1.0 / (h * h);
+        let ih2 = self.integrator.inv_h2();
         let dofs = sa.work.dofs;
         let k = it.k;
         let sigma = sa.skeletal.sigma();

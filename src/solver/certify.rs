@@ -14,7 +14,8 @@ use std::time::Instant;
 
 use serde::Serialize;
 
-use super::global::{GlobalSystem, SolverKind};
+use super::global::SolverKind;
+use super::system::GlobalSystem;
 use super::SolverError;
 use crate::analysis::spectral::{largest_eigenvalue, EigenMethod};
 use crate::analysis::{rho_split, split_extremes, IterationSystem};
@@ -68,17 +69,17 @@ pub struct Certificate {
 /// Error reduction a global solve must be able to reach within its iteration cap.
 pub const REQUIRED_REDUCTION: f64 = 1e-10;
 
-/// Certify `requested` on `sys` under `policy`: the iteration must converge (spectral radius
+/// Certify `requested` on `sys` (assembled for time step `h`) under `policy`: the iteration must converge (spectral radius
 /// below 1) and reach a [`REQUIRED_REDUCTION`] within `max_iterations` at its asymptotic rate.
-pub fn certify(
+pub(crate) fn certify(
     sys: &GlobalSystem,
+    h: f64,
     requested: SolverKind,
     policy: CertifyPolicy,
     method: EigenMethod,
     max_iterations: usize,
 ) -> Result<Certificate, SolverError> {
     let t0 = Instant::now();
-    let h = sys.h;
     let mut cert = Certificate {
         requested,
         used: requested,

@@ -17,12 +17,14 @@ use faer::sparse::{SparseColMat, SymbolicSparseColMat};
 use faer::{Conj, Mat, Par, Side};
 use nalgebra::Vector3;
 
-use super::global::{FreeContact, GlobalSolver, GlobalStats, GlobalSystem, InnerControl, SolverKind, Stencil};
+use super::free_contact::{FreeContact, Stencil};
+use super::global::{GlobalSolver, GlobalStats, InnerControl, SolverKind};
+use super::system::GlobalSystem;
 use super::SolverError;
 use crate::contact::project;
 
 /// Sparse Cholesky of `M/h^2 + L`.
-pub struct Direct {
+pub(crate) struct Direct {
     symbolic: SymbolicCholesky<usize>,
     numeric: Vec<f64>,
     solve_mem: MemBuffer,
@@ -48,15 +50,14 @@ impl std::fmt::Debug for Direct {
 
 impl Direct {
     /// Analyse and factor the system.
-    pub fn new(sys: &GlobalSystem, control: InnerControl) -> Result<Self, SolverError> {
+    pub(crate) fn new(sys: &GlobalSystem, control: InnerControl) -> Result<Self, SolverError> {
         let n = sys.n();
-        let ih2 = 1.0 / (sys.h * sys.h);
         let mut values = sys.l.values.clone();
         for j in 0..n {
             let (lo, hi) = (sys.l.col_ptr[j], sys.l.col_ptr[j + 1]);
             for (r, v) in sys.l.row_idx[lo..hi].iter().zip(&mut values[lo..hi]) {
                 if *r == j {
-                    *v += sys.mass[j] * ih2;
+                    *v += sys.mass_h2[j];
                 }
             }
         }
@@ -141,7 +142,7 @@ impl Direct {
 
 impl Direct {
     /// `x = (M/h^2 + L)^-1 b` on the free vertices (no contacts).
-    pub fn solve_free(&mut self, b: &[Vector3<f64>], x: &mut [Vector3<f64>]) -> Result<(), SolverError> {
+    pub(crate) fn solve_free(&mut self, b: &[Vector3<f64>], x: &mut [Vector3<f64>]) -> Result<(), SolverError> {
         for (i, bi) in b.iter().enumerate() {
             for d in 0..3 {
                 self.rhs[(i, d)] = bi[d];
@@ -161,7 +162,7 @@ impl Direct {
     }
 
     /// Solve with several right-hand sides given per axis as columns (`n x k`), in place.
-    pub fn solve_columns(&self, cols: &mut Mat<f64>) {
+    pub(crate) fn solve_columns(&self, cols: &mut Mat<f64>) {
         let mut mem = MemBuffer::new(self.symbolic.solve_in_place_scratch::<f64>(cols.ncols(), Par::Seq));
         LltRef::new(&self.symbolic, &self.numeric).solve_in_place_with_conj(
             Conj::No,
@@ -172,7 +173,7 @@ impl Direct {
     }
 
     /// The column of `A^-1` at free vertex `i` (cached; computed on first use).
-    pub fn inverse_column(&mut self, i: usize) -> &[f64] {
+    pub(crate) fn inverse_column(&mut self, i: usize) -> &[f64] {
         if !self.delassus.contains_key(&i) {
             let n = self.rhs.nrows();
             let mut e = Mat::<f64>::zeros(n, 1);
@@ -185,7 +186,7 @@ impl Direct {
 
     /// The contact impulses of the last [`Direct::apply_contacts`], with the free index of
     /// each contact's first stencil entry.
-    pub fn impulses(&self) -> impl Iterator<Item = (usize, Vector3<f64>)> + '_ {
+    pub(crate) fn indexed_impulses(&self) -> impl Iterator<Item = (usize, Vector3<f64>)> + '_ {
         self.stencils
             .iter()
             .map(|s| s.index[0])
@@ -194,7 +195,7 @@ impl Direct {
 
     /// `(A^-1)` between two contacts' stencils: `sum_a sum_b c_a c_b (A^-1)_{i_a i_b}` (the
     /// columns must be cached).
-    pub fn stencil_inverse(&self, a: &Stencil, b: &Stencil) -> f64 {
+    pub(crate) fn stencil_inverse(&self, a: &Stencil, b: &Stencil) -> f64 {
         let mut d = 0.0;
         for (i, ci) in a.entries() {
             let col = &self.delassus[&i];
@@ -206,7 +207,7 @@ impl Direct {
     }
 
     /// `x += sum_k c_k (A^-1)_{:, i_k} l` for a contact's stencil (columns cached on demand).
-    pub fn add_inverse_columns(&mut self, stencil: &Stencil, l: &Vector3<f64>, x: &mut [Vector3<f64>]) {
+    pub(crate) fn add_inverse_columns(&mut self, stencil: &Stencil, l: &Vector3<f64>, x: &mut [Vector3<f64>]) {
         if *l == Vector3::zeros() {
             return;
         }
@@ -222,7 +223,7 @@ impl Direct {
     /// Contacts on a contact-free solution `x`: projected Gauss-Seidel on the contact-space
     /// operator for the impulses (same cone projection as the iterative solvers), then
     /// `x += sum_c (A^-1)_{:,c} lambda_c`.
-    pub fn apply_contacts(&mut self, x: &mut [Vector3<f64>], contacts: &[FreeContact]) -> GlobalStats {
+    pub(crate) fn apply_contacts(&mut self, x: &mut [Vector3<f64>], contacts: &[FreeContact]) -> GlobalStats {
         let mut stats = GlobalStats {
             converged: true,
             ..Default::default()
@@ -314,7 +315,7 @@ impl GlobalSolver for Direct {
         Ok(self.apply_contacts(x, contacts))
     }
 
-    fn as_direct(&mut self) -> Option<&mut Direct> {
-        Some(self)
+    fn impulses(&self) -> Option<&[Vector3<f64>]> {
+        Some(&self.lambda)
     }
 }

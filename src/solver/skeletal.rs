@@ -19,14 +19,16 @@ use faer::Mat;
 use nalgebra::{DMatrix, DVector, Vector3};
 
 use super::direct::Direct;
-use super::global::{FreeContact, GlobalStats, GlobalSystem, InnerControl};
+use super::free_contact::FreeContact;
+use super::global::{GlobalStats, InnerControl};
+use super::system::GlobalSystem;
 use super::SolverError;
 use crate::contact::{project, Contact};
 use crate::skeleton::Skeleton;
 
 /// Precomputed Schur complement and buffers of the skeletal step.
 #[derive(Debug, Clone)]
-pub struct Skeletal {
+pub(crate) struct Skeletal {
     /// `W = A_FF^-1 A_FR`, `n_F x n_R`.
     w: DMatrix<f64>,
     /// `Sigma = A_RR - A_RF W`, `n_R x n_R`.
@@ -66,9 +68,8 @@ pub struct Skeletal {
 
 impl Skeletal {
     /// Precompute `W` and `Sigma` with the factored free block.
-    pub fn new(sys: &GlobalSystem, direct: &Direct, skeleton: &Skeleton) -> Self {
+    pub(crate) fn new(sys: &GlobalSystem, direct: &Direct, skeleton: &Skeleton) -> Self {
         let (nf, nr) = (sys.n(), sys.rigid.len());
-        let ih2 = 1.0 / (sys.h * sys.h);
         // A_FR as dense columns, then W = A_FF^-1 A_FR.
         let mut cols = Mat::<f64>::zeros(nf, nr);
         for (r, list) in sys.l_rf.iter().enumerate() {
@@ -82,7 +83,7 @@ impl Skeletal {
         let w = DMatrix::from_fn(nf, nr, |i, j| cols[(i, j)]);
         let mut sigma = DMatrix::from_fn(nr, nr, |i, j| sys.l_rr[i * nr + j]);
         for r in 0..nr {
-            sigma[(r, r)] += sys.mass_rigid[r] * ih2;
+            sigma[(r, r)] += sys.mass_rigid_h2[r];
             for &(f, v) in &sys.l_rf[r] {
                 for c in 0..nr {
                     sigma[(r, c)] -= v * w[(f, c)];
@@ -116,28 +117,28 @@ impl Skeletal {
     }
 
     /// `W = A_FF^-1 A_FR` (`n_F x n_R`).
-    pub fn w(&self) -> &DMatrix<f64> {
+    pub(crate) fn w(&self) -> &DMatrix<f64> {
         &self.w
     }
 
     /// The Schur complement `Sigma = A_RR - A_RF W` (`n_R x n_R`).
-    pub fn sigma(&self) -> &DMatrix<f64> {
+    pub(crate) fn sigma(&self) -> &DMatrix<f64> {
         &self.sigma
     }
 
     /// The joint increment of the last [`Skeletal::solve`] (after limits and contacts).
-    pub fn last_increment(&self) -> &[f64] {
+    pub(crate) fn last_increment(&self) -> &[f64] {
         self.dz.as_slice()
     }
 
     /// The residual `g - Sigma q_R` of the last solve, per bone vertex.
-    pub fn last_residual(&self) -> &[Vector3<f64>] {
+    pub(crate) fn last_residual(&self) -> &[Vector3<f64>] {
         &self.resid
     }
 
     /// Joint limits active in the last solve: `(coordinate, multiplier)` with a nonzero
     /// multiplier.
-    pub fn active_limits(&self) -> impl Iterator<Item = (usize, f64)> + '_ {
+    pub(crate) fn active_limits(&self) -> impl Iterator<Item = (usize, f64)> + '_ {
         self.limits
             .iter()
             .zip(&self.c_mu)
@@ -147,19 +148,19 @@ impl Skeletal {
 
     /// Contacts on bone vertices in the last solve: their impulses and the weights `w_j` of the
     /// projected Gauss-Seidel (in the order of the `rigid_contacts` passed to it).
-    pub fn rigid_contact_solution(&self) -> impl Iterator<Item = (Vector3<f64>, f64)> + '_ {
+    pub(crate) fn rigid_contact_solution(&self) -> impl Iterator<Item = (Vector3<f64>, f64)> + '_ {
         self.c_lambda.iter().copied().zip(self.c_w.iter().copied())
     }
 
     /// Forget contact impulses (at the start of a step).
-    pub fn reset_impulses(&mut self) {
+    pub(crate) fn reset_impulses(&mut self) {
         self.impulses.clear();
     }
 
     /// One reduced global step: updates the skeleton, writes the free positions into `x_f` and
     /// the bone-vertex positions into `q_r_out` (skeleton order).
     #[allow(clippy::too_many_arguments)]
-    pub fn solve(
+    pub(crate) fn solve(
         &mut self,
         sys: &GlobalSystem,
         direct: &mut Direct,
@@ -285,7 +286,7 @@ impl Skeletal {
         let mut stats = direct.apply_contacts(x_f, contacts);
         stats.contact_iterations += rigid_sweeps;
         self.impulses.clear();
-        self.impulses.extend(direct.impulses());
+        self.impulses.extend(direct.indexed_impulses());
         Ok(stats)
     }
 

@@ -1,0 +1,322 @@
+//! The backward pass's buffers and the adjoint of one step (docs/method.md section 7): the
+//! velocity update (Eq. 4) and the inertial target (Eq. 2) through the integrator, and between
+//! them either every recorded local-global iteration (unrolled mode, Eq. G1) or the converged
+//! step (implicit mode, see `implicit.rs`), or with a skeleton the reduced step (`skeletal.rs`).
+
+use std::time::Instant;
+
+use nalgebra::Vector3;
+
+use super::contact::{self, ContactAdjoint};
+use super::recording::Recording;
+use super::skeletal::SkeletalAdjoint;
+use super::{DiffError, Gradient, Mode, Options};
+use crate::constraint::{Constraints, Linearize, ParamGrads};
+use crate::model::Model;
+use crate::solver::direct::Direct;
+use crate::solver::free_contact::FreeContact;
+use crate::solver::global::InnerControl;
+use crate::solver::integrator::ImplicitEuler;
+use crate::solver::system::GlobalSystem;
+use crate::solver::Settings;
+
+/// Buffers of the backward pass, sized once.
+pub(crate) struct Backward<'a> {
+    pub(super) model: &'a Model,
+    pub(super) integrator: ImplicitEuler,
+    pub(super) sys: GlobalSystem,
+    pub(super) direct: Direct,
+    pub(super) local: Constraints,
+    pub(super) contact: ContactAdjoint,
+    pub(super) opts: Options,
+    pub(super) n: usize,
+    pub(super) nf: usize,
+    // adjoints in the free numbering
+    pub(super) xbar: Vec<Vector3<f64>>,
+    pub(super) z: Vec<Vector3<f64>>,
+    pub(super) base_acc: Vec<Vector3<f64>>,
+    // full numbering
+    pub(super) y_full: Vec<Vector3<f64>>,
+    pub(super) q_full: Vec<Vector3<f64>>,
+    pub(super) xn_full: Vec<Vector3<f64>>,
+    pub(super) out_full: Vec<Vector3<f64>>,
+    pub(super) s: Vec<Vector3<f64>>,
+    pub(super) anchor_scratch: Vec<Vector3<f64>>,
+    pub(super) scratch_rot: Vec<f64>,
+    pub(super) scratch_vol: Vec<f64>,
+    pub(super) scratch_act: Vec<f64>,
+    /// Implicit mode: free-numbered work vectors (the converged positions, the right-hand
+    /// side, the previous fixed-point iterate, and conjugate gradients' `x, r, z, p, Hp, Ap`).
+    pub(super) implicit: [Vec<Vector3<f64>>; 9],
+    /// The step's activation adjoints (swapped with the gradient's row).
+    pub(super) act_grad: Vec<f64>,
+    /// The skeleton's backward buffers (`None` without a skeleton).
+    pub(super) skel: Option<SkeletalAdjoint>,
+    /// Time in contact adjoints (ms).
+    pub(super) contact_ms: f64,
+}
+
+/// One step's inputs to [`Backward::step`].
+pub(crate) struct StepInputs<'r> {
+    /// State before the step.
+    pub q_n: &'r [Vector3<f64>],
+    /// Velocities before the step.
+    pub v_n: &'r [Vector3<f64>],
+    /// Positions after the step.
+    pub q_next: &'r [Vector3<f64>],
+    /// The step's activations.
+    pub activations: &'r [f64],
+    /// The step's recording (unrolled mode and skeletons).
+    pub replay: Option<&'r Recording>,
+    /// The step's final contacts and impulses (implicit mode).
+    pub final_contacts: Option<(&'r [FreeContact], &'r [Vector3<f64>])>,
+    /// Step index.
+    pub step: usize,
+}
+
+impl<'a> Backward<'a> {
+    /// Assemble and factor the system for `settings`' time step and allocate every buffer.
+    pub(crate) fn new(model: &'a Model, settings: &Settings, opts: Options) -> Result<Self, DiffError> {
+        let sys = GlobalSystem::new(model, settings.dt)?;
+        let direct = Direct::new(
+            &sys,
+            InnerControl {
+                tolerance: 0.0,
+                max_iterations: 1,
+            },
+        )?;
+        let (n, nf) = (model.n(), sys.n());
+        let groups = model.actuators.as_ref().map_or(0, |a| a.groups.len());
+        let mut b = Self {
+            skel: None,
+            contact_ms: 0.0,
+            integrator: ImplicitEuler::new(settings.dt, settings.damping),
+            local: Constraints::new(model),
+            contact: ContactAdjoint::default(),
+            xbar: vec![Vector3::zeros(); nf],
+            z: vec![Vector3::zeros(); nf],
+            base_acc: vec![Vector3::zeros(); nf],
+            y_full: vec![Vector3::zeros(); n],
+            q_full: vec![Vector3::zeros(); n],
+            xn_full: vec![Vector3::zeros(); n],
+            out_full: vec![Vector3::zeros(); n],
+            s: vec![Vector3::zeros(); n],
+            anchor_scratch: vec![Vector3::zeros(); n],
+            scratch_rot: vec![0.0; model.tets.len()],
+            scratch_vol: vec![0.0; model.tets.len()],
+            scratch_act: vec![0.0; groups],
+            implicit: std::array::from_fn(|_| {
+                if opts.mode == Mode::Implicit {
+                    vec![Vector3::zeros(); nf]
+                } else {
+                    Vec::new()
+                }
+            }),
+            act_grad: vec![0.0; groups],
+            model,
+            sys,
+            direct,
+            opts,
+            n,
+            nf,
+        };
+        b.skel = SkeletalAdjoint::new(model, &b);
+        Ok(b)
+    }
+
+    /// Scatter free values into a full vector whose other entries are the rest positions or
+    /// zero (`zero_fixed`).
+    pub(super) fn scatter(
+        sys: &GlobalSystem,
+        model: &Model,
+        free: &[Vector3<f64>],
+        out: &mut [Vector3<f64>],
+        zero_fixed: bool,
+    ) {
+        for (i, o) in out.iter_mut().enumerate() {
+            *o = if zero_fixed { Vector3::zeros() } else { model.rest[i] };
+        }
+        for (k, &v) in sys.free.iter().enumerate() {
+            out[v] = free[k];
+        }
+    }
+
+    /// `z = A^-T x_bar` with the contact correction (`impulse_bar`: a direct adjoint of the
+    /// impulses); anchors' adjoints into `anchor_bar`.
+    pub(super) fn solve_adjoint(
+        &mut self,
+        contacts: &[FreeContact],
+        impulses: &[Vector3<f64>],
+        x: &[Vector3<f64>],
+        impulse_bar: Option<&[Vector3<f64>]>,
+        anchor_bar: &mut [Vector3<f64>],
+        q_start: &[Vector3<f64>],
+    ) -> Result<(), DiffError> {
+        self.direct.solve_free(&self.xbar, &mut self.z)?;
+        if contacts.is_empty() {
+            return Ok(());
+        }
+        let t = Instant::now();
+        let pairs = self.model.collision.as_ref().map(|c| contact::PairInputs {
+            q_start,
+            free_index: &self.sys.index,
+            thickness: c.settings.thickness,
+        });
+        let r = self.contact.apply(
+            &mut self.direct,
+            contacts,
+            impulses,
+            impulse_bar,
+            x,
+            &mut self.z,
+            anchor_bar,
+            pairs,
+            self.opts.contact_tolerance,
+            self.opts.contact_max_sweeps,
+        );
+        self.contact_ms += t.elapsed().as_secs_f64() * 1e3;
+        r
+    }
+
+    /// One step's adjoint: `qbar`, `vbar` hold the adjoints of `(q_{n+1}, v_{n+1})` on entry and
+    /// of `(q_n, v_n)` on exit; parameter adjoints are added to `g`.
+    pub(crate) fn step(
+        &mut self,
+        inp: StepInputs<'_>,
+        qbar: &mut [Vector3<f64>],
+        vbar: &mut [Vector3<f64>],
+        g: &mut Gradient,
+    ) -> Result<(), DiffError> {
+        let model = self.model;
+        let ih2 = self.integrator.inv_h2();
+        let c = self.integrator.velocity_coefficient();
+        self.integrator.inertial_target(model, inp.q_n, inp.v_n, &mut self.s);
+        for (k, &v) in self.sys.free.iter().enumerate() {
+            self.xbar[k] = qbar[v] + vbar[v] * c;
+            self.base_acc[k] = Vector3::zeros();
+        }
+        if let Some(sa) = self.skel.as_mut() {
+            // Bone vertices after the step sit at q_R(z_{n+1}).
+            for (r, &v) in self.sys.rigid.iter().enumerate() {
+                sa.q_r_bar_in[r] = qbar[v] + vbar[v] * c;
+            }
+        }
+        // q_{n+1} = x_N on free vertices; v_{n+1} = c (q_{n+1} - q_n) everywhere (Eq. 4).
+        for i in 0..self.n {
+            qbar[i] = -vbar[i] * c;
+            vbar[i] = Vector3::zeros();
+        }
+        let step = inp.step;
+        std::mem::swap(&mut self.act_grad, &mut g.activations[step]);
+        let r = match (self.opts.mode, inp.replay) {
+            (mode, Some(rec)) if self.skel.is_some() => {
+                let implicit = mode == Mode::Implicit;
+                let mut act_grad = std::mem::take(&mut self.act_grad);
+                let r = self.skeletal_step(
+                    inp.q_n,
+                    rec,
+                    inp.activations,
+                    qbar,
+                    vbar,
+                    g,
+                    step,
+                    &mut act_grad,
+                    implicit,
+                );
+                self.act_grad = act_grad;
+                r
+            }
+            (Mode::Unrolled, Some(rec)) => self.unrolled(rec, inp.q_n, inp.activations, qbar, vbar, g),
+            (Mode::Implicit, _) => self.implicit(&inp, qbar, vbar, g),
+            (Mode::Unrolled, None) => Err(DiffError::Unsupported("unrolled mode needs a replay".into())),
+        };
+        std::mem::swap(&mut self.act_grad, &mut g.activations[step]);
+        r?;
+        // The constant part of the right-hand side: M s/h^2 and the attachments.
+        for (k, &v) in self.sys.free.iter().enumerate() {
+            g.mass[v] += self.base_acc[k].dot(&self.s[v]) * ih2;
+        }
+        let (index, base_acc) = (&self.sys.index, &self.base_acc);
+        let adjoint = |v: usize| (index[v] != usize::MAX).then(|| base_acc[index[v]]);
+        self.local
+            .constant_rhs_adjoint(model, &adjoint, &mut g.attachment_targets);
+        Ok(())
+    }
+
+    /// Unrolled mode: the adjoint of every recorded local-global iteration
+    /// `x_{k+1} = A^-1 (M s/h^2 + b_fixed + J p(x_k))`, last first (Eq. G1).
+    fn unrolled(
+        &mut self,
+        rec: &Recording,
+        q_n: &[Vector3<f64>],
+        activations: &[f64],
+        qbar: &mut [Vector3<f64>],
+        vbar: &mut [Vector3<f64>],
+        g: &mut Gradient,
+    ) -> Result<(), DiffError> {
+        let model = self.model;
+        let ih2 = self.integrator.inv_h2();
+        let iters = rec.solves();
+        if rec.iterates.len() != iters + 1 {
+            return Err(DiffError::Unsupported("the replay recorded no iterates".into()));
+        }
+        for k in (0..iters).rev() {
+            let (contacts, impulses) = rec.solve(k);
+            let x_next = &rec.iterates[k + 1];
+            self.solve_adjoint(contacts, impulses, x_next, None, qbar, q_n)?;
+            self.accumulate_solve(x_next, g);
+            Self::scatter(&self.sys, model, &rec.iterates[k], &mut self.q_full, false);
+            Self::scatter(&self.sys, model, x_next, &mut self.xn_full, false);
+            Self::scatter(&self.sys, model, &self.z, &mut self.y_full, true);
+            self.local.adjoint(
+                model,
+                &self.q_full,
+                &self.y_full,
+                Some(&self.xn_full),
+                activations,
+                rec.svds.get(k).map_or(Linearize::Recompute, Linearize::Recorded),
+                &mut self.out_full,
+                ParamGrads {
+                    w_rot: &mut g.w_rot,
+                    w_vol: &mut g.w_vol,
+                    activations: &mut self.act_grad,
+                },
+            )?;
+            for (k2, &v) in self.sys.free.iter().enumerate() {
+                self.xbar[k2] = self.out_full[v];
+            }
+            g.stats.backward_iterations += 1;
+        }
+        // x_0 = s.
+        for (k, &v) in self.sys.free.iter().enumerate() {
+            let sbar = self.xbar[k] + self.base_acc[k] * (model.mass[v] * ih2);
+            self.add_s_adjoint(v, sbar, qbar, vbar, g);
+        }
+        Ok(())
+    }
+
+    /// After `z` became the adjoint of one solve's right-hand side (solution `x_next`):
+    /// accumulate it and the masses' `A` term (Eq. G3).
+    pub(super) fn accumulate_solve(&mut self, x_next: &[Vector3<f64>], g: &mut Gradient) {
+        let ih2 = self.integrator.inv_h2();
+        for (k, &v) in self.sys.free.iter().enumerate() {
+            self.base_acc[k] += self.z[k];
+            g.mass[v] -= self.z[k].dot(&x_next[k]) * ih2;
+        }
+        g.stats.contact_sweeps = self.contact.sweeps;
+        g.stats.contact_residual = self.contact.worst_residual;
+    }
+
+    /// The adjoint of the inertial target (Eq. 2) on vertex `v`.
+    pub(super) fn add_s_adjoint(
+        &self,
+        v: usize,
+        sbar: Vector3<f64>,
+        qbar: &mut [Vector3<f64>],
+        vbar: &mut [Vector3<f64>],
+        g: &mut Gradient,
+    ) {
+        self.integrator
+            .inertial_target_adjoint(sbar, &mut qbar[v], &mut vbar[v], &mut g.accel[v]);
+    }
+}

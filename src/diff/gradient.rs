@@ -1,0 +1,195 @@
+//! The gradient of a whole simulation: the forward pass with checkpoints, then the backward
+//! pass over the steps in reverse (unrolled mode replays each step from its checkpoint unless
+//! its recording was kept), with the loss's terms entering at each step.
+
+use std::time::Instant;
+
+use nalgebra::Vector3;
+
+use super::backward::{Backward, StepInputs};
+use super::forward::{forward, set_controls, Keep};
+use super::loss::{Loss, LossGrad};
+use super::recording::Recording;
+use super::{Controls, DiffError, DiffStats, Gradient, Mode, Options};
+use crate::model::Model;
+use crate::solver::{Settings, Simulator, SolverKind};
+
+/// Where a gradient evaluation is (for progress reports and observers).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum Progress {
+    /// Forward step `k` (0-based) is done.
+    Forward(usize),
+    /// The backward of step `k` (0-based; they run last to first) is done.
+    Backward(usize),
+}
+
+fn check_supported(model: &Model, settings: &Settings, mode: Mode) -> Result<(), DiffError> {
+    if mode == Mode::Unrolled && settings.anderson > 0 {
+        return Err(DiffError::Unsupported(
+            "unrolled gradients through Anderson acceleration; use anderson = 0 or --mode implicit".into(),
+        ));
+    }
+    if !model.obstacles.is_empty() && settings.solver != SolverKind::Direct {
+        return Err(DiffError::Unsupported(
+            "gradients with contact need the direct solver (solver: direct)".into(),
+        ));
+    }
+    Ok(())
+}
+
+/// The loss of a forward run alone (for finite differences).
+pub fn loss_value(
+    model: &Model,
+    settings: &Settings,
+    steps: usize,
+    controls: &Controls,
+    loss: &dyn Loss,
+) -> Result<f64, DiffError> {
+    Ok(forward(model, settings, steps, controls, loss, Keep::default(), &mut |_| {})?.loss)
+}
+
+/// The loss of `steps` steps and its gradient (see the module docs).
+pub fn gradient(
+    model: &Model,
+    settings: &Settings,
+    steps: usize,
+    controls: &Controls,
+    loss: &dyn Loss,
+    opts: Options,
+) -> Result<Gradient, DiffError> {
+    gradient_with(model, settings, steps, controls, loss, opts, &mut |_| {})
+}
+
+/// [`gradient`], telling `progress` after every forward and every backward step.
+pub fn gradient_with(
+    model: &Model,
+    settings: &Settings,
+    steps: usize,
+    controls: &Controls,
+    loss: &dyn Loss,
+    opts: Options,
+    progress: &mut dyn FnMut(Progress),
+) -> Result<Gradient, DiffError> {
+    if steps == 0 {
+        return Err(DiffError::Input("steps must be at least 1".into()));
+    }
+    check_supported(model, settings, opts.mode)?;
+    let implicit = opts.mode == Mode::Implicit;
+    let t0 = Instant::now();
+    let fwd = forward(
+        model,
+        settings,
+        steps,
+        controls,
+        loss,
+        Keep {
+            states: true,
+            contacts: implicit && (!model.obstacles.is_empty() || model.collision.is_some()),
+            store_bytes: if implicit { 0 } else { opts.store_bytes },
+        },
+        progress,
+    )?;
+    let forward_ms = t0.elapsed().as_secs_f64() * 1e3;
+    let t1 = Instant::now();
+    let n = model.n();
+    let groups = model.actuators.as_ref().map_or(0, |a| a.groups.len());
+    let dofs = model.skeleton.as_ref().map_or(0, |s| s.dofs);
+    let mut g = Gradient {
+        loss: fwd.loss,
+        q0: vec![Vector3::zeros(); n],
+        v0: vec![Vector3::zeros(); n],
+        w_rot: vec![0.0; model.tets.len()],
+        w_vol: vec![0.0; model.tets.len()],
+        mass: vec![0.0; n],
+        accel: vec![Vector3::zeros(); n],
+        attachment_targets: vec![Vector3::zeros(); model.attachments.len()],
+        activations: vec![vec![0.0; groups]; steps],
+        torques: vec![vec![0.0; dofs]; if dofs > 0 { steps } else { 0 }],
+        joints0: vec![0.0; dofs],
+        stats: DiffStats {
+            forward_ms,
+            forward_iterations: fwd.iterations,
+            unconverged_steps: fwd.unconverged,
+            ..Default::default()
+        },
+    };
+    g.stats.stored_bytes = fwd.stored_bytes;
+    g.stats.stored_steps = fwd.stored.iter().filter(|r| r.is_some()).count();
+    g.stats.checkpoint_bytes = fwd.checkpoint_bytes();
+    let mut bw = Backward::new(model, settings, opts)?;
+    // Implicit mode with a skeleton replays too: it linearizes the step's last iteration.
+    let mut replayer = if implicit && model.skeleton.is_none() {
+        None
+    } else {
+        let sim = Simulator::new(model.clone(), settings.clone())?;
+        Some((sim, Recording::new(true)))
+    };
+    let (mut qbar, mut vbar) = (vec![Vector3::zeros(); n], vec![Vector3::zeros(); n]);
+    for step in (0..steps).rev() {
+        // The loss term of the state after this step.
+        let (qs, vs) = (fwd.q.row(step + 1), fwd.v.row(step + 1));
+        if let (Some(sa), Some(j)) = (bw.skel.as_mut(), fwd.joints.get(step)) {
+            loss.joint_term(model, step + 1, steps, j, &mut sa.z_bar);
+        }
+        loss.term(
+            model,
+            step + 1,
+            steps,
+            qs,
+            vs,
+            LossGrad {
+                q: &mut qbar,
+                v: &mut vbar,
+                mass: &mut g.mass,
+            },
+        );
+        let tr = Instant::now();
+        let stored = fwd.stored.get(step).and_then(|r| r.as_ref());
+        if let (Some((sim, replay)), None) = (replayer.as_mut(), stored) {
+            sim.set_state_from(fwd.q.row(step), fwd.v.row(step))?;
+            if let Some(st) = fwd.skeleton.get(step) {
+                sim.set_skeleton_state(st)?;
+            }
+            set_controls(sim, model, controls, step)?;
+            sim.set_clock(fwd.time[step], step);
+            for (grp, a) in fwd.activations.row(step).iter().enumerate() {
+                sim.set_activation_of(grp, *a)?;
+            }
+            sim.step_observed(replay)?;
+            let dev = sim
+                .state()
+                .q
+                .iter()
+                .zip(fwd.q.row(step + 1))
+                .map(|(a, b)| (a - b).amax())
+                .fold(0.0, f64::max);
+            g.stats.replay_deviation = g.stats.replay_deviation.max(dev);
+        }
+        g.stats.replay_ms += tr.elapsed().as_secs_f64() * 1e3;
+        let rec = stored.or_else(|| replayer.as_ref().map(|(_, r)| r));
+        bw.step(
+            StepInputs {
+                q_n: fwd.q.row(step),
+                v_n: fwd.v.row(step),
+                q_next: fwd.q.row(step + 1),
+                activations: fwd.activations.row(step),
+                replay: rec,
+                final_contacts: fwd.contacts.get(step),
+                step,
+            },
+            &mut qbar,
+            &mut vbar,
+            &mut g,
+        )?;
+        progress(super::Progress::Backward(step));
+    }
+    g.q0 = qbar;
+    g.v0 = vbar;
+    if let Some(sa) = bw.skel.as_ref() {
+        g.joints0.copy_from_slice(&sa.z_bar);
+    }
+    g.stats.backward_ms = t1.elapsed().as_secs_f64() * 1e3;
+    g.stats.contact_ms = bw.contact_ms;
+    Ok(g)
+}

@@ -1,0 +1,244 @@
+//! Implicit mode (docs/method.md section 7, Eq. G4): the converged step differentiated by the
+//! implicit function theorem at the stored next state, `(A - K) r = x_bar` with `K` the local
+//! step's linearization (symmetric). Without contacts it is solved by conjugate gradients
+//! preconditioned with the prefactored `A` (DiffPD's approach); with contacts, or where `A - K`
+//! is not positive definite along a search direction, by the fixed point
+//! `r = A^-T (x_bar + K r)` with the contact correction. Exact where the forward converged.
+
+use nalgebra::Vector3;
+
+use super::backward::{Backward, StepInputs};
+use super::{DiffError, Gradient};
+use crate::constraint::{Linearize, ParamGrads};
+use crate::model::Model;
+
+/// An implicit adjoint's fixed point that ends with a relative change above this has diverged.
+const DIVERGED_CHANGE: f64 = 0.1;
+
+/// Refuse the result of an implicit adjoint fixed point that diverged (the linearized step is
+/// not contractive there, e.g. far from convergence or where the contact set is switching).
+pub(crate) fn fixed_point_converged(residual: f64, iterations: usize, step: usize) -> Result<(), DiffError> {
+    if residual.is_finite() && residual <= DIVERGED_CHANGE {
+        return Ok(());
+    }
+    Err(DiffError::NotDifferentiable(format!(
+        "step {}: the implicit adjoint's fixed point diverged (relative change {residual:.1e} after {iterations} iterations); the linearized step is not contractive here (forward far from converged?): use unrolled mode",
+        step + 1
+    )))
+}
+
+/// The work vectors' slots in [`Backward::implicit`] (conjugate gradients' `r, z, p, Hp, Ap`
+/// follow `CG_X`).
+const X_STAR: usize = 0;
+const XBAR0: usize = 1;
+const PREV: usize = 2;
+const CG_X: usize = 3;
+
+fn dot(a: &[Vector3<f64>], b: &[Vector3<f64>]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x.dot(y)).sum::<f64>()
+}
+
+impl Backward<'_> {
+    /// Implicit mode's adjoint of one converged step (see the module docs).
+    pub(super) fn implicit(
+        &mut self,
+        inp: &StepInputs<'_>,
+        qbar: &mut [Vector3<f64>],
+        vbar: &mut [Vector3<f64>],
+        g: &mut Gradient,
+    ) -> Result<(), DiffError> {
+        let model = self.model;
+        let ih2 = self.integrator.inv_h2();
+        let (q_next, activations, step) = (inp.q_next, inp.activations, inp.step);
+        let (contacts, impulses) = inp.final_contacts.unwrap_or((&[], &[]));
+        let mut w = std::mem::take(&mut self.implicit);
+        for (k, &v) in self.sys.free.iter().enumerate() {
+            w[X_STAR][k] = q_next[v];
+        }
+        self.local.linearize(model, q_next)?;
+        self.xn_full.copy_from_slice(q_next);
+        w[XBAR0].copy_from_slice(&self.xbar);
+        // Without contacts (A - K) r = x_bar is symmetric: conjugate gradients preconditioned by
+        // the factored A. Falls back to the fixed point below if the step's Hessian A - K is
+        // not positive definite along a search direction.
+        let mut done = false;
+        if contacts.is_empty() {
+            match self.implicit_cg(model, q_next, activations, &mut w) {
+                Ok(Some((iters, res))) => {
+                    self.z.copy_from_slice(&w[CG_X]);
+                    g.stats.backward_iterations += iters;
+                    g.stats.implicit_residual = g.stats.implicit_residual.max(res);
+                    self.anchor_scratch.iter_mut().for_each(|a| *a = Vector3::zeros());
+                    done = true;
+                }
+                Ok(None) => {}
+                Err(e) => {
+                    self.implicit = w;
+                    return Err(e);
+                }
+            }
+        }
+        let r = if done {
+            Ok(())
+        } else {
+            self.implicit_fixed_point(inp, contacts, impulses, &mut w, g, step)
+        };
+        let x_star = std::mem::take(&mut w[X_STAR]);
+        self.implicit = w;
+        r?;
+        for (q, a) in qbar.iter_mut().zip(&self.anchor_scratch) {
+            *q += a;
+        }
+        // Parameter adjoints at the fixed point.
+        self.accumulate_solve(&x_star, g);
+        self.implicit[X_STAR] = x_star;
+        Self::scatter(&self.sys, model, &self.z, &mut self.y_full, true);
+        self.local.adjoint(
+            model,
+            q_next,
+            &self.y_full,
+            Some(&self.xn_full),
+            activations,
+            Linearize::Cached,
+            &mut self.out_full,
+            ParamGrads {
+                w_rot: &mut g.w_rot,
+                w_vol: &mut g.w_vol,
+                activations: &mut self.act_grad,
+            },
+        )?;
+        for (k, &v) in self.sys.free.iter().enumerate() {
+            let sbar = self.base_acc[k] * (model.mass[v] * ih2);
+            self.add_s_adjoint(v, sbar, qbar, vbar, g);
+        }
+        Ok(())
+    }
+
+    /// `r = A^-T (x_bar + K r)` from `r = A^-T x_bar`, with the contact correction, to the
+    /// implicit tolerance or the iteration cap.
+    #[allow(clippy::too_many_arguments)]
+    fn implicit_fixed_point(
+        &mut self,
+        inp: &StepInputs<'_>,
+        contacts: &[crate::solver::free_contact::FreeContact],
+        impulses: &[Vector3<f64>],
+        w: &mut [Vec<Vector3<f64>>; 9],
+        g: &mut Gradient,
+        step: usize,
+    ) -> Result<(), DiffError> {
+        let model = self.model;
+        w[PREV].iter_mut().for_each(|p| *p = Vector3::zeros());
+        let mut it = 0;
+        loop {
+            self.anchor_scratch.iter_mut().for_each(|a| *a = Vector3::zeros());
+            let mut anchors = std::mem::take(&mut self.anchor_scratch);
+            let r = self.solve_adjoint(contacts, impulses, &w[X_STAR], None, &mut anchors, inp.q_n);
+            self.anchor_scratch = anchors;
+            r?;
+            it += 1;
+            let (mut d, mut s) = (0.0f64, 0.0f64);
+            for (a, b) in self.z.iter().zip(&w[PREV]) {
+                d = d.max((a - b).amax());
+                s = s.max(a.amax());
+            }
+            let residual = if s > 0.0 { d / s } else { 0.0 };
+            w[PREV].copy_from_slice(&self.z);
+            if residual <= self.opts.implicit_tolerance || it >= self.opts.implicit_max_iterations {
+                g.stats.backward_iterations += it;
+                g.stats.implicit_residual = g.stats.implicit_residual.max(residual);
+                return fixed_point_converged(residual, it, step);
+            }
+            let z = std::mem::take(&mut self.z);
+            let r = self.apply_k(model, inp.q_next, inp.activations, &z);
+            self.z = z;
+            r?;
+            for (k, &v) in self.sys.free.iter().enumerate() {
+                self.xbar[k] = w[XBAR0][k] + self.out_full[v];
+            }
+        }
+    }
+
+    /// `out_full = K y` (all vertices) for free-numbered `y`, with the linearization cached at
+    /// `q_next`; the parameter adjoints it also produces are discarded.
+    fn apply_k(
+        &mut self,
+        model: &Model,
+        q_next: &[Vector3<f64>],
+        activations: &[f64],
+        y: &[Vector3<f64>],
+    ) -> Result<(), DiffError> {
+        Self::scatter(&self.sys, model, y, &mut self.y_full, true);
+        self.scratch_act.iter_mut().for_each(|a| *a = 0.0);
+        self.local.adjoint(
+            model,
+            q_next,
+            &self.y_full,
+            Some(&self.xn_full),
+            activations,
+            Linearize::Cached,
+            &mut self.out_full,
+            ParamGrads {
+                w_rot: &mut self.scratch_rot,
+                w_vol: &mut self.scratch_vol,
+                activations: &mut self.scratch_act,
+            },
+        )?;
+        Ok(())
+    }
+
+    /// `(A - K) r = x_bar0` by conjugate gradients preconditioned with `A^-1` (`K` the cached
+    /// local linearization), into `w[CG_X]`: the iterations and final relative residual, or
+    /// `None` if a direction of non-positive curvature appears (the caller then iterates the
+    /// fixed point).
+    fn implicit_cg(
+        &mut self,
+        model: &Model,
+        q_next: &[Vector3<f64>],
+        activations: &[f64],
+        w: &mut [Vec<Vector3<f64>>; 9],
+    ) -> Result<Option<(usize, f64)>, DiffError> {
+        let nf = self.nf;
+        let bnorm = dot(&w[XBAR0], &w[XBAR0]).sqrt();
+        w[CG_X].iter_mut().for_each(|x| *x = Vector3::zeros());
+        if bnorm == 0.0 {
+            return Ok(Some((0, 0.0)));
+        }
+        let [_, b, _, x, r, z, p, hp, ap] = w;
+        r.copy_from_slice(b);
+        self.direct.solve_free(r, z)?;
+        p.copy_from_slice(z);
+        let mut rz = dot(r, z);
+        let mut it = 0;
+        let mut res = 1.0;
+        while it < self.opts.implicit_max_iterations {
+            it += 1;
+            // hp = A p - K p.
+            self.sys.apply(p, ap);
+            self.apply_k(model, q_next, activations, p)?;
+            for (k, &v) in self.sys.free.iter().enumerate() {
+                hp[k] = ap[k] - self.out_full[v];
+            }
+            let php = dot(p, hp);
+            if php.is_nan() || php <= 0.0 {
+                return Ok(None);
+            }
+            let alpha = rz / php;
+            for k in 0..nf {
+                x[k] += p[k] * alpha;
+                r[k] -= hp[k] * alpha;
+            }
+            res = dot(r, r).sqrt() / bnorm;
+            if res <= self.opts.implicit_tolerance {
+                break;
+            }
+            self.direct.solve_free(r, z)?;
+            let rz_new = dot(r, z);
+            let beta = rz_new / rz;
+            rz = rz_new;
+            for k in 0..nf {
+                p[k] = z[k] + p[k] * beta;
+            }
+        }
+        Ok(Some((it, res)))
+    }
+}

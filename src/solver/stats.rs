@@ -1,0 +1,82 @@
+//! What one step did: iterations, convergence, contacts, energies, timings.
+
+use serde::Serialize;
+
+/// What one step did.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct StepStats {
+    /// Step number (1-based).
+    pub step: usize,
+    /// Time after the step.
+    pub time: f64,
+    /// Local-global iterations.
+    pub iterations: usize,
+    /// Whether the tolerance was met before the cap.
+    pub converged: bool,
+    /// Last RMS position change relative to the length scale.
+    pub relative_change: f64,
+    /// Inner iterations of the global solver, summed over the step.
+    pub global_iterations: usize,
+    /// Contacts in the final round.
+    pub contacts: usize,
+    /// Contact rounds.
+    pub contact_rounds: usize,
+    /// Contact iterations (sweeps), summed over the step.
+    pub contact_iterations: usize,
+    /// Deepest penetration after the step (m; 0 without obstacles).
+    pub max_penetration: f64,
+    /// Kinetic energy after the step (J).
+    pub kinetic_energy: f64,
+    /// Constraint energy at the last local step (J).
+    pub elastic_energy: f64,
+    /// Potential energy of the external accelerations, `-sum m a . q` (J).
+    pub potential_energy: f64,
+    /// Wall time (ms).
+    pub wall_ms: f64,
+    /// Of which in local steps (projections and gather, ms).
+    pub local_ms: f64,
+    /// Of which in global solves (ms).
+    pub global_ms: f64,
+    /// Accelerated iterates rejected by the energy safeguard.
+    pub anderson_rejections: usize,
+    /// Largest change of a distance within a bone after the step (m; 0 without a skeleton).
+    pub bone_length_error: f64,
+    /// Contacts between bodies (vertex-face and edge-edge pairs) in the final round.
+    pub pair_contacts: usize,
+    /// Obstacle contacts on bone vertices in the final round (0 without a skeleton; they are
+    /// included in `contacts`).
+    pub bone_contacts: usize,
+}
+
+impl StepStats {
+    /// The figures of step `step` (1-based) ending at `time`, before it runs.
+    pub(crate) fn new(step: usize, time: f64) -> Self {
+        Self {
+            step,
+            time,
+            iterations: 0,
+            converged: false,
+            relative_change: f64::NAN,
+            global_iterations: 0,
+            contacts: 0,
+            contact_rounds: 0,
+            contact_iterations: 0,
+            max_penetration: 0.0,
+            kinetic_energy: 0.0,
+            elastic_energy: 0.0,
+            potential_energy: 0.0,
+            wall_ms: 0.0,
+            local_ms: 0.0,
+            global_ms: 0.0,
+            anderson_rejections: 0,
+            bone_length_error: 0.0,
+            pair_contacts: 0,
+            bone_contacts: 0,
+        }
+    }
+
+    /// Kinetic + elastic + potential energy.
+    pub fn total_energy(&self) -> f64 {
+        self.kinetic_energy + self.elastic_energy + self.potential_energy
+    }
+}
