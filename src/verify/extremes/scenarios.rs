@@ -17,7 +17,7 @@ use crate::mesh::{self, TetMesh};
 use crate::skeleton::fixed::Fixed;
 use crate::skeleton::rotational::Rotational;
 use crate::skeleton::{BoneSpec, Schedule};
-use crate::solver::{BodySpec, MassSpec, Material, Model, ModelBuilder, Settings, SolverKind};
+use crate::solver::{BodySpec, MassSpec, Material, Model, ModelBuilder, Settings, SolverError, SolverKind};
 
 const G: f64 = 9.81;
 /// Edge of the test cube (m).
@@ -164,7 +164,7 @@ pub(super) fn jelly(e: f64, rho: f64, dt: f64, steps: usize, omega: f64) -> Tria
         .build()
     {
         Ok(m) => m,
-        Err(e) => return Trial::rejected(e.to_string()),
+        Err(e) => return Trial::rejected(SolverError::from(e).to_string()),
     };
     let v = spin(&model, omega);
     let mut p = Probe::new(model.clone(), settings(dt), steps);
@@ -195,7 +195,7 @@ pub(super) fn jelly_from(mesh: TetMesh, steps: usize) -> Trial {
         .build()
     {
         Ok(m) => m,
-        Err(e) => return Trial::rejected(e.to_string()),
+        Err(e) => return Trial::rejected(SolverError::from(e).to_string()),
     };
     let v = spin(&model, 6.0);
     let mut p = Probe::new(model.clone(), settings(0.01), steps);
@@ -242,7 +242,7 @@ pub(super) fn unvalidated_tet(apex: Vector3<f64>) -> Trial {
             ));
             t
         }
-        Err(e) => Trial::rejected(e.to_string()),
+        Err(e) => Trial::rejected(SolverError::from(e).to_string()),
     }
 }
 
@@ -254,7 +254,7 @@ pub(super) fn inverted_start() -> Trial {
         .build()
     {
         Ok(m) => m,
-        Err(e) => return Trial::rejected(e.to_string()),
+        Err(e) => return Trial::rejected(SolverError::from(e).to_string()),
     };
     let corner = (0..model.n())
         .min_by(|&a, &b| model.rest[a].sum().total_cmp(&model.rest[b].sum()))
@@ -317,7 +317,7 @@ pub(super) fn invariance(
         build(base.map_vertices(&transform), rotate(&gravity())),
     ) {
         (Ok(a), Ok(b)) => (a, b),
-        (Err(e), _) | (_, Err(e)) => return Trial::rejected(e.to_string()),
+        (Err(e), _) | (_, Err(e)) => return Trial::rejected(SolverError::from(e).to_string()),
     };
     let va = spin(&a, 6.0);
     let vb: Vec<Vector3<f64>> = va.iter().map(&rotate).collect();
@@ -418,7 +418,7 @@ pub(super) fn actuated(group: &'static str, activation: f64) -> Trial {
         .build()
     {
         Ok(m) => m,
-        Err(e) => return Trial::rejected(e.to_string()),
+        Err(e) => return Trial::rejected(SolverError::from(e).to_string()),
     };
     let mut p = Probe::new(model.clone(), settings(0.01), 50);
     p.activations = vec![(group.to_string(), activation)];
@@ -459,7 +459,7 @@ pub(super) fn hinge_at(angle: f64) -> Trial {
     ];
     let model = match ModelBuilder::new().gravity(gravity()).body(b).build() {
         Ok(m) => m,
-        Err(e) => return Trial::rejected(e.to_string()),
+        Err(e) => return Trial::rejected(SolverError::from(e).to_string()),
     };
     let rot = Rotation3::from_axis_angle(&Vector3::z_axis(), angle);
     let q0: Vec<Vector3<f64>> = model.rest.iter().map(|x| pivot + rot * (x - pivot)).collect();
@@ -532,7 +532,7 @@ pub(super) fn impact(speed: f64, plate: Option<f64>) -> Trial {
                 friction: 0.5,
                 thickness,
             },
-            Err(e) => return Trial::rejected(e.to_string()),
+            Err(e) => return Trial::rejected(SolverError::from(e).to_string()),
         }
     } else {
         Obstacle::plane("ground", Vector3::zeros(), Vector3::y(), 0.5)
@@ -546,7 +546,7 @@ pub(super) fn impact(speed: f64, plate: Option<f64>) -> Trial {
         .build()
     {
         Ok(m) => m,
-        Err(e) => return Trial::rejected(e.to_string()),
+        Err(e) => return Trial::rejected(SolverError::from(e).to_string()),
     };
     let mut p = Probe::new(model.clone(), settings(0.01), 20);
     p.settings.solver = SolverKind::Direct;
@@ -586,7 +586,7 @@ pub(super) fn sticking(mu: f64) -> Trial {
         .build()
     {
         Ok(m) => m,
-        Err(e) => return Trial::rejected(e.to_string()),
+        Err(e) => return Trial::rejected(SolverError::from(e).to_string()),
     };
     let bottom: Vec<usize> = (0..model.n()).filter(|&i| model.rest[i].y.abs() < 1e-12).collect();
     let mut p = Probe::new(model.clone(), settings(0.005), 60);
