@@ -117,7 +117,7 @@ fn shards_merge_into_the_unsharded_report() {
 
 #[test]
 fn zero_thickness_mesh_obstacle_is_refused() {
-    use diffsoft::contact::{Obstacle, Shape, TriMeshObstacle};
+    use diffsoft::contact::{Obstacle, TriMeshObstacle};
     let plate = TriMeshObstacle::new(
         vec![
             Vector3::new(-1.0, 0.0, -1.0),
@@ -142,12 +142,7 @@ fn zero_thickness_mesh_obstacle_is_refused() {
             MassSpec::Density(1000.0),
         )
     };
-    let obstacle = |thickness| Obstacle {
-        name: "plate".into(),
-        shape: Shape::TriMesh(plate.clone()),
-        friction: 0.5,
-        thickness,
-    };
+    let obstacle = |thickness| Obstacle::new("plate", plate.clone(), 0.5, thickness);
     let e: SolverError = ModelBuilder::new()
         .body(body())
         .obstacle(obstacle(0.0))

@@ -13,95 +13,19 @@
 //!   tangential part that sticks (`x_T = anchor_T`) when `|lambda_T| <= mu lambda_N`, or slides
 //!   on the cone boundary against the slip direction (maximal dissipation) otherwise.
 
+mod obstacle;
 pub mod pair;
+mod plane;
+mod shape;
 mod trimesh;
 
+pub use obstacle::Obstacle;
+pub use plane::Plane;
+pub use shape::Shape;
 pub use trimesh::TriMeshObstacle;
 
 use nalgebra::Vector3;
 use serde::Serialize;
-
-use crate::base::InputError;
-
-/// Obstacle geometry.
-#[derive(Debug, Clone)]
-pub enum Shape {
-    /// Half-space `n . (x - point) >= 0` (the ground).
-    Plane {
-        /// A point on the plane.
-        point: Vector3<f64>,
-        /// Unit normal pointing into the free side.
-        normal: Vector3<f64>,
-    },
-    /// A static triangle mesh (closed or open; contacts keep the side the vertex came from).
-    TriMesh(TriMeshObstacle),
-}
-
-/// A static obstacle with its friction coefficient.
-#[derive(Debug, Clone)]
-pub struct Obstacle {
-    /// Name for reports.
-    pub name: String,
-    /// Geometry.
-    pub shape: Shape,
-    /// Coulomb friction coefficient `mu_f >= 0`.
-    pub friction: f64,
-    /// Collision thickness: vertices are kept this far from the surface.
-    pub thickness: f64,
-}
-
-impl Obstacle {
-    /// A ground plane through `point` with normal `normal` (normalised here).
-    pub fn plane(name: &str, point: Vector3<f64>, normal: Vector3<f64>, friction: f64) -> Self {
-        Self {
-            name: name.to_string(),
-            shape: Shape::Plane {
-                point,
-                normal: normal.normalize(),
-            },
-            friction,
-            thickness: 0.0,
-        }
-    }
-
-    /// Check the parameters.
-    pub fn validate(&self) -> Result<(), InputError> {
-        let bad = |m: String| Err(InputError::new(format!("obstacle '{}': {m}", self.name)));
-        if !(self.friction.is_finite() && self.friction >= 0.0) {
-            return bad(format!("friction must be finite and >= 0, got {}", self.friction));
-        }
-        if !(self.thickness.is_finite() && self.thickness >= 0.0) {
-            return bad(format!("thickness must be finite and >= 0, got {}", self.thickness));
-        }
-        if let Shape::Plane { point, normal } = &self.shape {
-            if !point.iter().chain(normal.iter()).all(|v| v.is_finite()) || (normal.norm() - 1.0).abs() > 1e-9 {
-                return bad("plane point and normal must be finite, normal of unit length".into());
-            }
-        }
-        Ok(())
-    }
-
-    /// Signed distance of `x` to the surface minus the thickness, with the contact normal and
-    /// surface point, seen from the side of `from` (where the vertex was at the start of the
-    /// step). `None` when `x` is farther than `margin` and the segment `from -> x` does not
-    /// cross the surface.
-    pub fn query(
-        &self,
-        from: &Vector3<f64>,
-        x: &Vector3<f64>,
-        margin: f64,
-    ) -> Option<(f64, Vector3<f64>, Vector3<f64>)> {
-        match &self.shape {
-            Shape::Plane { point, normal } => {
-                let d = normal.dot(&(x - point)) - self.thickness;
-                (d < margin).then(|| (d, *normal, point + normal * self.thickness))
-            }
-            Shape::TriMesh(m) => m
-                .query(from, x, margin + self.thickness)
-                .map(|(d, n, c)| (d - self.thickness, n, c + n * self.thickness)),
-        }
-    }
-}
 
 /// One vertex in (possible) contact with one obstacle during one step.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]

@@ -5,6 +5,7 @@
 
 use nalgebra::Vector3;
 
+use super::Shape;
 use crate::base::InputError;
 
 #[derive(Debug, Clone, Copy)]
@@ -314,6 +315,31 @@ impl TriMeshObstacle {
             let dir = if len > 0.0 { d / len } else { n };
             Some((len, dir, q))
         }
+    }
+}
+
+impl Shape for TriMeshObstacle {
+    fn query(
+        &self,
+        from: &Vector3<f64>,
+        x: &Vector3<f64>,
+        margin: f64,
+        thickness: f64,
+    ) -> Option<(f64, Vector3<f64>, Vector3<f64>)> {
+        TriMeshObstacle::query(self, from, x, margin + thickness).map(|(d, n, c)| (d - thickness, n, c + n * thickness))
+    }
+
+    fn validate(&self) -> Result<(), InputError> {
+        // Validated on construction.
+        Ok(())
+    }
+
+    fn two_sided(&self) -> bool {
+        true
+    }
+
+    fn kind(&self) -> &'static str {
+        "triangle mesh"
     }
 }
 

@@ -285,7 +285,7 @@ impl ModelBuilder {
             // A mesh obstacle is two-sided: a vertex resting on a zero-thickness surface is on
             // neither side, and round-off can put it on the far side, through the surface.
             let min = MIN_MESH_THICKNESS * length_scale;
-            if matches!(o.shape, crate::contact::Shape::TriMesh(_)) && o.thickness < min {
+            if o.shape.two_sided() && o.thickness < min {
                 return Err(InputError::new(format!(
                     "obstacle '{}': a triangle-mesh obstacle is two-sided, so its thickness must be at least {MIN_MESH_THICKNESS:e} x the bodies' length scale ({min:.3e} m) for vertices resting on it to stay on their side despite round-off; got {} (the paper's scenes use 1e-4 m)",
                     o.name, o.thickness

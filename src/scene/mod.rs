@@ -16,12 +16,13 @@ pub mod paper;
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 use nalgebra::{Rotation3, Vector3};
 use serde::Serialize;
 
 use crate::base::{InputError, Material};
-use crate::contact::{Obstacle, Shape, TriMeshObstacle};
+use crate::contact::{Obstacle, Plane, Shape, TriMeshObstacle};
 use crate::mesh::{self, MeshInfo, TetMesh};
 use crate::model::{BodySpec, MassSpec, Model, ModelBuilder};
 use crate::skeleton::BoneSpec;
@@ -536,14 +537,15 @@ fn from_diffsoft(path: &Path, file: SceneFile) -> Result<Scene, SceneError> {
                 if n.norm() == 0.0 {
                     return Err(invalid(format!("obstacle '{name}': plane normal must be non-zero")));
                 }
-                Shape::Plane {
+                let plane = Plane {
                     point: finite3(&scene, "plane point", &p.point)?,
                     normal: n.normalize(),
-                }
+                };
+                Arc::new(plane) as Arc<dyn Shape>
             }
             (None, Some(m)) => {
                 let s = mesh::surface::load_obj(dir.join(&m.file))?.scaled(m.scale);
-                Shape::TriMesh(
+                Arc::new(
                     TriMeshObstacle::new(s.vertices, s.triangles)
                         .map_err(|e| invalid(format!("obstacle '{name}': {e}")))?,
                 )

@@ -37,7 +37,7 @@ use serde_json::Value;
 
 use super::{LoadOptions, Scene, SceneError, SceneFormat};
 use crate::base::Material;
-use crate::contact::{Obstacle, Shape, TriMeshObstacle};
+use crate::contact::{Obstacle, TriMeshObstacle};
 use crate::mesh;
 use crate::model::{BodySpec, MassSpec, ModelBuilder};
 use crate::solver::Settings;
@@ -407,15 +407,8 @@ pub fn import(path: &Path, value: &Value, opts: LoadOptions) -> Result<Scene, Sc
             cx.notes.push(format!(
                 "{w}: triangle mesh {file} at scale 1 and thickness 1e-4 as in the reference (its \"Scale\" and \"Collision tolerance\" are not read there); friction {friction} from \"Friction coefficients\" (the reference hard-codes 1)"
             ));
-            let shape = Shape::TriMesh(
-                TriMeshObstacle::new(s.vertices, s.triangles).map_err(|e| cx.invalid(format!("{w}: {e}")))?,
-            );
-            builder = builder.obstacle(Obstacle {
-                name: file.to_string(),
-                shape,
-                friction,
-                thickness: 1e-4,
-            });
+            let shape = TriMeshObstacle::new(s.vertices, s.triangles).map_err(|e| cx.invalid(format!("{w}: {e}")))?;
+            builder = builder.obstacle(Obstacle::new(file, shape, friction, 1e-4));
         }
     }
     let model = builder.build().map_err(|source| SceneError::Model {

@@ -9,7 +9,7 @@ use nalgebra::{Rotation3, Vector3};
 use super::probe::{condition_estimate, external_force, momentum, Check, GradientCheck, Probe, Trial};
 use super::Outcome;
 use crate::actuator::{centroid, ActuatorSpec};
-use crate::contact::{Obstacle, Shape, TriMeshObstacle};
+use crate::contact::{Obstacle, TriMeshObstacle};
 use crate::diff::loss::VertexPositions;
 use crate::diff::Param;
 use crate::mesh::generate::BoxSpec;
@@ -526,12 +526,7 @@ pub(super) fn impact(speed: f64, plate: Option<f64>) -> Trial {
             Vector3::new(-1.0, 0.0, 1.0),
         ];
         match TriMeshObstacle::new(verts, vec![[0, 2, 1], [0, 3, 2]]) {
-            Ok(m) => Obstacle {
-                name: "plate".into(),
-                shape: Shape::TriMesh(m),
-                friction: 0.5,
-                thickness,
-            },
+            Ok(m) => Obstacle::new("plate", m, 0.5, thickness),
             Err(e) => return Trial::rejected(SolverError::from(e).to_string()),
         }
     } else {

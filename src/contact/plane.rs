@@ -1,0 +1,52 @@
+//! A plane obstacle: the half-space `n . (x - point) >= 0` (the ground).
+
+use nalgebra::Vector3;
+
+use super::Shape;
+use crate::base::InputError;
+
+/// The half-space `n . (x - point) >= 0`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Plane {
+    /// A point on the plane.
+    pub point: Vector3<f64>,
+    /// Unit normal pointing into the free side.
+    pub normal: Vector3<f64>,
+}
+
+impl Plane {
+    /// The plane through `point` with normal `normal` (normalised here).
+    pub fn new(point: Vector3<f64>, normal: Vector3<f64>) -> Self {
+        Self {
+            point,
+            normal: normal.normalize(),
+        }
+    }
+}
+
+impl Shape for Plane {
+    fn query(
+        &self,
+        _from: &Vector3<f64>,
+        x: &Vector3<f64>,
+        margin: f64,
+        thickness: f64,
+    ) -> Option<(f64, Vector3<f64>, Vector3<f64>)> {
+        let d = self.normal.dot(&(x - self.point)) - thickness;
+        (d < margin).then(|| (d, self.normal, self.point + self.normal * thickness))
+    }
+
+    fn validate(&self) -> Result<(), InputError> {
+        let (point, normal) = (&self.point, &self.normal);
+        if !point.iter().chain(normal.iter()).all(|v| v.is_finite()) || (normal.norm() - 1.0).abs() > 1e-9 {
+            return Err(InputError::new(
+                "plane point and normal must be finite, normal of unit length",
+            ));
+        }
+        Ok(())
+    }
+
+    fn kind(&self) -> &'static str {
+        "plane"
+    }
+}
