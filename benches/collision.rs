@@ -18,10 +18,10 @@ fn detection(c: &mut Criterion) {
     let mut g = c.benchmark_group("collision_detection");
     for n in [32, 64, 128] {
         let model = detection_scene(n).expect("scene");
-        let col = model.collision.as_ref().expect("collisions");
-        let q0 = model.rest.clone();
+        let col = model.collision().expect("collisions");
+        let q0 = model.rest().to_vec();
         let mut q1 = q0.clone();
-        for v in model.bodies[0].vertices.clone() {
+        for v in model.bodies()[0].vertices.clone() {
             q1[v].y -= 2e-3;
         }
         let size = col.triangles.len() + col.edges.len() + col.vertices.len();

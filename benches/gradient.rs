@@ -26,7 +26,7 @@ fn baymax(file: &str, ground: bool) -> (Model, Settings) {
         .join(file);
     let mut sc = scene::load(path, LoadOptions::default()).expect("scene loads");
     if !ground {
-        sc.model.obstacles.clear();
+        sc.model.remove_obstacles();
     }
     sc.settings.solver = SolverKind::Direct;
     sc.settings.anderson = 0;
@@ -55,7 +55,7 @@ fn bench(c: &mut Criterion) {
                         .expect("forward")
                 })
             });
-            let skeleton = model.skeleton.is_some();
+            let skeleton = model.skeleton().is_some();
             for (label, mode, store_bytes) in [
                 ("unrolled", Mode::Unrolled, 0),
                 ("unrolled_store", Mode::Unrolled, 64_000_000),

@@ -25,7 +25,7 @@ fn root() -> PathBuf {
 fn scene_sim(path: &str, warmup: usize, strip_obstacles: bool) -> Simulator {
     scene_sim_with(path, warmup, |sc| {
         if strip_obstacles {
-            sc.model.obstacles.clear();
+            sc.model.remove_obstacles();
         }
     })
 }
@@ -108,7 +108,7 @@ fn steps(c: &mut Criterion) {
             "baymax_5_iterations_without_bones",
             Box::new(|| {
                 scene_sim_with("scenes/baymax_skeleton.json", 30, |sc| {
-                    sc.model.skeleton = None;
+                    sc.model.remove_skeleton();
                     fixed_iterations(sc);
                 })
             }),

@@ -847,9 +847,9 @@ fn simulate(
     use diffsoft::output::{FrameWriter, RunLog, RunSummary, RUN_SCHEMA};
     use diffsoft::report::Header;
     use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-    let model_size = (sc.model.n(), sc.model.tets.len());
-    let bodies = sc.model.bodies.clone();
-    let cloth = sc.model.cloth.as_ref().map_or(Vec::new(), |c| c.bodies.clone());
+    let model_size = (sc.model.n(), sc.model.tets().len());
+    let bodies = sc.model.bodies().to_vec();
+    let cloth = sc.model.cloth().map_or(Vec::new(), |c| c.bodies.clone());
     println!(
         "scene       {} ({:?}): {} vertices, {} tets, {} bodies{}",
         sc.path.display(),

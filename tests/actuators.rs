@@ -177,7 +177,7 @@ fn scene_actuators_load_and_bad_ones_are_named() {
     ]"#,
     );
     let sc = scene::load(&ok, LoadOptions::default()).unwrap();
-    let act = sc.model.actuators.as_ref().unwrap();
+    let act = sc.model.actuators().unwrap();
     assert_eq!(act.groups.len(), 3);
     assert_eq!(
         act.cells[act.groups[0].cells.clone()].len(),
@@ -234,7 +234,7 @@ fn the_papers_drone_and_octopus_import_with_their_actuators() {
         LoadOptions::default(),
     )
     .unwrap();
-    let act = d.model.actuators.as_ref().unwrap();
+    let act = d.model.actuators().unwrap();
     assert_eq!(act.groups.len(), 8);
     assert!(act.groups.iter().all(|g| (12..=13).contains(&g.cells.len())));
     let o = scene::load(
@@ -242,7 +242,7 @@ fn the_papers_drone_and_octopus_import_with_their_actuators() {
         LoadOptions::default(),
     )
     .unwrap();
-    let act = o.model.actuators.as_ref().unwrap();
+    let act = o.model.actuators().unwrap();
     assert_eq!(act.groups.len(), 16);
     assert!(act.groups.iter().all(|g| g.cells.len() > 50));
     assert!(act.cells.iter().all(|c| (c.direction.norm() - 1.0).abs() < 1e-12));

@@ -111,14 +111,14 @@ fn free_cloth_falls_rigidly() {
     }
     // Implicit Euler: y_n = -g h^2 n (n + 1) / 2.
     let expected = -9.81 * h * h * 20.0 * 21.0 / 2.0;
-    for (q, x) in sim.state().q.iter().zip(&model.rest) {
+    for (q, x) in sim.state().q.iter().zip(model.rest()) {
         let d = q - x;
         assert!(
             (d.y - expected).abs() < 1e-9 && d.x.abs() < 1e-9 && d.z.abs() < 1e-9,
             "{d}"
         );
     }
-    let (hi, lo) = model.cloth.as_ref().unwrap().stretch_range(&sim.state().q);
+    let (hi, lo) = model.cloth().unwrap().stretch_range(&sim.state().q);
     assert!((hi - 1.0).abs() < 1e-9 && (lo - 1.0).abs() < 1e-9);
 }
 

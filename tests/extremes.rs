@@ -187,7 +187,7 @@ fn run_extreme(e: f64, rho: f64, dt: f64, omega: f64, solver: SolverKind) -> Res
     };
     let c = Vector3::new(0.05, 0.05, 0.1);
     let v: Vec<Vector3<f64>> = model
-        .rest
+        .rest()
         .iter()
         .map(|x| Vector3::new(-(x.y - c.y), x.x - c.x, 0.0) * omega)
         .collect();
@@ -204,7 +204,7 @@ fn run_extreme(e: f64, rho: f64, dt: f64, omega: f64, solver: SolverKind) -> Res
             return Ok(());
         }
     };
-    sim.set_state(model.rest.clone(), v.clone()).unwrap();
+    sim.set_state(model.rest().to_vec(), v.clone()).unwrap();
     for _ in 0..5 {
         match sim.step() {
             Ok(st) => prop_assert!(st.kinetic_energy.is_finite()),
@@ -225,7 +225,7 @@ fn run_extreme(e: f64, rho: f64, dt: f64, omega: f64, solver: SolverKind) -> Res
         vertices: Some(vec![0]),
     };
     let controls = Controls {
-        initial: Some((model.rest.clone(), v)),
+        initial: Some((model.rest().to_vec(), v)),
         ..Controls::default()
     };
     match diff::gradient(&model, &gs, 5, &controls, &loss, Options::default()) {

@@ -168,8 +168,8 @@ fn skeleton_limits_of_the_backward_pass_are_refused_clearly() {
 fn skeleton_gradients_through_active_joint_limits() {
     let path = common::root().join("verification/scenes/baymax_skeleton.json");
     let mut case = gradients::baymax_torques(&path, 6).unwrap();
-    let dofs = case.model.skeleton.as_ref().unwrap().dofs;
-    let sk = case.model.skeleton.as_ref().unwrap();
+    let dofs = case.model.skeleton().unwrap().dofs;
+    let sk = case.model.skeleton().unwrap();
     let (l, r) = (
         sk.scalar_dof("left_shoulder").unwrap(),
         sk.scalar_dof("right_shoulder").unwrap(),

@@ -45,7 +45,7 @@ fn free_fall_matches_implicit_euler_exactly() {
 fn rest_state_without_external_force_does_not_move() {
     let body = BodySpec::new("cube", cube(3, 0.5), material(1e5, 0.4), MassSpec::Density(1000.0));
     let model = ModelBuilder::new().body(body).build().unwrap();
-    let rest = model.rest.clone();
+    let rest = model.rest().to_vec();
     let mut sim = Simulator::new(model, settings(0.01, SolverKind::Direct)).unwrap();
     for _ in 0..20 {
         let s = sim.step().unwrap();
@@ -64,7 +64,7 @@ fn momentum_is_conserved_without_gravity_or_contact() {
         let body = BodySpec::new("cube", cube(3, 0.5), material(1e5, 0.3), MassSpec::Density(1000.0));
         let model = ModelBuilder::new().body(body).build().unwrap();
         let n = model.n();
-        let mass = model.mass.clone();
+        let mass = model.mass().to_vec();
         let mut sim = Simulator::new(model, settings(0.005, solver)).unwrap();
         let mut seed = 5u64;
         let mut rnd = move || {
@@ -92,7 +92,7 @@ fn rigid_motion_of_the_rest_shape_produces_no_elastic_force() {
     let model = ModelBuilder::new().body(body).build().unwrap();
     let r = Rotation3::from_scaled_axis(Vector3::new(0.7, -1.9, 2.4));
     let t = Vector3::new(10.0, -3.0, 7.0);
-    let moved: Vec<Vector3<f64>> = model.rest.iter().map(|x| r * x + t).collect();
+    let moved: Vec<Vector3<f64>> = model.rest().iter().map(|x| r * x + t).collect();
     let n = model.n();
     let mut sim = Simulator::new(model, settings(0.01, SolverKind::Direct)).unwrap();
     sim.set_state(moved.clone(), vec![Vector3::zeros(); n]).unwrap();

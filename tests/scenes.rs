@@ -17,21 +17,21 @@ fn paper(name: &str) -> std::path::PathBuf {
 fn paper_scenes_import_with_the_reference_defaults() {
     let s = scene::load(paper("bridgesus/bridgesus.json"), LoadOptions::default()).unwrap();
     assert_eq!(s.format, SceneFormat::Paper);
-    assert_eq!((s.model.n(), s.model.tets.len()), (212, 668));
+    assert_eq!((s.model.n(), s.model.tets().len()), (212, 668));
     assert!((s.settings.dt - 0.005).abs() < 1e-15);
     assert!((s.settings.damping - 0.9999).abs() < 1e-15);
     assert_eq!(
-        s.model.fixed.iter().filter(|&&f| f).count(),
+        s.model.fixed().iter().filter(|&&f| f).count(),
         65,
         "65 attach verts at 1e20 become Dirichlet"
     );
-    assert!((s.model.bodies[0].mass - 10.0).abs() < 1e-9, "default Mass 10");
+    assert!((s.model.bodies()[0].mass - 10.0).abs() < 1e-9, "default Mass 10");
     assert!(s.notes.iter().any(|n| n.contains("Dirichlet")));
     // The bridge has no "Scale": the reference's default 0.05 applies.
     let b = scene::load(paper("bridge/bridge.json"), LoadOptions::default()).unwrap();
     assert!(b.notes.iter().any(|n| n.contains("default 0.05")));
     let (lo, hi) = diffsoft::mesh::TetMesh {
-        vertices: b.model.rest.clone(),
+        vertices: b.model.rest().to_vec(),
         tets: vec![],
     }
     .bounding_box();
@@ -42,7 +42,7 @@ fn paper_scenes_import_with_the_reference_defaults() {
     );
     // Baymax's ground is a triangle-mesh obstacle.
     let y = scene::load(paper("baymax/baymax.json"), LoadOptions::default()).unwrap();
-    assert_eq!(y.model.obstacles.len(), 1);
+    assert_eq!(y.model.obstacles().len(), 1);
     assert!((y.settings.dt - 0.01).abs() < 1e-15);
 }
 
@@ -50,12 +50,12 @@ fn paper_scenes_import_with_the_reference_defaults() {
 fn paper_scenes_with_cloth_actuators_and_skeletons_load() {
     // The ball-on-cloth scene: a tet ball, a triangle cloth, contacts between them.
     let cb = scene::load(paper("cloth_ball/cloth_ball.json"), LoadOptions::default()).unwrap();
-    let cloth = cb.model.cloth.as_ref().expect("cloth");
-    assert_eq!((cb.model.n(), cb.model.tets.len()), (43 + 81, 80));
+    let cloth = cb.model.cloth().expect("cloth");
+    assert_eq!((cb.model.n(), cb.model.tets().len()), (43 + 81, 80));
     assert_eq!((cloth.bodies.len(), cloth.num_triangles()), (1, 128));
     assert_eq!(cloth.bodies[0].area_density, 3.0);
-    assert_eq!(cb.model.attachments.len(), 4);
-    let col = cb.model.collision.as_ref().expect("collisions between bodies");
+    assert_eq!(cb.model.attachments().len(), 4);
+    let col = cb.model.collision().expect("collisions between bodies");
     assert_eq!(col.names.len(), 2);
     assert!((col.settings.friction - 0.1).abs() < 1e-15);
     assert!(cb.notes.iter().any(|n| n.contains("edge springs")), "{:?}", cb.notes);
@@ -64,13 +64,13 @@ fn paper_scenes_with_cloth_actuators_and_skeletons_load() {
         assert!(scene::load(paper(file), LoadOptions::default())
             .unwrap()
             .model
-            .actuators
+            .actuators()
             .is_some());
     }
     // fish.json has a trailing comma (invalid strict JSON): it still parses, with its skeleton.
     let fish = scene::load(paper("fish/fish.json"), LoadOptions::default()).unwrap();
     assert_eq!(fish.model.n(), 759);
-    assert_eq!(fish.model.skeleton.as_ref().map(|s| s.bones.len()), Some(4));
+    assert_eq!(fish.model.skeleton().map(|s| s.bones.len()), Some(4));
     assert!(fish.notes.iter().any(|n| n.contains("Is underwater")));
 }
 

@@ -145,7 +145,7 @@ fn bone_vertices_keep_their_rest_distances_in_a_simulation() {
         LoadOptions::default(),
     )
     .unwrap();
-    let sk = sc.model.skeleton.as_ref().expect("bones");
+    let sk = sc.model.skeleton().expect("bones");
     assert_eq!(sk.bones.len(), 5);
     assert_eq!(sk.dofs, 6 + 4);
     let mut sim = Simulator::new(sc.model, sc.settings).unwrap();
@@ -222,7 +222,7 @@ fn hinged_block(limits: Option<(f64, f64)>) -> diffsoft::solver::Model {
 /// `model` displaced rigidly by `angle` about the hinge, at rest.
 fn displaced(model: diffsoft::solver::Model, angle: f64, h: f64) -> Simulator {
     let rot = Rotation3::from_axis_angle(&Vector3::z_axis(), angle);
-    let q0: Vec<_> = model.rest.iter().map(|x| PIVOT + rot * (x - PIVOT)).collect();
+    let q0: Vec<_> = model.rest().iter().map(|x| PIVOT + rot * (x - PIVOT)).collect();
     let n = model.n();
     let settings = Settings {
         dt: h,
@@ -244,7 +244,7 @@ fn a_stiff_body_on_a_hinge_swings_like_a_rigid_pendulum() {
     let (g, pivot) = (G, PIVOT);
     let model = hinged_block(None);
     let (mut m, mut i_z, mut md) = (0.0, 0.0, 0.0);
-    for (x, mi) in model.rest.iter().zip(&model.mass) {
+    for (x, mi) in model.rest().iter().zip(model.mass()) {
         let r = x - pivot;
         m += mi;
         i_z += mi * (r.x * r.x + r.y * r.y);
@@ -300,12 +300,12 @@ fn paper_bone_lists_import() {
         LoadOptions::default(),
     )
     .unwrap();
-    let sk = sc.model.skeleton.as_ref().expect("bones");
+    let sk = sc.model.skeleton().expect("bones");
     let kinds: Vec<&str> = sk.bones.iter().map(|b| b.joint.kind()).collect();
     assert_eq!(kinds.iter().filter(|k| **k == "free").count(), 1);
     assert_eq!(kinds.iter().filter(|k| **k == "rotational").count(), 4);
     let fish = scene::load(root().join("verification/paper/fish/fish.json"), LoadOptions::default()).unwrap();
-    assert!(fish.model.skeleton.as_ref().unwrap().bones.len() >= 2);
+    assert!(fish.model.skeleton().unwrap().bones.len() >= 2);
     // Both take steps with bones held rigid.
     for sc in [sc, fish] {
         let mut sim = Simulator::new(sc.model, sc.settings).unwrap();
@@ -335,7 +335,7 @@ fn scene_bones_load_and_bad_bones_are_named() {
         "",
     );
     let sc = scene::load(&ok, LoadOptions::default()).unwrap();
-    assert_eq!(sc.model.skeleton.as_ref().unwrap().dofs, 7);
+    assert_eq!(sc.model.skeleton().unwrap().dofs, 7);
     for (bones, extra, expect) in [
         (
             format!(r#"{root_bone}, {{"name": "arm", "parent": "hand", "joint": {{"fixed": {{}}}}}}"#),
@@ -395,7 +395,7 @@ fn a_body_without_bones_runs_without_the_skeleton_code() {
         LoadOptions::default(),
     )
     .unwrap();
-    assert!(sc.model.skeleton.is_none());
+    assert!(sc.model.skeleton().is_none());
     let mut sim = Simulator::new(sc.model, sc.settings).unwrap();
     let s = sim.step().unwrap();
     assert!(sim.skeleton().is_none());

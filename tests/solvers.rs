@@ -128,7 +128,7 @@ fn bad_settings_and_states_are_errors() {
     assert!(e.to_string().contains("damping"), "{e}");
     let mut sim = Simulator::new(model.clone(), Settings::default()).unwrap();
     let n = model.n();
-    let mut q = model.rest.clone();
+    let mut q = model.rest().to_vec();
     q[3].x = f64::NAN;
     assert!(sim.set_state(q, vec![Vector3::zeros(); n]).is_err());
     let bad = BodySpec::new(

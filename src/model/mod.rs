@@ -27,45 +27,145 @@ use crate::skeleton::Skeleton;
 #[derive(Debug, Clone)]
 pub struct Model {
     /// Rest positions of all vertices.
-    pub rest: Vec<Vector3<f64>>,
+    pub(crate) rest: Vec<Vector3<f64>>,
     /// Initial velocities.
-    pub initial_velocity: Vec<Vector3<f64>>,
+    pub(crate) initial_velocity: Vec<Vector3<f64>>,
     /// All tets (global vertex numbering).
-    pub tets: Vec<[usize; 4]>,
+    pub(crate) tets: Vec<[usize; 4]>,
     /// Per-tet geometry and the pattern of `L`.
-    pub fem: FemOperators,
+    pub(crate) fem: FemOperators,
     /// Corotated weight per tet (`E/(1+nu) V`).
-    pub w_rot: Vec<f64>,
+    pub(crate) w_rot: Vec<f64>,
     /// Volume weight per tet (`nu E/(1+nu) V`, 0 when disabled).
-    pub w_vol: Vec<f64>,
+    pub(crate) w_vol: Vec<f64>,
     /// Lumped mass per vertex.
-    pub mass: Vec<f64>,
+    pub(crate) mass: Vec<f64>,
     /// External acceleration per vertex (gravity where enabled).
-    pub accel: Vec<Vector3<f64>>,
+    pub(crate) accel: Vec<Vector3<f64>>,
     /// Penalty attachments.
-    pub attachments: Vec<Attachment>,
+    pub(crate) attachments: Vec<Attachment>,
     /// Dirichlet vertices (held at their rest position).
-    pub fixed: Vec<bool>,
+    pub(crate) fixed: Vec<bool>,
     /// Obstacles (empty: no collision code runs).
-    pub obstacles: Vec<Obstacle>,
+    pub(crate) obstacles: Vec<Obstacle>,
     /// Bodies.
-    pub bodies: Vec<Body>,
+    pub(crate) bodies: Vec<Body>,
     /// Vertex-to-tet adjacency for the right-hand-side gather.
-    pub vertex_tets: VertexTets,
+    pub(crate) vertex_tets: VertexTets,
     /// Embedded skeleton (`None`: no skeleton code runs).
-    pub skeleton: Option<Skeleton>,
+    pub(crate) skeleton: Option<Skeleton>,
     /// Pneumatic cells and muscle fibres (`None`: no actuator code runs).
-    pub actuators: Option<Actuators>,
+    pub(crate) actuators: Option<Actuators>,
     /// Cloth bodies (`None`: no cloth code runs).
-    pub cloth: Option<Cloth>,
+    pub(crate) cloth: Option<Cloth>,
     /// Collisions between bodies (soft-soft, soft-cloth; `None`: bodies pass through each
     /// other and no collision code runs).
-    pub collision: Option<Colliders>,
+    pub(crate) collision: Option<Colliders>,
     /// Characteristic length: the diagonal of the rest bounding box.
-    pub length_scale: f64,
+    pub(crate) length_scale: f64,
 }
 
 impl Model {
+    /// Rest positions of all vertices.
+    pub fn rest(&self) -> &[Vector3<f64>] {
+        &self.rest
+    }
+
+    /// Initial velocities.
+    pub fn initial_velocity(&self) -> &[Vector3<f64>] {
+        &self.initial_velocity
+    }
+
+    /// All tets (global vertex numbering).
+    pub fn tets(&self) -> &[[usize; 4]] {
+        &self.tets
+    }
+
+    /// Per-tet geometry and the pattern of `L`.
+    pub fn fem(&self) -> &FemOperators {
+        &self.fem
+    }
+
+    /// Corotated weight per tet (`E/(1+nu) V`).
+    pub fn w_rot(&self) -> &[f64] {
+        &self.w_rot
+    }
+
+    /// Volume weight per tet (`nu E/(1+nu) V`, 0 when disabled).
+    pub fn w_vol(&self) -> &[f64] {
+        &self.w_vol
+    }
+
+    /// Lumped mass per vertex.
+    pub fn mass(&self) -> &[f64] {
+        &self.mass
+    }
+
+    /// External acceleration per vertex (gravity where enabled).
+    pub fn accel(&self) -> &[Vector3<f64>] {
+        &self.accel
+    }
+
+    /// Penalty attachments.
+    pub fn attachments(&self) -> &[Attachment] {
+        &self.attachments
+    }
+
+    /// Dirichlet vertices (held at their rest position).
+    pub fn fixed(&self) -> &[bool] {
+        &self.fixed
+    }
+
+    /// Obstacles (empty: no collision code runs).
+    pub fn obstacles(&self) -> &[Obstacle] {
+        &self.obstacles
+    }
+
+    /// Bodies.
+    pub fn bodies(&self) -> &[Body] {
+        &self.bodies
+    }
+
+    /// Vertex-to-tet adjacency for the right-hand-side gather.
+    pub fn vertex_tets(&self) -> &VertexTets {
+        &self.vertex_tets
+    }
+
+    /// Embedded skeleton (`None`: no skeleton code runs).
+    pub fn skeleton(&self) -> Option<&Skeleton> {
+        self.skeleton.as_ref()
+    }
+
+    /// Pneumatic cells and muscle fibres (`None`: no actuator code runs).
+    pub fn actuators(&self) -> Option<&Actuators> {
+        self.actuators.as_ref()
+    }
+
+    /// Cloth bodies (`None`: no cloth code runs).
+    pub fn cloth(&self) -> Option<&Cloth> {
+        self.cloth.as_ref()
+    }
+
+    /// Collisions between bodies (soft-soft, soft-cloth; `None`: bodies pass through each other and no collision code runs).
+    pub fn collision(&self) -> Option<&Colliders> {
+        self.collision.as_ref()
+    }
+
+    /// Characteristic length: the diagonal of the rest bounding box.
+    pub fn length_scale(&self) -> f64 {
+        self.length_scale
+    }
+
+    /// Remove every obstacle (the same bodies falling freely).
+    pub fn remove_obstacles(&mut self) {
+        self.obstacles.clear();
+    }
+
+    /// Remove the skeleton (its bone vertices become free vertices of the soft body).
+    pub fn remove_skeleton(&mut self) {
+        self.skeleton = None;
+    }
+
     /// Number of vertices.
     pub fn n(&self) -> usize {
         self.rest.len()
