@@ -18,7 +18,7 @@ use std::path::PathBuf;
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use diffsoft::diff::{self, loss, Controls, Mode, Options};
 use diffsoft::scene::{self, LoadOptions};
-use diffsoft::solver::{Model, Settings, SolverKind};
+use diffsoft::{Model, Settings, SolverKind};
 
 fn baymax(file: &str, ground: bool) -> (Model, Settings) {
     let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))

@@ -15,7 +15,7 @@ use std::path::PathBuf;
 use criterion::{criterion_group, criterion_main, BatchSize, BenchmarkId, Criterion};
 use diffsoft::mesh::generate::box_with_about;
 use diffsoft::scene::{self, LoadOptions};
-use diffsoft::solver::{BodySpec, MassSpec, Material, ModelBuilder, Settings, Simulator};
+use diffsoft::{BodySpec, MassSpec, Material, ModelBuilder, Settings, Simulator};
 use nalgebra::Vector3;
 
 fn root() -> PathBuf {

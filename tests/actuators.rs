@@ -9,8 +9,8 @@ use diffsoft::actuator::{fibres_along, ActuatorSpec};
 use diffsoft::base::Schedule;
 use diffsoft::mesh::generate::BoxSpec;
 use diffsoft::scene::{self, LoadOptions};
-use diffsoft::solver::{BodySpec, MassSpec, Material, ModelBuilder, Settings, Simulator, SolverError};
 use diffsoft::verify::actuators::{drone, muscle_bar, octopus, pneumatic_beam, pneumatic_cube};
+use diffsoft::{BodySpec, MassSpec, Material, ModelBuilder, Settings, Simulator, SolverError};
 use nalgebra::Vector3;
 
 #[test]
@@ -51,7 +51,7 @@ fn a_pneumatic_beam_bends_away_from_expanding_cells_and_toward_contracting_ones(
     }
 }
 
-fn cube_model(actuators: Vec<ActuatorSpec>) -> Result<diffsoft::solver::Model, SolverError> {
+fn cube_model(actuators: Vec<ActuatorSpec>) -> Result<diffsoft::Model, SolverError> {
     let mesh = BoxSpec::new([2, 2, 2], [0.1; 3]).build().unwrap();
     let mut b = BodySpec::new(
         "cube",

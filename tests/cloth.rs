@@ -82,7 +82,7 @@ fn trampoline_scene_keeps_the_ball_above_the_cloth() {
 fn free_cloth_falls_rigidly() {
     use diffsoft::cloth::ClothSpec;
     use diffsoft::mesh::surface::parse_obj;
-    use diffsoft::solver::{ModelBuilder, Settings, Simulator, SolverKind};
+    use diffsoft::{ModelBuilder, Settings, Simulator, SolverKind};
     use nalgebra::Vector3;
     let s = parse_obj(
         "sheet.obj",

@@ -9,11 +9,10 @@ use std::sync::OnceLock;
 use diffsoft::diff::loss::CenterOfMass;
 use diffsoft::diff::{self, Controls, Options, Param};
 use diffsoft::mesh::generate::BoxSpec;
-use diffsoft::solver::{
-    BodySpec, CertifyPolicy, MassSpec, Material, ModelBuilder, Settings, Simulator, SolverError, SolverKind,
-};
+use diffsoft::solver::CertifyPolicy;
 use diffsoft::verify::extremes::{self, ExtremesPartial, GradientStatus, Outcome, Subset};
 use diffsoft::verify::shard::Shard;
+use diffsoft::{BodySpec, MassSpec, Material, ModelBuilder, Settings, Simulator, SolverError, SolverKind};
 use nalgebra::Vector3;
 use proptest::prelude::*;
 

@@ -117,7 +117,7 @@ fn implicit_matches_unrolled_at_convergence() {
 fn skeleton_limits_of_the_backward_pass_are_refused_clearly() {
     let path = common::root().join("verification/scenes/baymax_skeleton.json");
     let case = gradients::baymax_torques(&path, 2).unwrap();
-    let run = |model: &diffsoft::solver::Model, controls: &Controls, l: &dyn loss::Loss, mode| {
+    let run = |model: &diffsoft::Model, controls: &Controls, l: &dyn loss::Loss, mode| {
         diff::gradient(model, &case.settings, 2, controls, l, Options::mode(mode)).map(|g| g.loss)
     };
     // Unrolled mode through Anderson acceleration (the built-in scene's own setting).

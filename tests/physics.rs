@@ -4,8 +4,9 @@
 mod common;
 
 use diffsoft::mesh::generate::BoxSpec;
-use diffsoft::solver::{BodySpec, CertifyPolicy, MassSpec, Material, ModelBuilder, Settings, Simulator, SolverKind};
+use diffsoft::solver::CertifyPolicy;
 use diffsoft::verify::physics;
+use diffsoft::{BodySpec, MassSpec, Material, ModelBuilder, Settings, Simulator, SolverKind};
 use nalgebra::{Rotation3, Vector3};
 
 fn cube(n: usize, size: f64) -> diffsoft::mesh::TetMesh {

@@ -12,8 +12,8 @@ use diffsoft::skeleton::free::Free;
 use diffsoft::skeleton::prismatic::Prismatic;
 use diffsoft::skeleton::rotational::Rotational;
 use diffsoft::skeleton::{BoneSpec, Joint};
-use diffsoft::solver::{BodySpec, MassSpec, Material, ModelBuilder, Settings, Simulator, SolverKind};
 use diffsoft::verify::jacobians::{self, check_jacobian, check_joint, random_chain};
+use diffsoft::{BodySpec, MassSpec, Material, ModelBuilder, Settings, Simulator, SolverKind};
 use nalgebra::{Rotation3, Vector3};
 use proptest::prelude::*;
 use proptest::test_runner::FileFailurePersistence;
@@ -177,7 +177,7 @@ const G: f64 = 9.81;
 const PIVOT: Vector3<f64> = Vector3::new(0.0, 0.1, 0.0);
 
 /// A stiff 0.1 m block whose top face is a bone on a hinge about `z` through [`PIVOT`].
-fn hinged_block(limits: Option<(f64, f64)>) -> diffsoft::solver::Model {
+fn hinged_block(limits: Option<(f64, f64)>) -> diffsoft::Model {
     let mesh = BoxSpec::new([2, 2, 2], [0.1; 3])
         .origin([-0.05, -0.1, -0.05])
         .build()
@@ -220,7 +220,7 @@ fn hinged_block(limits: Option<(f64, f64)>) -> diffsoft::solver::Model {
 }
 
 /// `model` displaced rigidly by `angle` about the hinge, at rest.
-fn displaced(model: diffsoft::solver::Model, angle: f64, h: f64) -> Simulator {
+fn displaced(model: diffsoft::Model, angle: f64, h: f64) -> Simulator {
     let rot = Rotation3::from_axis_angle(&Vector3::z_axis(), angle);
     let q0: Vec<_> = model.rest().iter().map(|x| PIVOT + rot * (x - PIVOT)).collect();
     let n = model.n();

@@ -6,10 +6,9 @@ mod common;
 use common::root;
 use diffsoft::mesh::{self, generate::BoxSpec};
 use diffsoft::scene::{self, LoadOptions};
-use diffsoft::solver::{
-    BodySpec, CertifyPolicy, MassSpec, Material, ModelBuilder, Settings, Simulator, SolverError, SolverKind,
-};
+use diffsoft::solver::CertifyPolicy;
 use diffsoft::verify::physics;
+use diffsoft::{BodySpec, MassSpec, Material, ModelBuilder, Settings, Simulator, SolverError, SolverKind};
 use nalgebra::Vector3;
 
 #[test]

@@ -35,6 +35,7 @@ use spectral::{EigenMethod, ScaledOperator, SpectralError};
 
 /// Errors of the analysis module.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
 pub enum AnalysisError {
     /// FEM assembly failed.
     #[error(transparent)]

@@ -57,6 +57,7 @@ impl EigenMethod {
 
 /// Errors from the eigensolvers.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
 pub enum SpectralError {
     /// The dense eigensolver failed to converge.
     #[error("dense symmetric eigensolver did not converge (n = {n})")]

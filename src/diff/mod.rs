@@ -56,6 +56,7 @@ pub use params::Param;
 
 /// Errors of the differentiation.
 #[derive(Debug, Clone, thiserror::Error)]
+#[non_exhaustive]
 pub enum DiffError {
     /// Bad input (parameters, losses, controls).
     #[error("invalid input: {0}")]

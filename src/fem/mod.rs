@@ -20,6 +20,7 @@ use crate::mesh::TetMesh;
 
 /// Errors from building FEM operators.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
 pub enum FemError {
     /// A tet's edge matrix is singular or its volume is not positive.
     #[error("tet {tet}: rest edge matrix is singular or inverted (volume {volume:e})")]

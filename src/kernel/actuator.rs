@@ -68,6 +68,7 @@ pub type Matrix3x9 = SMatrix<f64, 3, 9>;
 
 /// Why an actuator projection has no answer (never a silent NaN).
 #[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+#[non_exhaustive]
 pub enum ActuatorError {
     /// The deformation gradient or the direction has non-finite entries.
     #[error("deformation gradient or fibre direction has non-finite entries")]

@@ -24,6 +24,7 @@ pub mod volume;
 
 /// Failure of a constraint projection (never a silent NaN).
 #[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+#[non_exhaustive]
 pub enum ProjectionError {
     /// The input has NaN or infinite entries.
     #[error("deformation gradient has non-finite entries")]

@@ -22,6 +22,7 @@ impl fmt::Display for Location {
 
 /// What went wrong while reading or validating a mesh.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
 pub enum MeshErrorKind {
     /// The file could not be read.
     #[error("cannot read file: {0}")]

@@ -31,6 +31,7 @@ use format::{SceneFile, VertexSelector, SCENE_SCHEMA};
 
 /// Errors reading a scene; each names the scene file.
 #[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
 pub enum SceneError {
     /// Cannot read the file.
     #[error("{path}: {message}")]
