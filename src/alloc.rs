@@ -1,6 +1,7 @@
-//! A counting global allocator (installed by the `diffsoft` binary) so reports can state the
-//! peak heap use of a computation. Without it installed, the counters stay at zero and
-//! [`peak_since_reset`] returns `None`.
+//! A counting global allocator (installed by the `diffsoft` binary and by the allocation tests)
+//! so reports can state the peak heap use of a computation and tests can check that a loop
+//! allocates nothing. Without it installed, the counters stay at zero and [`peak_since_reset`]
+//! and [`allocations`] return `None`.
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
@@ -9,6 +10,7 @@ static CURRENT: AtomicUsize = AtomicUsize::new(0);
 static PEAK: AtomicUsize = AtomicUsize::new(0);
 static BASE: AtomicUsize = AtomicUsize::new(0);
 static ACTIVE: AtomicBool = AtomicBool::new(false);
+static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
 
 /// The system allocator with live-byte and peak counters.
 #[derive(Debug, Default)]
@@ -19,6 +21,7 @@ unsafe impl GlobalAlloc for Counting {
     unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
         // SAFETY: same contract as the caller's.
         let p = unsafe { System.alloc(layout) };
+        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
         if !p.is_null() {
             let now = CURRENT.fetch_add(layout.size(), Ordering::Relaxed) + layout.size();
             PEAK.fetch_max(now, Ordering::Relaxed);
@@ -36,6 +39,7 @@ unsafe impl GlobalAlloc for Counting {
     unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
         // SAFETY: same contract as the caller's.
         let p = unsafe { System.realloc(ptr, layout, new_size) };
+        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
         if !p.is_null() {
             if new_size >= layout.size() {
                 let now = CURRENT.fetch_add(new_size - layout.size(), Ordering::Relaxed) + new_size - layout.size();
@@ -61,4 +65,11 @@ pub fn peak_since_reset() -> Option<usize> {
         PEAK.load(Ordering::Relaxed)
             .saturating_sub(BASE.load(Ordering::Relaxed))
     })
+}
+
+/// Calls to `alloc` and `realloc` so far (all threads), if the counting allocator is installed.
+pub fn allocations() -> Option<usize> {
+    ACTIVE
+        .load(Ordering::Relaxed)
+        .then(|| ALLOCATIONS.load(Ordering::Relaxed))
 }

@@ -58,6 +58,8 @@ pub struct ContactAdjoint {
     mu: Vec<Vector3<f64>>,
     rhs: Vec<Vector3<f64>>,
     delta: Vec<f64>,
+    /// `D_j^T mu_j` per contact.
+    v: Vec<Vector3<f64>>,
     /// Gauss-Seidel sweeps used, summed.
     pub sweeps: usize,
     /// Largest final relative residual of the transposed contact system.
@@ -185,7 +187,9 @@ impl ContactAdjoint {
             .fold(0.0, f64::max)
             .max(f64::MIN_POSITIVE);
         let mut residual = f64::INFINITY;
-        let mut v: Vec<Vector3<f64>> = self.mu.iter().zip(&self.d).map(|(mu, d)| d.transpose() * mu).collect();
+        let mut v = std::mem::take(&mut self.v);
+        v.clear();
+        v.extend(self.mu.iter().zip(&self.d).map(|(mu, d)| d.transpose() * mu));
         let mut sweeps = 0;
         while sweeps < max_sweeps {
             sweeps += 1;
@@ -210,6 +214,7 @@ impl ContactAdjoint {
         self.sweeps += sweeps;
         self.worst_residual = self.worst_residual.max(residual);
         if !residual.is_finite() {
+            self.v = v;
             return Err(DiffError::NotDifferentiable(
                 "the linearized contact system diverged".into(),
             ));
@@ -262,6 +267,7 @@ impl ContactAdjoint {
                 anchor_bar[vtx] += grad;
             }
         }
+        self.v = v;
         Ok(())
     }
 }

@@ -67,7 +67,8 @@ impl<T: Clone> Flat<T> {
 }
 
 /// Rows of varying length in one flat array, grown for the rest of a run at once when a row
-/// does not fit (so a run whose rows keep their length allocates once).
+/// does not fit, with room for rows twice as long (so a run whose rows keep about their length
+/// allocates once or twice).
 #[derive(Debug, Clone)]
 pub(crate) struct Ragged<T> {
     data: Vec<T>,
@@ -85,10 +86,20 @@ impl<T> Default for Ragged<T> {
 }
 
 impl<T: Clone> Ragged<T> {
-    /// Append `row`, reserving room for `rows_left` rows like it when it does not fit.
+    /// Empty, with room for the offsets of `rows` rows.
+    fn with_rows(rows: usize) -> Self {
+        let mut offsets = Vec::with_capacity(rows + 1);
+        offsets.push(0);
+        Self {
+            data: Vec::new(),
+            offsets,
+        }
+    }
+
+    /// Append `row`, reserving room for `rows_left` rows twice its length when it does not fit.
     fn push(&mut self, row: &[T], rows_left: usize) {
         if self.data.capacity() - self.data.len() < row.len() {
-            self.data.reserve(row.len() * rows_left.max(1));
+            self.data.reserve(2 * row.len() * rows_left.max(1));
         }
         self.data.extend_from_slice(row);
         self.offsets.push(self.data.len());
@@ -112,6 +123,14 @@ pub(crate) struct StepContacts {
 }
 
 impl StepContacts {
+    /// Empty, with room for `steps` steps' offsets.
+    fn with_steps(steps: usize) -> Self {
+        Self {
+            contacts: Ragged::with_rows(steps),
+            impulses: Ragged::with_rows(steps),
+        }
+    }
+
     fn push(&mut self, contacts: &[FreeContact], impulses: &[Vector3<f64>], steps_left: usize) {
         self.contacts.push(contacts, steps_left);
         self.impulses.push(impulses, steps_left);
@@ -303,8 +322,8 @@ pub(crate) fn forward(
         activations: Flat::with_capacity(groups, steps),
         skeleton: Flat::with_capacity(skel.len(), rows),
         joints: Flat::with_capacity(dofs, if keep { steps } else { 0 }),
-        contacts: StepContacts::default(),
-        stored: Vec::new(),
+        contacts: StepContacts::with_steps(if record_contacts { steps } else { 0 }),
+        stored: Vec::with_capacity(if storing { steps } else { 0 }),
         stored_bytes: 0,
         iterations: 0,
         unconverged: 0,

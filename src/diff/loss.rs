@@ -59,6 +59,27 @@ pub struct CenterOfMass {
     pub vertices: Option<Vec<usize>>,
 }
 
+impl CenterOfMass {
+    /// `weight direction . com` over `verts` (without allocating), with its gradient.
+    fn com_term(
+        &self,
+        model: &Model,
+        verts: impl Iterator<Item = usize> + Clone,
+        weight: f64,
+        q: &[Vector3<f64>],
+        g: LossGrad<'_>,
+    ) -> f64 {
+        let total: f64 = verts.clone().map(|i| model.mass[i]).sum();
+        let com: Vector3<f64> = verts.clone().map(|i| q[i] * model.mass[i]).sum::<Vector3<f64>>() / total;
+        let value = self.direction.dot(&com);
+        for i in verts {
+            g.q[i] += self.direction * (weight * model.mass[i] / total);
+            g.mass[i] += weight * self.direction.dot(&(q[i] - com)) / total;
+        }
+        weight * value
+    }
+}
+
 impl Loss for CenterOfMass {
     fn term(
         &self,
@@ -76,22 +97,10 @@ impl Loss for CenterOfMass {
         } else {
             return 0.0;
         };
-        let all: Vec<usize>;
-        let verts = match &self.vertices {
-            Some(v) => v.as_slice(),
-            None => {
-                all = (0..q.len()).collect();
-                &all
-            }
-        };
-        let total: f64 = verts.iter().map(|&i| model.mass[i]).sum();
-        let com: Vector3<f64> = verts.iter().map(|&i| q[i] * model.mass[i]).sum::<Vector3<f64>>() / total;
-        let value = self.direction.dot(&com);
-        for &i in verts {
-            g.q[i] += self.direction * (weight * model.mass[i] / total);
-            g.mass[i] += weight * self.direction.dot(&(q[i] - com)) / total;
+        match &self.vertices {
+            Some(v) => self.com_term(model, v.iter().copied(), weight, q, g),
+            None => self.com_term(model, 0..q.len(), weight, q, g),
         }
-        weight * value
     }
 
     fn validate(&self, model: &Model) -> Result<(), DiffError> {

@@ -463,7 +463,7 @@ impl Backward<'_> {
             DiffError::NotDifferentiable(format!("step {}: B^T Sigma B is not positive definite", step + 1))
         })?;
         let limits = &rec.active_limits[k];
-        let rigid = rec.rigid_contacts.get(k).map_or(&[][..], |v| &v[..]);
+        let rigid = rec.rigid_contacts.get(k).map_or(&[][..], |v| v);
         let mut v = DVector::zeros(limits.len());
         // Per contact on a bone vertex: (D_j, G_j) of its cone projection and its adjoint nu_j.
         let mut cone: Vec<(Matrix3<f64>, Matrix3<f64>, Vector3<f64>)> = Vec::with_capacity(rigid.len());
@@ -687,7 +687,7 @@ impl Backward<'_> {
             &self.y_full,
             None,
             activations,
-            rec.svds.get(k).map_or(Linearize::Recompute, |s| Linearize::Recorded(s)),
+            rec.svds.get(k).map_or(Linearize::Recompute, Linearize::Recorded),
             &mut self.out_full,
             ParamGrads {
                 w_rot: &mut g.w_rot,

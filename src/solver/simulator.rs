@@ -26,7 +26,7 @@ pub(crate) enum GlobalStep {
     /// The skeleton's reduced step on the factored free block.
     Skeletal {
         /// Sparse Cholesky of the free block.
-        direct: Direct,
+        direct: Box<Direct>,
         /// Schur complement and buffers of the reduced step.
         reduced: Box<Skeletal>,
     },
@@ -177,7 +177,7 @@ fn build_global(
     };
     let global = match (&model.skeleton, cert.used) {
         (Some(sk), _) => {
-            let direct = Direct::new(system, control)?;
+            let direct = Box::new(Direct::new(system, control)?);
             let reduced = Box::new(Skeletal::new(system, &direct, sk));
             GlobalStep::Skeletal { direct, reduced }
         }

@@ -1,0 +1,123 @@
+//! The forward and backward passes allocate nothing per step once warm: the counting allocator
+//! counts every allocation over steps 10-20 of a forward run and of an unrolled and an implicit
+//! backward pass, with a body resting in frictional contact on the ground.
+//!
+//! Buffers that hold one entry per iteration or per contact grow to the largest count seen and
+//! are then reused; the backward test runs a fixed iteration schedule so that its warm-up (the
+//! last ten steps, which the backward pass visits first) has seen every count.
+
+use std::sync::Mutex;
+
+use diffsoft::alloc::{allocations, Counting};
+use diffsoft::contact::Obstacle;
+use diffsoft::diff::loss::CenterOfMass;
+use diffsoft::mesh::generate::BoxSpec;
+use diffsoft::{gradient_with, BodySpec, Controls, MassSpec, Material, Mode, Model, ModelBuilder, Options, Progress};
+use diffsoft::{Settings, Simulator, SolverKind};
+use nalgebra::Vector3;
+
+#[global_allocator]
+static ALLOCATOR: Counting = Counting;
+
+/// A 4 x 2 x 2 box resting on a ground plane with friction 0.5, under gravity.
+fn resting_box() -> Model {
+    let mesh = BoxSpec::new([4, 2, 2], [0.4, 0.2, 0.2])
+        .origin([0.0, 1e-4, 0.0])
+        .build()
+        .unwrap();
+    let body = BodySpec::new(
+        "box",
+        mesh,
+        Material {
+            youngs_modulus: 1e5,
+            poisson_ratio: 0.3,
+        },
+        MassSpec::Density(1000.0),
+    );
+    ModelBuilder::new()
+        .gravity(Vector3::new(0.0, -9.81, 0.0))
+        .body(body)
+        .obstacle(Obstacle::plane("ground", Vector3::zeros(), Vector3::y(), 0.5))
+        .build()
+        .unwrap()
+}
+
+fn settings(solver: SolverKind) -> Settings {
+    Settings {
+        dt: 0.005,
+        solver,
+        max_iterations: 20,
+        tolerance: 1e-8,
+        ..Settings::default()
+    }
+}
+
+/// The counter is global: the tests must not overlap.
+static SERIAL: Mutex<()> = Mutex::new(());
+
+fn count() -> usize {
+    allocations().expect("the counting allocator is installed")
+}
+
+#[test]
+fn a_forward_step_allocates_nothing_once_warm() {
+    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    {
+        for solver in [SolverKind::Direct, SolverKind::Split] {
+            let mut sim = Simulator::new(resting_box(), settings(solver)).unwrap();
+            let mut contacts = 0;
+            for _ in 0..10 {
+                contacts += sim.step().unwrap().contacts;
+            }
+            assert!(contacts > 0, "{solver:?}: the box should touch the ground");
+            let before = count();
+            for _ in 10..20 {
+                sim.step().unwrap();
+            }
+            let n = count() - before;
+            assert_eq!(n, 0, "{solver:?}: {n} allocations over steps 10-20");
+        }
+    }
+}
+
+#[test]
+fn a_backward_step_allocates_nothing_once_warm() {
+    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    {
+        let model = resting_box();
+        let loss = CenterOfMass {
+            direction: Vector3::y(),
+            time_average: true,
+            vertices: None,
+        };
+        for mode in [Mode::Unrolled, Mode::Implicit] {
+            let mut marks = Vec::with_capacity(100);
+            let g = gradient_with(
+                &model,
+                &Settings {
+                    // A fixed schedule: 8 iterations and one contact round per step.
+                    tolerance: 0.0,
+                    max_iterations: 8,
+                    contact_rounds: 1,
+                    ..settings(SolverKind::Direct)
+                },
+                30,
+                &Controls::default(),
+                &loss,
+                Options::mode(mode),
+                &mut |p| marks.push((p, count())),
+            )
+            .unwrap();
+            assert!(g.loss.is_finite());
+            let at = |p: Progress| marks.iter().find(|m| m.0 == p).map(|m| m.1).unwrap();
+            let forward = at(Progress::Forward(19)) - at(Progress::Forward(9));
+            // The backward runs from the last step to the first.
+            let backward = at(Progress::Backward(10)) - at(Progress::Backward(20));
+            assert_eq!(
+                (forward, backward),
+                (0, 0),
+                "{mode:?}: allocations over forward steps 10-20 and backward steps 20-10"
+            );
+        }
+    }
+}
