@@ -19,6 +19,7 @@
 //! add to it. Kinds with other stencils (cloth) gather per vertex afterwards.
 
 pub(crate) mod attachment;
+mod cells;
 pub(crate) mod cloth_bend;
 pub(crate) mod cloth_stretch;
 pub(crate) mod elasticity;

@@ -5,8 +5,9 @@
 use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
 
+use super::cells::{actuators, add_to_groups, add_to_tets, cells_of};
 use super::{AdjointContext, ConstraintError, ConstraintSet, NotDifferentiable, ProjectContext};
-use crate::actuator::{ActuatorKind, Actuators};
+use crate::actuator::ActuatorKind;
 use crate::kernel::actuator::{muscle_jacobian, muscle_target};
 use crate::model::Model;
 
@@ -25,22 +26,12 @@ pub(crate) struct Muscle {
     da: Vec<f64>,
 }
 
-fn actuators(model: &Model) -> &Actuators {
-    model
-        .actuators
-        .as_ref()
-        .expect("a muscle set exists only with actuators")
-}
-
 impl Muscle {
     /// The muscle fibres of `model` (`None` if it has none).
     pub(crate) fn new(model: &Model) -> Option<Self> {
-        let act = model.actuators.as_ref()?;
-        let cells: Vec<usize> = (0..act.cells.len())
-            .filter(|&i| act.groups[act.cells[i].group].kind == ActuatorKind::Muscle)
-            .collect();
+        let cells = cells_of(model, ActuatorKind::Muscle)?;
         let n = cells.len();
-        (n > 0).then(|| Self {
+        Some(Self {
             cells,
             weighted: vec![Matrix3::zeros(); n],
             energy: vec![0.0; n],
@@ -98,9 +89,7 @@ impl ConstraintSet for Muscle {
                 *e = 0.5 * c.weight * (fm - p).norm_squared();
                 Ok(())
             })?;
-        for (&i, w) in self.cells.iter().zip(&self.weighted) {
-            ctx.per_tet[act.cells[i].tet] += w;
-        }
+        add_to_tets(act, &self.cells, &self.weighted, ctx.per_tet);
         Ok(self.energy.iter().sum())
     }
 
@@ -131,12 +120,8 @@ impl ConstraintSet for Muscle {
                 *da = c.weight * dfm.dot(&jac.wrt_a);
                 Ok(())
             })?;
-        for (&i, dp) in self.cells.iter().zip(&self.dp) {
-            ctx.per_tet[act.cells[i].tet] += dp;
-        }
-        for (&i, da) in self.cells.iter().zip(&self.da) {
-            ctx.grads.activations[act.cells[i].group] += da;
-        }
+        add_to_tets(act, &self.cells, &self.dp, ctx.per_tet);
+        add_to_groups(act, &self.cells, &self.da, ctx.grads.activations);
         Ok(())
     }
 }

@@ -6,8 +6,9 @@
 use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
 
+use super::cells::{actuators, add_to_groups, add_to_tets, cells_of};
 use super::{AdjointContext, ConstraintError, ConstraintSet, NotDifferentiable, ProjectContext};
-use crate::actuator::{ActuatorKind, Actuators};
+use crate::actuator::ActuatorKind;
 use crate::kernel::actuator::{nearest_product_jacobian, pair_coefficients, pneumatic_target, ActuatorError};
 use crate::kernel::linearization::{TetLinearization, PAIRS};
 use crate::kernel::{svd, volume};
@@ -30,22 +31,12 @@ pub(crate) struct Pneumatic {
     da: Vec<f64>,
 }
 
-fn actuators(model: &Model) -> &Actuators {
-    model
-        .actuators
-        .as_ref()
-        .expect("a pneumatic set exists only with actuators")
-}
-
 impl Pneumatic {
     /// The pneumatic cells of `model` (`None` if it has none).
     pub(crate) fn new(model: &Model) -> Option<Self> {
-        let act = model.actuators.as_ref()?;
-        let cells: Vec<usize> = (0..act.cells.len())
-            .filter(|&i| act.groups[act.cells[i].group].kind == ActuatorKind::Pneumatic)
-            .collect();
+        let cells = cells_of(model, ActuatorKind::Pneumatic)?;
         let n = cells.len();
-        (n > 0).then(|| Self {
+        Some(Self {
             cells,
             weighted: vec![Matrix3::zeros(); n],
             v_warm: vec![Matrix3::identity(); n],
@@ -102,9 +93,7 @@ impl ConstraintSet for Pneumatic {
                 *e = crate::kernel::energy(c.weight, &f, &p);
                 Ok(())
             })?;
-        for (&i, w) in self.cells.iter().zip(&self.weighted) {
-            ctx.per_tet[act.cells[i].tet] += w;
-        }
+        add_to_tets(act, &self.cells, &self.weighted, ctx.per_tet);
         Ok(self.energy.iter().sum())
     }
 
@@ -146,12 +135,8 @@ impl ConstraintSet for Pneumatic {
                 *da = c.weight * fy.dot(&s.compose(&dxda));
                 Ok(())
             })?;
-        for (&i, dp) in self.cells.iter().zip(&self.dp) {
-            ctx.per_tet[act.cells[i].tet] += dp;
-        }
-        for (&i, da) in self.cells.iter().zip(&self.da) {
-            ctx.grads.activations[act.cells[i].group] += da;
-        }
+        add_to_tets(act, &self.cells, &self.dp, ctx.per_tet);
+        add_to_groups(act, &self.cells, &self.da, ctx.grads.activations);
         Ok(())
     }
 }

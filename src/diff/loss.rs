@@ -90,11 +90,7 @@ impl Loss for CenterOfMass {
         _v: &[Vector3<f64>],
         g: LossGrad<'_>,
     ) -> f64 {
-        let weight = if self.time_average {
-            1.0 / steps as f64
-        } else if n == steps {
-            1.0
-        } else {
+        let Some(weight) = step_weight(self.time_average, n, steps) else {
             return 0.0;
         };
         match &self.vertices {
@@ -126,6 +122,38 @@ impl Loss for CenterOfMass {
             axis_suffix(&self.direction)
         )
     }
+}
+
+/// The weight of step `n` of `steps` in a loss over the final state (1 at the last step, none
+/// before it) or averaged over the steps (`1/steps` at each).
+fn step_weight(time_average: bool, n: usize, steps: usize) -> Option<f64> {
+    if time_average {
+        Some(1.0 / steps as f64)
+    } else {
+        (n == steps).then_some(1.0)
+    }
+}
+
+/// `sum_k value(q_{i_k}, t_k)` over `(vertex, datum)` pairs at the final step, each adding its
+/// gradient to `g.q`: the body of the per-vertex losses.
+fn final_vertex_terms<T>(
+    pairs: &[(usize, T)],
+    n: usize,
+    steps: usize,
+    q: &[Vector3<f64>],
+    g: LossGrad<'_>,
+    value: impl Fn(&Vector3<f64>, &T) -> (f64, Vector3<f64>),
+) -> f64 {
+    if step_weight(false, n, steps).is_none() {
+        return 0.0;
+    }
+    let mut s = 0.0;
+    for (i, t) in pairs {
+        let (v, d) = value(&q[*i], t);
+        s += v;
+        g.q[*i] += d;
+    }
+    s
 }
 
 fn check_vertices(name: &str, model: &Model, verts: impl Iterator<Item = usize>) -> Result<(), DiffError> {
@@ -166,15 +194,7 @@ impl Loss for VertexPositions {
         _v: &[Vector3<f64>],
         g: LossGrad<'_>,
     ) -> f64 {
-        if n != steps {
-            return 0.0;
-        }
-        let mut s = 0.0;
-        for (i, c) in &self.terms {
-            s += c.dot(&q[*i]);
-            g.q[*i] += c;
-        }
-        s
+        final_vertex_terms(&self.terms, n, steps, q, g, |x, c| (c.dot(x), *c))
     }
 
     fn validate(&self, model: &Model) -> Result<(), DiffError> {
@@ -203,16 +223,10 @@ impl Loss for TargetDistance {
         _v: &[Vector3<f64>],
         g: LossGrad<'_>,
     ) -> f64 {
-        if n != steps {
-            return 0.0;
-        }
-        let mut s = 0.0;
-        for (i, t) in &self.targets {
-            let d = q[*i] - t;
-            s += 0.5 * d.norm_squared();
-            g.q[*i] += d;
-        }
-        s
+        final_vertex_terms(&self.targets, n, steps, q, g, |x, t| {
+            let d = x - t;
+            (0.5 * d.norm_squared(), d)
+        })
     }
 
     fn validate(&self, model: &Model) -> Result<(), DiffError> {
@@ -276,11 +290,7 @@ impl Loss for JointAngle {
     }
 
     fn joint_term(&self, model: &Model, n: usize, steps: usize, joints: &[f64], grad: &mut [f64]) -> f64 {
-        let weight = if self.time_average {
-            1.0 / steps as f64
-        } else if n == steps {
-            1.0
-        } else {
+        let Some(weight) = step_weight(self.time_average, n, steps) else {
             return 0.0;
         };
         let Ok(k) = self.dof(model) else {
