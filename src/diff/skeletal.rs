@@ -43,6 +43,47 @@ use crate::skeleton::Skeleton;
 use crate::solver::free_contact::FreeContact;
 use crate::solver::skeletal::Skeletal;
 
+/// Per-step scratch of the skeleton's backward pass, sized on first use and reused.
+#[derive(Debug, Clone, Default)]
+struct Scratch {
+    /// Implicit mode: accumulators whose parameter adjoints are discarded (a gradient of the
+    /// run's shape, the state adjoint, activations, torques).
+    g: Option<Box<Gradient>>,
+    q: Vec<Vector3<f64>>,
+    act: Vec<f64>,
+    torque: Vec<f64>,
+    /// Implicit mode: the fixed point's right-hand side and previous iterate.
+    x_in: Vec<Vector3<f64>>,
+    z_in: Vec<f64>,
+    prev_x: Vec<Vector3<f64>>,
+    prev_z: Vec<f64>,
+    /// The adjoint of a solve's impulses, carried to the iteration before it.
+    impulse_bar: Vec<Vector3<f64>>,
+    /// Torque adjoints of a step.
+    torque_acc: Vec<f64>,
+}
+
+impl Scratch {
+    /// Size for a gradient like `g`, `n` vertices, `groups` actuator groups and `dofs` joint
+    /// coordinates; start a step (no impulse adjoint yet).
+    fn prepare(&mut self, g: &Gradient, n: usize, groups: usize, dofs: usize) {
+        if self.g.is_none() {
+            self.g = Some(Box::new(g.clone()));
+        }
+        self.q.resize(n, Vector3::zeros());
+        self.act.resize(groups, 0.0);
+        self.torque.resize(dofs, 0.0);
+        self.torque_acc.resize(dofs, 0.0);
+        self.impulse_bar.clear();
+    }
+}
+
+/// `dst = src` (resizing `dst` once).
+fn copy_into<T: Clone>(dst: &mut Vec<T>, src: &[T]) {
+    dst.clear();
+    dst.extend_from_slice(src);
+}
+
 /// Buffers of the skeleton's backward pass.
 #[derive(Debug, Clone)]
 pub struct SkeletalAdjoint {
@@ -71,8 +112,8 @@ pub struct SkeletalAdjoint {
     /// Free-numbered scratch: `W beta`, `W (q_R' - c)`.
     w_beta: Vec<Vector3<f64>>,
     w_shift: Vec<Vector3<f64>>,
-    /// Implicit mode: the previous fixed-point iterate `(x_bar, z_bar)`.
-    fp_prev: Option<(Vec<Vector3<f64>>, Vec<f64>)>,
+    /// Per-step scratch (sized on first use, then reused).
+    scratch: Scratch,
     /// Full-numbered vectors of the matrix terms.
     alpha: Vec<Vector3<f64>>,
     gamma: Vec<Vector3<f64>>,
@@ -103,7 +144,7 @@ impl SkeletalAdjoint {
             base_acc: vec![Vector3::zeros(); nr],
             w_beta: vec![Vector3::zeros(); nf],
             w_shift: vec![Vector3::zeros(); nf],
-            fp_prev: None,
+            scratch: Scratch::default(),
             alpha: vec![Vector3::zeros(); n],
             gamma: vec![Vector3::zeros(); n],
             y_tilde: vec![Vector3::zeros(); n],
@@ -251,18 +292,19 @@ impl Backward<'_> {
         let k = iters - 1;
         SkeletalAdjoint::load(&mut sa.work, &rec.skeleton_states[iters], &mut sa.q_r, &mut sa.b)?;
         SkeletalAdjoint::add_bt(&sa.b, &sa.q_r_bar_in, &mut sa.z_bar);
-        let (x_in, z_in) = (self.xbar.clone(), sa.z_bar.clone());
+        let mut sc = std::mem::take(&mut sa.scratch);
+        sc.prepare(g, qbar.len(), act_grad.len(), dofs);
+        copy_into(&mut sc.x_in, &self.xbar);
+        copy_into(&mut sc.z_in, &sa.z_bar);
         let it = Iteration {
             k,
             at_start: false,
             prev: Some(contacts_of(rec, k)),
         };
-        let mut impulse_bar = Vec::new();
         // Scratch accumulators for the iterations whose parameter adjoints are discarded.
-        let mut g_s = g.clone();
-        let mut q_s = qbar.to_vec();
-        let mut a_s = act_grad.to_vec();
-        let mut t_s = vec![0.0; dofs];
+        let (g_s, q_s, a_s, t_s) = (&mut sc.g, &mut sc.q, &mut sc.act, &mut sc.torque);
+        let g_s = g_s.as_mut().expect("prepared");
+        let mut has_prev = false;
         let mut count = 0;
         let mut residual = f64::INFINITY;
         while count < self.opts.implicit_max_iterations {
@@ -272,66 +314,71 @@ impl Backward<'_> {
                 q_n,
                 rec,
                 it,
-                &mut impulse_bar,
+                &mut sc.impulse_bar,
                 activations,
-                &mut q_s,
-                &mut g_s,
+                q_s,
+                g_s,
                 step,
-                &mut a_s,
-                &mut t_s,
+                a_s,
+                t_s,
             )?;
             let (mut change, mut size) = (0.0f64, 0.0f64);
-            for (x, x0) in self.xbar.iter_mut().zip(&x_in) {
+            for (x, x0) in self.xbar.iter_mut().zip(&sc.x_in) {
                 let new = x0 + *x;
                 size = size.max(new.amax());
                 *x = new;
             }
-            for (z, z0) in sa.z_bar.iter_mut().zip(&z_in) {
+            for (z, z0) in sa.z_bar.iter_mut().zip(&sc.z_in) {
                 let new = z0 + *z;
                 size = size.max(new.abs());
                 *z = new;
             }
             // The change against the previous iterate: compare with what went in.
-            if let Some(prev) = sa.fp_prev.as_ref() {
-                for (a, b) in self.xbar.iter().zip(&prev.0) {
+            if has_prev {
+                for (a, b) in self.xbar.iter().zip(&sc.prev_x) {
                     change = change.max((a - b).amax());
                 }
-                for (a, b) in sa.z_bar.iter().zip(&prev.1) {
+                for (a, b) in sa.z_bar.iter().zip(&sc.prev_z) {
                     change = change.max((a - b).abs());
                 }
                 residual = if size > 0.0 { change / size } else { 0.0 };
             }
-            sa.fp_prev = Some((self.xbar.clone(), sa.z_bar.clone()));
+            copy_into(&mut sc.prev_x, &self.xbar);
+            copy_into(&mut sc.prev_z, &sa.z_bar);
+            has_prev = true;
             if residual <= self.opts.implicit_tolerance {
                 break;
             }
         }
-        sa.fp_prev = None;
         g.stats.backward_iterations += count;
         g.stats.implicit_residual = g.stats.implicit_residual.max(residual);
         super::implicit::fixed_point_converged(residual, count, step)?;
         // The parameter adjoints with the converged r.
         self.base_acc.iter_mut().for_each(|b| *b = Vector3::zeros());
         sa.base_acc.iter_mut().for_each(|b| *b = Vector3::zeros());
-        let mut torque_acc = vec![0.0; dofs];
-        self.skeletal_iteration(
+        sc.torque_acc.iter_mut().for_each(|t| *t = 0.0);
+        let r = self.skeletal_iteration(
             sa,
             q_n,
             rec,
             it,
-            &mut impulse_bar,
+            &mut sc.impulse_bar,
             activations,
             qbar,
             g,
             step,
             act_grad,
-            &mut torque_acc,
-        )?;
-        if let Some(tg) = g.torques.get_mut(step) {
-            for (a, b) in tg.iter_mut().zip(&torque_acc) {
-                *a += b;
+            &mut sc.torque_acc,
+        );
+        if r.is_ok() {
+            if let Some(tg) = g.torques.get_mut(step) {
+                for (a, b) in tg.iter_mut().zip(&sc.torque_acc) {
+                    *a += b;
+                }
             }
         }
+        sa.scratch = sc;
+        r?;
         sa.z_bar.iter_mut().for_each(|z| *z = 0.0);
         Ok(())
     }
@@ -354,35 +401,42 @@ impl Backward<'_> {
         // z_bar_N += B(z_N)^T q_R_bar.
         SkeletalAdjoint::load(&mut sa.work, &rec.skeleton_states[iters], &mut sa.q_r, &mut sa.b)?;
         SkeletalAdjoint::add_bt(&sa.b, &sa.q_r_bar_in, &mut sa.z_bar);
-        let mut torque_acc = vec![0.0; dofs];
+        let mut sc = std::mem::take(&mut sa.scratch);
+        sc.torque_acc.clear();
+        sc.torque_acc.resize(dofs, 0.0);
         // The adjoint of solve k's impulses from iteration k + 1 (which adds them to `y`).
-        let mut impulse_bar: Vec<Vector3<f64>> = Vec::new();
+        sc.impulse_bar.clear();
+        let mut r = Ok(());
         for k in (0..iters).rev() {
             let it = Iteration {
                 k,
                 at_start: k == 0,
                 prev: (k > 0).then(|| contacts_of(rec, k - 1)),
             };
-            self.skeletal_iteration(
+            r = self.skeletal_iteration(
                 sa,
                 q_n,
                 rec,
                 it,
-                &mut impulse_bar,
+                &mut sc.impulse_bar,
                 activations,
                 qbar,
                 g,
                 step,
                 act_grad,
-                &mut torque_acc,
-            )?;
+                &mut sc.torque_acc,
+            );
+            if r.is_err() {
+                break;
+            }
         }
-        if let Some(tg) = g.torques.get_mut(step) {
-            for (a, b) in tg.iter_mut().zip(&torque_acc) {
+        if let (Ok(()), Some(tg)) = (&r, g.torques.get_mut(step)) {
+            for (a, b) in tg.iter_mut().zip(&sc.torque_acc) {
                 *a += b;
             }
         }
-        Ok(())
+        sa.scratch = sc;
+        r
     }
 
     /// The adjoint of one iteration `it.k` of `rec` (see the module docs): on entry `self.xbar`
