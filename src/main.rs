@@ -478,47 +478,11 @@ fn run(command: Command) -> Result<()> {
         }
         Command::Grad(a) => grad(a)?,
         Command::Gradcheck { steps, json } => {
-            let root = Path::new("verification");
-            let cases = vec![
-                verify::gradients::free_body(steps)?,
-                verify::gradients::bridgesus(&root.join("paper/bridgesus/bridgesus.json"), steps)?,
-                verify::gradients::ground_contact(steps)?,
-                verify::gradients::actuated(steps)?,
-                verify::gradients::baymax_torques(&root.join("scenes/baymax_skeleton.json"), steps)?,
-                verify::gradients::baymax_ground(&root.join("scenes/baymax_skeleton.json"), steps)?,
-                verify::gradients::ball_on_cloth(steps)?,
-                verify::gradients::paper_ball_on_cloth(&root.join("scenes/ball_on_cloth.json"), steps)?,
-            ];
-            let checks = verify::gradients::check_all(&cases, 2021);
-            let mut failed = 0;
-            for c in &checks {
-                match &c.error {
-                    Some(e) => println!("{:<16} FAILS: {e}", c.name),
-                    None => {
-                        for m in &c.modes {
-                            println!(
-                                "{:<16} {:<9} {}  worst {} : analytic {:.10e} fd {:.10e} rel {:.1e}",
-                                c.name,
-                                format!("{:?}", m.mode).to_lowercase(),
-                                match (m.mode, m.passes) {
-                                    (_, true) => "passes",
-                                    (diffsoft::diff::Mode::Implicit, false) =>
-                                        "off (informational: forward not converged)",
-                                    (_, false) => "FAILS ",
-                                },
-                                m.worst.as_deref().unwrap_or("-"),
-                                m.worst_analytic.unwrap_or(f64::NAN),
-                                m.worst_fd.unwrap_or(f64::NAN),
-                                m.worst_rel_error.unwrap_or(f64::NAN),
-                            );
-                        }
-                        if let Some(e) = &c.implicit_error {
-                            println!("{:<16} implicit  off (informational): {e}", c.name);
-                        }
-                    }
-                }
-                failed += usize::from(!c.passes);
-            }
+            use verify::gradients;
+            let cases = gradients::builtin_cases(&gradients::CaseScenes::under(Path::new("verification")), steps)?;
+            let checks = gradients::check_all(&cases, 2021);
+            print!("{}", gradients::checks_table(&checks));
+            let failed = checks.iter().filter(|c| !c.passes).count();
             write_json(&json, &checks)?;
             println!(
                 "wrote {} ({} of {} cases pass in unrolled mode)",

@@ -6,6 +6,7 @@ pub mod actuators;
 pub mod cloth;
 pub mod extremes;
 pub mod fd;
+mod fixtures;
 pub mod gradients;
 pub mod jacobians;
 pub mod physics;

@@ -8,7 +8,6 @@ use nalgebra::{Rotation3, Vector3};
 
 use super::probe::{condition_estimate, external_force, momentum, Check, GradientCheck, Probe, Trial};
 use super::Outcome;
-use crate::actuator::{centroid, ActuatorSpec};
 use crate::contact::{Obstacle, TriMeshObstacle};
 use crate::diff::loss::VertexPositions;
 use crate::diff::Param;
@@ -16,8 +15,9 @@ use crate::mesh::generate::BoxSpec;
 use crate::mesh::{self, TetMesh};
 use crate::skeleton::fixed::Fixed;
 use crate::skeleton::rotational::Rotational;
-use crate::skeleton::{BoneSpec, Schedule};
+use crate::skeleton::BoneSpec;
 use crate::solver::{BodySpec, MassSpec, Material, Model, ModelBuilder, Settings, SolverError, SolverKind};
+use crate::verify::fixtures::actuated_beam;
 
 const G: f64 = 9.81;
 /// Edge of the test cube (m).
@@ -386,38 +386,8 @@ pub(super) fn invariance(
 /// A beam held by springs at x = 0 with a pneumatic top layer and a muscle bottom layer; one
 /// group is held at `activation`.
 pub(super) fn actuated(group: &'static str, activation: f64) -> Trial {
-    let mesh = BoxSpec::new([6, 2, 2], [0.6, 0.1, 0.1]).build().expect("valid box");
-    let top: Vec<usize> = (0..mesh.num_tets()).filter(|&t| centroid(&mesh, t).y > 0.05).collect();
-    let bottom: Vec<usize> = (0..mesh.num_tets()).filter(|&t| centroid(&mesh, t).y <= 0.05).collect();
-    let attached: Vec<(usize, f64)> = (0..mesh.num_vertices())
-        .filter(|&i| mesh.vertices[i].x < 1e-9)
-        .map(|i| (i, 1e4))
-        .collect();
-    let mut b = BodySpec::new(
-        "beam",
-        mesh,
-        Material {
-            youngs_modulus: 1e4,
-            poisson_ratio: 0.3,
-        },
-        MassSpec::Density(500.0),
-    );
-    b.attachments = attached;
-    b.actuators = vec![
-        ActuatorSpec::pneumatic("inflate", &top, 2e4, Schedule::constant(1.0)),
-        ActuatorSpec::muscle(
-            "contract",
-            bottom.iter().map(|&t| (t, Vector3::x())).collect(),
-            2e4,
-            Schedule::constant(0.0),
-        ),
-    ];
-    let model = match ModelBuilder::new()
-        .gravity(Vector3::new(0.0, -1.0, 0.0))
-        .body(b)
-        .build()
-    {
-        Ok(m) => m,
+    let model = match actuated_beam() {
+        Ok(beam) => beam.model,
         Err(e) => return Trial::rejected(SolverError::from(e).to_string()),
     };
     let mut p = Probe::new(model.clone(), settings(0.01), 50);
