@@ -545,7 +545,7 @@ fn run(command: Command) -> Result<()> {
             }
         }
         Command::Merge { inputs, out, svg_dir } => {
-            use diffsoft::verify::shard::{merge_files, Merged};
+            use diffsoft::verify::merge::{merge_files, Merged};
             match merge_files(&inputs)? {
                 Merged::Tradeoff(mut r) => {
                     let dir = svg_dir

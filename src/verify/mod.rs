@@ -9,6 +9,7 @@ pub mod fd;
 mod fixtures;
 pub mod gradients;
 pub mod jacobians;
+pub mod merge;
 pub mod physics;
 pub mod pool;
 pub mod shard;

@@ -1,10 +1,9 @@
 //! Sharding of sweeps: `--shard K/N` runs the items `i` of a sweep with `i mod N == K`
 //! (`0 <= K < N`, the numbering of Slurm array task ids and Kubernetes completion indices), and
-//! writes a partial report; [`merge_files`] checks that the partial reports are the `N` distinct
+//! writes a partial report; `verify::merge::merge_files` checks that the partial reports are the `N` distinct
 //! shards of one sweep and merges them into the report the unsharded run writes.
 
 use std::fmt;
-use std::path::{Path, PathBuf};
 use std::str::FromStr;
 
 use serde::{Deserialize, Serialize};
@@ -36,6 +35,7 @@ impl fmt::Display for Shard {
 
 /// Errors parsing a shard or merging partial reports.
 #[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
 pub enum ShardError {
     /// `--shard` is not `K/N` with `0 <= K < N`.
     #[error("shard '{0}': expected K/N with 0 <= K < N (e.g. 0/4 ... 3/4; K is the array task index)")]
@@ -111,70 +111,32 @@ pub fn check_same<T: PartialEq + fmt::Debug>(what: &str, values: &[T], paths: &[
     Ok(())
 }
 
-/// A merged report of either kind.
-#[derive(Debug, Clone)]
-pub enum Merged {
-    /// A trade-off report.
-    Tradeoff(Box<super::tradeoff::TradeoffReport>),
-    /// An extremes report.
-    Extremes(Box<super::extremes::ExtremesReport>),
+/// A partial report written by one shard: what [`check_partials`] compares before a merge.
+pub trait Partial {
+    /// The shard this report holds.
+    fn shard(&self) -> Shard;
+    /// Its schema (a partial schema such as `diffsoft.tradeoff.partial/1`).
+    fn schema(&self) -> &str;
+    /// The crate version that wrote it.
+    fn crate_version(&self) -> &str;
 }
 
-fn parse<T: serde::de::DeserializeOwned>(v: serde_json::Value, path: &str) -> Result<T, ShardError> {
-    serde_json::from_value(v).map_err(|e| ShardError::Read {
-        path: path.to_string(),
-        message: format!("not a valid partial report: {e}"),
-    })
-}
-
-fn read_value(path: &Path) -> Result<serde_json::Value, ShardError> {
-    let shown = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|e| ShardError::Read {
-        path: shown.clone(),
-        message: e.to_string(),
-    })?;
-    serde_json::from_str(&text).map_err(|e| ShardError::Read {
-        path: shown,
-        message: e.to_string(),
-    })
-}
-
-/// Read partial reports (`diffsoft tradeoff --shard` or `diffsoft extremes --shard` output) and
-/// merge them; every file must be a partial report of the same kind.
-pub fn merge_files(paths: &[PathBuf]) -> Result<Merged, ShardError> {
-    let shown: Vec<String> = paths.iter().map(|p| p.display().to_string()).collect();
-    let mut values = Vec::with_capacity(paths.len());
-    for p in paths {
-        values.push(read_value(p)?);
-    }
-    let schemas: Vec<String> = values
-        .iter()
-        .map(|v| v.get("schema").and_then(|s| s.as_str()).unwrap_or("").to_string())
-        .collect();
-    check_same("schemas", &schemas, &shown)?;
-    match schemas.first().map(String::as_str) {
-        Some(super::tradeoff::PARTIAL_SCHEMA) => {
-            let mut parts = Vec::new();
-            for (v, p) in values.into_iter().zip(&shown) {
-                parts.push(parse(v, p)?);
-            }
-            Ok(Merged::Tradeoff(Box::new(super::tradeoff::merge(parts, &shown)?)))
+/// The checks every merge starts with: the partial reports (named by `paths`) are the
+/// distinct shards of one sweep ([`check_cover`]), each has the partial schema `schema`, and
+/// one crate version wrote them all.
+pub fn check_partials<P: Partial>(parts: &[P], paths: &[String], schema: &str) -> Result<(), ShardError> {
+    let shards: Vec<Shard> = parts.iter().map(Partial::shard).collect();
+    check_cover(&shards, paths)?;
+    for (p, path) in parts.iter().zip(paths) {
+        if p.schema() != schema {
+            return Err(ShardError::Mismatch(format!(
+                "{path}: schema {} is not {schema}",
+                p.schema()
+            )));
         }
-        Some(super::extremes::PARTIAL_SCHEMA) => {
-            let mut parts = Vec::new();
-            for (v, p) in values.into_iter().zip(&shown) {
-                parts.push(parse(v, p)?);
-            }
-            Ok(Merged::Extremes(Box::new(super::extremes::merge(parts, &shown)?)))
-        }
-        other => Err(ShardError::Mismatch(format!(
-            "{} has schema {:?}; expected a partial report ({} or {}), written with --shard",
-            shown.first().map_or("", String::as_str),
-            other.unwrap_or(""),
-            super::tradeoff::PARTIAL_SCHEMA,
-            super::extremes::PARTIAL_SCHEMA
-        ))),
     }
+    let versions: Vec<&str> = parts.iter().map(Partial::crate_version).collect();
+    check_same("crate versions", &versions, paths)
 }
 
 #[cfg(test)]

@@ -26,7 +26,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::report::{Verdict, CRATE_VERSION};
 use crate::verify::pool;
-use crate::verify::shard::{check_cover, check_same, Shard, ShardError};
+use crate::verify::shard::{check_partials, check_same, Partial, Shard, ShardError};
 
 pub use cases::{all, Case};
 pub use probe::{Check, GradientCheck, GradientStatus, Trial};
@@ -111,6 +111,18 @@ pub struct ExtremesPartial {
     pub cases: Vec<CaseResult>,
     /// Wall time (s).
     pub wall_time_s: f64,
+}
+
+impl Partial for ExtremesPartial {
+    fn shard(&self) -> Shard {
+        self.shard
+    }
+    fn schema(&self) -> &str {
+        &self.schema
+    }
+    fn crate_version(&self) -> &str {
+        &self.crate_version
+    }
 }
 
 /// Counts of outcomes.
@@ -298,18 +310,7 @@ fn run_case_failed(index: usize, case: &Case, panic: String) -> CaseResult {
 
 /// Merge the partial reports of one run into the report of the unsharded run.
 pub fn merge(parts: Vec<ExtremesPartial>, paths: &[String]) -> Result<ExtremesReport, ShardError> {
-    let shards: Vec<Shard> = parts.iter().map(|p| p.shard).collect();
-    check_cover(&shards, paths)?;
-    for (p, path) in parts.iter().zip(paths) {
-        if p.schema != PARTIAL_SCHEMA {
-            return Err(ShardError::Mismatch(format!(
-                "{path}: schema {} is not {PARTIAL_SCHEMA}",
-                p.schema
-            )));
-        }
-    }
-    let versions: Vec<&String> = parts.iter().map(|p| &p.crate_version).collect();
-    check_same("crate versions", &versions, paths)?;
+    check_partials(&parts, paths, PARTIAL_SCHEMA)?;
     let subsets: Vec<Subset> = parts.iter().map(|p| p.subset).collect();
     check_same("subsets", &subsets, paths)?;
     let mut cases: Vec<CaseResult> = parts.iter().flat_map(|p| p.cases.iter().cloned()).collect();

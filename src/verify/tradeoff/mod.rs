@@ -19,6 +19,7 @@
 
 mod assess;
 mod chart;
+mod merge;
 pub mod pareto;
 mod report;
 mod run;
@@ -32,8 +33,9 @@ use serde::{Deserialize, Serialize};
 
 use crate::solver::{CertifyPolicy, Settings, SolverKind};
 
+pub use merge::{finalize, merge};
 pub use report::{
-    finalize, merge, Fronts, GradientResult, Pick, Recommendation, Reference, Row, SceneTradeoff, Status,
+    Fronts, GradientResult, Pick, Recommendation, Reference, Row, SceneTradeoff, Status,
     TradeoffPartial, TradeoffReport, PARTIAL_SCHEMA, SCHEMA,
 };
 pub use run::{run_scene, run_shard, suite_section, write_plots, PARAMETERS};
