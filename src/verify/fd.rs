@@ -1,4 +1,4 @@
-//! Finite-difference machinery for derivative checks (METHOD.md section 7): central differences
+//! Finite-difference machinery for derivative checks (docs/method.md section 7): central differences
 //! over a sweep of step sizes (the V-shaped error curve, its minimum, the truncation slope and a
 //! Richardson estimate) and comparisons under `|a - r| <= atol + rtol |r|` that name the worst
 //! entry with both values.
@@ -68,11 +68,16 @@ pub struct StepSweep {
     pub best_step: f64,
     /// That error.
     pub best_error: f64,
-    /// Log-log slope of the error on the large-step side (2 for central differences).
+    /// Log-log slope of the error on the large-step side (2 for central differences; `null`
+    /// in JSON when the function is linear in the increment, so every step is exact to
+    /// round-off).
     pub truncation_slope: f64,
     /// Error of the Richardson extrapolation `(4 D(h/2) - D(h)) / 3` at the best step.
     pub richardson_error: f64,
-    /// The central difference at the best step.
+    /// `max |D|` of the central difference at the best step (the scale of the errors).
+    pub max_abs_difference: f64,
+    /// The central difference at the best step (not written to reports).
+    #[serde(skip)]
     pub best_difference: Vec<f64>,
 }
 
@@ -127,6 +132,7 @@ pub fn sweep(f: &dyn Fn(f64) -> Vec<f64>, analytic: &[f64], scale: f64, decades:
         best_error: errors[best],
         truncation_slope: slope(&lx, &ly),
         richardson_error: max_abs_diff(&rich, analytic),
+        max_abs_difference: diffs[best].iter().fold(0.0, |m: f64, x| m.max(x.abs())),
         best_difference: diffs[best].clone(),
         steps,
         errors,

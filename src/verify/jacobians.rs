@@ -32,7 +32,7 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
 
-use super::fd::{compare, sweep, Comparison};
+use super::fd::{compare, sweep, Comparison, StepSweep};
 use crate::constraint::actuator::{
     muscle_energy, muscle_energy_gradient, muscle_energy_gradient_dual, muscle_jacobian, muscle_jacobian_dual,
     muscle_target, nearest_product_dual, nearest_product_jacobian, pneumatic_energy, pneumatic_energy_gradient,
@@ -53,26 +53,6 @@ pub const DUAL_TOL: (f64, f64) = (1e-12, 1e-10);
 /// Tolerances against central differences at the best step.
 pub const FD_TOL: (f64, f64) = (1e-7, 1e-6);
 
-/// Summary of a step sweep (without the difference vector).
-#[derive(Debug, Clone, Serialize)]
-pub struct SweepSummary {
-    /// Steps.
-    pub steps: Vec<f64>,
-    /// Largest absolute error at each step.
-    pub errors: Vec<f64>,
-    /// Best step and its error.
-    pub best_step: f64,
-    /// Best error.
-    pub best_error: f64,
-    /// Truncation-side log-log slope (about 2; `null` when the map is linear in the coordinate,
-    /// so every step is exact to round-off).
-    pub truncation_slope: f64,
-    /// Richardson-extrapolated error at the best step.
-    pub richardson_error: f64,
-    /// `max |r|` of the central difference at the best step (the scale of the errors).
-    pub max_abs_difference: f64,
-}
-
 /// One derivative check.
 #[derive(Debug, Clone, Serialize)]
 pub struct JacobianCheck {
@@ -87,7 +67,7 @@ pub struct JacobianCheck {
     /// Against central differences at the best step.
     pub versus_fd: Comparison,
     /// The step sweep.
-    pub sweep: SweepSummary,
+    pub sweep: StepSweep,
     /// Actuator checks: the condition number the tolerances are derived from (`M / L`, see the
     /// module doc); absent for the skeleton checks.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -171,18 +151,6 @@ fn flat(m: &Matrix4<f64>) -> Vec<f64> {
     m.iter().copied().collect()
 }
 
-fn summary(s: &super::fd::StepSweep) -> SweepSummary {
-    SweepSummary {
-        steps: s.steps.clone(),
-        errors: s.errors.clone(),
-        best_step: s.best_step,
-        best_error: s.best_error,
-        truncation_slope: s.truncation_slope,
-        richardson_error: s.richardson_error,
-        max_abs_difference: s.best_difference.iter().fold(0.0, |m, x| m.max(x.abs())),
-    }
-}
-
 /// Check `dA/dz_k` of one joint for every coordinate.
 pub fn check_joint(joint: &dyn Joint, name: &str, configuration: &str, scale: f64) -> Vec<JacobianCheck> {
     (0..joint.dofs())
@@ -203,7 +171,7 @@ pub fn check_joint(joint: &dyn Joint, name: &str, configuration: &str, scale: f6
                 entries: analytic.len(),
                 versus_dual: compare(&analytic, &dual, DUAL_TOL.0, DUAL_TOL.1),
                 versus_fd: compare(&analytic, &s.best_difference, FD_TOL.0, FD_TOL.1),
-                sweep: summary(&s),
+                sweep: s,
                 condition: None,
             }
         })
@@ -236,7 +204,7 @@ pub fn check_jacobian(sk: &Skeleton, name: &str, configuration: &str) -> Vec<Jac
                 entries: analytic.len(),
                 versus_dual: compare(&analytic, &dual, DUAL_TOL.0, DUAL_TOL.1),
                 versus_fd: compare(&analytic, &s.best_difference, FD_TOL.0, FD_TOL.1),
-                sweep: summary(&s),
+                sweep: s,
                 condition: None,
             }
         })
@@ -414,7 +382,7 @@ fn actuator_check(
         entries: analytic.len(),
         versus_dual: compare(analytic, dual, dual_atol, 0.0),
         versus_fd: compare(analytic, &s.best_difference, fd_atol, 0.0),
-        sweep: summary(&s),
+        sweep: s,
         condition: Some(condition),
     }
 }
