@@ -28,8 +28,6 @@ pub(crate) mod muscle;
 pub(crate) mod pneumatic;
 mod sets;
 
-#[doc(hidden)]
-pub use crate::kernel::{actuator, svd, volume};
 pub use elasticity::TetSvd;
 pub use error::{ConstraintError, NotDifferentiable};
 pub(crate) use sets::Constraints;

@@ -38,7 +38,6 @@ pub(crate) mod contact;
 mod forward;
 mod gradient;
 mod implicit;
-pub mod local;
 pub mod loss;
 pub mod optim;
 pub mod params;

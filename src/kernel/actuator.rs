@@ -517,7 +517,7 @@ pub fn pneumatic_target_dual<D: DualNum<Primitive = f64> + Copy>(
 
 /// A tet's weighted projective-dynamics target `w_rot U V^T + w_vol U X V^T` (corotated plus
 /// volume constraint, METHOD.md section 2) in dual arithmetic: an independent reference for the
-/// local step's linearization in [`crate::diff::local`].
+/// local step's linearization in the constraint sets' adjoints.
 pub fn tet_target_dual<D: DualNum<Primitive = f64> + Copy>(
     f: &Matrix3<D>,
     w_rot: f64,

@@ -21,8 +21,7 @@ pub mod rotational;
 
 pub use joint::Joint;
 
-#[doc(hidden)]
-pub use crate::base::Schedule;
+use crate::base::Schedule;
 
 use nalgebra::{DMatrix, Matrix4, Vector3, Vector4};
 use num_dual::Dual64;

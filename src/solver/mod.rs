@@ -52,11 +52,6 @@ pub use settings::Settings;
 pub use simulator::Simulator;
 pub use stats::StepStats;
 
-#[doc(hidden)]
-pub use crate::base::{Body, Material};
-#[doc(hidden)]
-pub use crate::model::{BodySpec, MassSpec, Model, ModelBuilder};
-
 /// Positions and velocities of all vertices.
 #[derive(Debug, Clone)]
 pub struct State {

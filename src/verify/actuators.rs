@@ -22,13 +22,15 @@ use nalgebra::{Matrix3, Vector3};
 use serde::Serialize;
 
 use crate::actuator::{fibres_along, ActuatorSpec};
-use crate::constraint::volume::nearest_product;
+use crate::base::Material;
+use crate::base::Schedule;
+use crate::kernel::volume::nearest_product;
 use crate::mesh::generate::BoxSpec;
+use crate::model::{BodySpec, MassSpec, ModelBuilder};
 use crate::output::FrameWriter;
 use crate::report::{Header, Verdict};
 use crate::scene::{self, LoadOptions};
-use crate::skeleton::Schedule;
-use crate::solver::{BodySpec, MassSpec, Material, ModelBuilder, Settings, Simulator, SolverKind};
+use crate::solver::{Settings, Simulator, SolverKind};
 
 /// Schema of `reports/actuators.json`.
 pub const SCHEMA: &str = "diffsoft.verify.actuators/1";

@@ -14,15 +14,17 @@ use anyhow::{Context, Result};
 use nalgebra::{Matrix3, Vector3};
 use serde::Serialize;
 
+use crate::base::Material;
 use crate::cloth::ClothSpec;
-use crate::constraint::svd::svd3;
 use crate::contact::pair::{BodyCollision, Detector, Query};
+use crate::kernel::svd::svd3;
 use crate::mesh::generate::BoxSpec;
+use crate::model::{BodySpec, MassSpec, Model, ModelBuilder};
 use crate::output::FrameWriter;
 use crate::plot::{self, LinearChart, LogLogChart, Panel, Series, Snapshots};
 use crate::report::{Header, Verdict};
 use crate::scene::{self, LoadOptions};
-use crate::solver::{BodySpec, MassSpec, Material, Model, ModelBuilder, Simulator};
+use crate::solver::Simulator;
 
 /// Schema of `cloth.json`.
 pub const CLOTH_SCHEMA: &str = "diffsoft.cloth/1";

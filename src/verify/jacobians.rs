@@ -7,7 +7,7 @@
 //! * every column of `B = dq/dz` (Eqs. 12-16) for mixed chains at least four joints deep;
 //! * the rotational update across `+-pi` (Eq. 35) and the root update's projection onto the
 //!   rotations (Eq. 10);
-//! * the actuators (METHOD.md section 5, Eqs. 39-40; [`crate::constraint::actuator`]): for the
+//! * the actuators (METHOD.md section 5, Eqs. 39-40; [`crate::kernel::actuator`]): for the
 //!   pneumatic cell `dR/dF`, `dR/da`, the nearest product's log-log Jacobian
 //!   `d ln x / d ln(s, a)` and `dPsi/dF`; for the muscle fibre `dp/dF`, `dp/da` and `dPsi/dF`;
 //!   each against dual numbers (an independent one-sided Jacobi SVD and Newton in dual
@@ -33,13 +33,13 @@ use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
 
 use super::fd::{compare, sweep, Comparison, StepSweep};
-use crate::constraint::actuator::{
+use crate::kernel::actuator::{
     muscle_energy, muscle_energy_gradient, muscle_energy_gradient_dual, muscle_jacobian, muscle_jacobian_dual,
     muscle_target, nearest_product_dual, nearest_product_jacobian, pneumatic_energy, pneumatic_energy_gradient,
     pneumatic_energy_gradient_dual, pneumatic_jacobian, pneumatic_jacobian_dual, pneumatic_target_of, ActuatorError,
 };
-use crate::constraint::svd::svd3;
-use crate::constraint::volume;
+use crate::kernel::svd::svd3;
+use crate::kernel::volume;
 use crate::report::{Header, Verdict};
 use crate::skeleton::free::Free;
 use crate::skeleton::prismatic::Prismatic;

@@ -71,4 +71,3 @@ pub fn merge_files(paths: &[PathBuf]) -> Result<Merged, ShardError> {
         ))),
     }
 }
-

@@ -7,14 +7,14 @@ use std::time::Instant;
 use nalgebra::{Rotation3, Vector3};
 use serde::Serialize;
 
+use crate::base::Material;
 use crate::contact::Obstacle;
 use crate::mesh::generate::BoxSpec;
 use crate::mesh::TetMesh;
+use crate::model::{BodySpec, MassSpec, ModelBuilder};
 use crate::report::Verdict;
 use crate::scene::{self, LoadOptions};
-use crate::solver::{
-    BodySpec, CertifyPolicy, MassSpec, Material, ModelBuilder, Settings, Simulator, SolverError, SolverKind,
-};
+use crate::solver::{CertifyPolicy, Settings, Simulator, SolverError, SolverKind};
 
 fn cube(n: usize, size: f64) -> TetMesh {
     BoxSpec::new([n, n, n], [size; 3])
@@ -353,7 +353,7 @@ pub struct AgreementRow {
 /// its tip reaches, run for 60 steps of 1 ms with every solver (all certified to converge there:
 /// rho(G19) = 0.45) and compared with the direct solver.
 pub fn solver_agreement() -> Result<Vec<AgreementRow>, SolverError> {
-    let build = |ground: bool| -> Result<crate::solver::Model, SolverError> {
+    let build = |ground: bool| -> Result<crate::model::Model, SolverError> {
         let mesh = BoxSpec::new([8, 2, 2], [1.0, 0.2, 0.2])
             .origin([0.0, 0.0, -0.1])
             .build()

@@ -198,6 +198,7 @@ pub struct TScalingSuite {
 
 /// Errors reading a suite.
 #[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
 pub enum SuiteError {
     /// Cannot read the file.
     #[error("{path}: {source}")]

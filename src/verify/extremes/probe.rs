@@ -6,7 +6,8 @@ use serde::{Deserialize, Serialize};
 
 use super::Outcome;
 use crate::diff::{self, loss::Loss, Controls, Mode, Options, Param};
-use crate::solver::{CertifyPolicy, Model, Settings, Simulator, SolverError, SolverKind, StepStats};
+use crate::model::Model;
+use crate::solver::{CertifyPolicy, Settings, Simulator, SolverError, SolverKind, StepStats};
 
 /// A measured quantity and whether it is within its bound.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -8,15 +8,17 @@ use nalgebra::{Rotation3, Vector3};
 
 use super::probe::{condition_estimate, external_force, momentum, Check, GradientCheck, Probe, Trial};
 use super::Outcome;
+use crate::base::Material;
 use crate::contact::{Obstacle, TriMeshObstacle};
 use crate::diff::loss::VertexPositions;
 use crate::diff::Param;
 use crate::mesh::generate::BoxSpec;
 use crate::mesh::{self, TetMesh};
+use crate::model::{BodySpec, MassSpec, Model, ModelBuilder};
 use crate::skeleton::fixed::Fixed;
 use crate::skeleton::rotational::Rotational;
 use crate::skeleton::BoneSpec;
-use crate::solver::{BodySpec, MassSpec, Material, Model, ModelBuilder, Settings, SolverError, SolverKind};
+use crate::solver::{Settings, SolverError, SolverKind};
 use crate::verify::fixtures::actuated_beam;
 
 const G: f64 = 9.81;

@@ -9,12 +9,14 @@ use nalgebra::Vector3;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
+use crate::base::Material;
 use crate::contact::Obstacle;
 use crate::diff::loss::{CenterOfMass, JointAngle, Loss, Sum, VertexPositions};
 use crate::diff::{self, Controls, DiffError, Gradient, Param};
 use crate::mesh::generate::BoxSpec;
+use crate::model::{BodySpec, MassSpec, Model, ModelBuilder};
 use crate::scene::{self, LoadOptions};
-use crate::solver::{BodySpec, MassSpec, Material, Model, ModelBuilder, Settings, SolverKind};
+use crate::solver::{Settings, SolverKind};
 use crate::verify::fixtures::{actuated_beam, ActuatedBeam};
 
 /// A parameter group to check.

@@ -11,11 +11,11 @@ use serde::Serialize;
 
 use super::cases::{Case, Group};
 use super::{ATOL, RTOL};
-use crate::constraint::actuator::tet_target_dual;
-use crate::constraint::svd::svd3;
-use crate::diff::local::{deformation, TetLinearization};
 use crate::diff::{self, DiffError, DiffStats, Gradient, Mode, Options};
-use crate::solver::Model;
+use crate::kernel::actuator::tet_target_dual;
+use crate::kernel::linearization::TetLinearization;
+use crate::kernel::svd::svd3;
+use crate::model::Model;
 
 /// One point of a V-curve.
 #[derive(Debug, Clone, Serialize)]
@@ -146,7 +146,7 @@ fn dual_check(model: &Model, q: &[Vector3<f64>], seed: u64) -> Result<DualCheck,
     let mut count = 0;
     let mut skipped = 0;
     for t in (0..model.tets.len()).step_by(step) {
-        let f = deformation(model, t, q);
+        let f = model.tet_deformation(t, q);
         let (wr, wv) = (model.w_rot[t], model.w_vol[t]);
         let svd = svd3(&f);
         let s = svd.sigma;

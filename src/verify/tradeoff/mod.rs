@@ -35,8 +35,8 @@ use crate::solver::{CertifyPolicy, Settings, SolverKind};
 
 pub use merge::{finalize, merge};
 pub use report::{
-    Fronts, GradientResult, Pick, Recommendation, Reference, Row, SceneTradeoff, Status,
-    TradeoffPartial, TradeoffReport, PARTIAL_SCHEMA, SCHEMA,
+    Fronts, GradientResult, Pick, Recommendation, Reference, Row, SceneTradeoff, Status, TradeoffPartial,
+    TradeoffReport, PARTIAL_SCHEMA, SCHEMA,
 };
 pub use run::{run_scene, run_shard, suite_section, write_plots, PARAMETERS};
 pub use scene::{Cantilever, SceneSummary};
@@ -235,6 +235,7 @@ pub struct TradeoffSpec {
 
 /// Errors of the trade-off study.
 #[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
 pub enum TradeoffError {
     /// The sweep's inputs are meaningless.
     #[error("trade-off '{name}': {message}")]

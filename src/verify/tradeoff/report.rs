@@ -1,7 +1,6 @@
 //! The trade-off report's types: per-setting rows and references (partial reports, one per
 //! shard) and the scene's assembled report; `super::merge` assembles them.
 
-
 use serde::{Deserialize, Serialize};
 
 use super::trajectory::Work;

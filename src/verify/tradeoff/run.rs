@@ -16,8 +16,9 @@ use super::{
     PARTIAL_SCHEMA,
 };
 use crate::diff::{self, loss::Loss, Controls, Mode, Options, Param};
+use crate::model::Model;
 use crate::report::{write_json, CRATE_VERSION};
-use crate::solver::{Model, Settings, Simulator};
+use crate::solver::{Settings, Simulator};
 use crate::verify::pool::{self, Task};
 use crate::verify::shard::Shard;
 

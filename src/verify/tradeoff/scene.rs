@@ -7,9 +7,11 @@ use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 
 use super::{SceneSource, TradeoffError};
+use crate::base::Material;
 use crate::mesh::generate::BoxSpec;
+use crate::model::{BodySpec, MassSpec, Model, ModelBuilder};
 use crate::scene::{self, LoadOptions};
-use crate::solver::{BodySpec, MassSpec, Material, Model, ModelBuilder, Settings};
+use crate::solver::Settings;
 
 /// A beam along x, Kuhn-split box cells, its `x = 0` face held fixed (Dirichlet), under gravity
 /// `-9.81` along y.

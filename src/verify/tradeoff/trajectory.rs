@@ -5,7 +5,8 @@
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 
-use crate::solver::{Model, Simulator, SolverError};
+use crate::model::Model;
+use crate::solver::{Simulator, SolverError};
 
 /// CPU time of the calling thread in seconds, from `/proc/thread-self/schedstat` (Linux; the
 /// kernel updates it at least every scheduler tick, a few ms). `None` where it is unavailable.
