@@ -1,4 +1,4 @@
-//! Assembly of the FEM operators (seed Eqs. 22-23) on ~10k and ~100k tets.
+//! Assembly of the FEM operators (Eqs. 22-23) on ~10k and ~100k tets.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use diffsoft::fem::{Coefficient, FemOperators};

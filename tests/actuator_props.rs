@@ -1,4 +1,4 @@
-//! Actuator constraints (METHOD.md section 5, seed Eqs. 39-40): the analytic Jacobians of the
+//! Actuator constraints (docs/method.md section 5, Eqs. 39-40): the analytic Jacobians of the
 //! pneumatic target `R(F, a)` and the muscle target `p(F, a)` and the energy gradients against
 //! dual numbers and central-difference step sweeps, the constraints themselves, the degenerate
 //! limits, and every failure mode as an explicit error.

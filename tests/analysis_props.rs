@@ -1,4 +1,4 @@
-//! Properties of the convergence analysis (METHOD.md section 6) on random and real meshes.
+//! Properties of the convergence analysis (docs/method.md section 6) on random and real meshes.
 
 mod common;
 

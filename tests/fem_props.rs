@@ -1,4 +1,4 @@
-//! Properties of the FEM operators (seed Eqs. 22-23) on random meshes.
+//! Properties of the FEM operators (Eqs. 22-23) on random meshes.
 #![allow(clippy::needless_range_loop)] // matrix entries are clearest as (i, j) loops
 
 mod common;
@@ -124,7 +124,7 @@ proptest! {
 
 #[test]
 fn single_tet_operators_match_closed_form() {
-    // Unit right tet: P = I, V = 1/6, A = [-s, I] (seed Eq. 23).
+    // Unit right tet: P = I, V = 1/6, A = [-s, I] (Eq. 23).
     let mesh = TetMesh::new(
         vec![Vector3::zeros(), Vector3::x(), Vector3::y(), Vector3::z()],
         vec![[0, 1, 2, 3]],

@@ -1,7 +1,7 @@
-//! Actuators of a body (METHOD.md section 5, seed Appendix D): groups of pneumatic cells and
+//! Actuators of a body (docs/method.md section 5, appendix D): groups of pneumatic cells and
 //! muscle fibres, each group driven by one activation.
 //!
-//! A group owns tets. A pneumatic group adds, per tet, the constraint of seed Eqs. 39-40 with
+//! A group owns tets. A pneumatic group adds, per tet, the constraint of Eqs. 39-40 with
 //! weight `k_p V` (the tet's singular values pulled to a product `a`); a muscle group adds, per
 //! tet, a fibre along a rest direction `m` with weight `k_m V`, pulled to length `1 - a`
 //! ([`crate::kernel::actuator`]). Both are ordinary projective constraints: their weights

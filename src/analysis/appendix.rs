@@ -1,4 +1,4 @@
-//! The seed's Appendix A and B claims, evaluated on a mesh against the exact critical steps.
+//! The paper appendix's convergence claims (appendices A and B, docs/method.md section 6), evaluated on a mesh against the exact critical steps.
 //!
 //! Appendix A bounds the plain iteration (19) by requiring `M/h^2` to dominate the row sums of
 //! `L` (Eq. 24, a correct sufficient condition), then chains inequalities (25)-(27) to the

@@ -215,8 +215,7 @@ pub fn analyze(mesh: &TetMesh, info: &MeshInfo, params: &BoundsParams) -> Result
             attached_vertices: params.attachments.vertices.len(),
             attachment_stiffness: has_att.then_some(params.attachments.stiffness),
             eigen_method: spectrum.method,
-            convention:
-                "per-axis system: M = lumped rho V/4 per tet corner, L = sum_t mu V_t A_t^T A_t (seed Eqs. 22-23) \
+            convention: "per-axis system: M = lumped rho V/4 per tet corner, L = sum_t mu V_t A_t^T A_t (Eqs. 22-23) \
                          plus attachment stiffness on the diagonal; D = diag(L)",
         },
         mesh: MeshSection {

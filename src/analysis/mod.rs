@@ -1,4 +1,4 @@
-//! Convergence analysis of the paper's contact iterations (METHOD.md sections 4 and 6).
+//! Convergence analysis of the paper's contact iterations (docs/method.md sections 4 and 6).
 //!
 //! With the contact impulse `xi` and right-hand side `f` fixed, the plain iteration (Eq. 19)
 //! and the split iteration (Eq. 21) are linear stationary iterations with iteration matrices
@@ -18,7 +18,7 @@
 //!   converges for every `h` otherwise. By Sylvester's law of inertia the latter holds iff
 //!   `lambda_max(D^-1 L) <= 2`, and `rho(G21) -> max(1, lambda_max(D^-1 L) - 1)` as `h -> inf`.
 //!
-//! [`appendix`] evaluates the seed's Appendix A/B claims against these exact values,
+//! [`appendix`] evaluates the appendix's A/B claims against these exact values,
 //! [`empirical`] runs the iterations themselves, and [`sweep`] traces `rho(dt)`.
 
 pub mod appendix;

@@ -7,7 +7,7 @@
 //! ```
 //!
 //! (`L` the per-axis stiffness matrix): for instance `M^-1 L ~ M^-1/2 L M^-1/2` and
-//! `G21 ~ -h^2 W^-1/2 (L - D) W^-1/2` with `W = M + h^2 D` (METHOD.md section 6). Its eigenvalues
+//! `G21 ~ -h^2 W^-1/2 (L - D) W^-1/2` with `W = M + h^2 D` (docs/method.md section 6). Its eigenvalues
 //! are computed exactly by a dense symmetric eigensolver for small meshes and by faer's
 //! thick-restart Lanczos (Krylov-Schur for symmetric operators, `partial_self_adjoint_eigen`)
 //! for large ones.

@@ -1,4 +1,5 @@
-//! Frictional contact with static obstacles (METHOD.md section 4, after Ly et al. 2020).
+//! Frictional contact with static obstacles (docs/method.md section 4, Eqs. 19-21 and C1-C2,
+//! after Ly et al. 2020).
 //!
 //! A [`Contact`] linearises one vertex's non-penetration constraint as a half-space
 //! `n . (x - c) >= 0` around the closest obstacle point `c` (offset by the obstacle's thickness)

@@ -1,4 +1,5 @@
-//! A static obstacle: a shape with its name, friction and collision thickness.
+//! A static obstacle: a shape with its name, friction (the cone of Eq. C1) and collision
+//! thickness (Eq. C2; docs/method.md section 4).
 
 use std::sync::Arc;
 

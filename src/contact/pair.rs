@@ -1,5 +1,5 @@
-//! Collisions between bodies: soft-soft, soft-cloth and cloth-cloth (METHOD.md section 4, with
-//! both sides moving).
+//! Collisions between bodies: soft-soft, soft-cloth and cloth-cloth (docs/method.md section 4,
+//! Eqs. C3 and C5, with both sides moving).
 //!
 //! Each body's collision surface is its boundary triangles (a tet mesh) or its triangles
 //! (cloth), with their edges and vertices. A step's candidate contacts are

@@ -1,4 +1,4 @@
-//! A plane obstacle: the half-space `n . (x - point) >= 0` (the ground).
+//! A plane obstacle: the half-space `n . (x - point) >= 0` (the ground; docs/method.md Eq. C2).
 
 use nalgebra::Vector3;
 

@@ -1,4 +1,4 @@
-//! Static triangle-mesh obstacles: an AABB tree over the triangles for closest-point and
+//! Static triangle-mesh obstacles (docs/method.md Eq. C2): an AABB tree over the triangles for closest-point and
 //! segment-crossing queries. Open surfaces (a cloth used as ground) and closed ones both work:
 //! a contact keeps the side of the surface the vertex was on at the start of the step, and a
 //! path that crosses a triangle during the step is caught (no tunnelling through thin sheets).

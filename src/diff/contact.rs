@@ -1,4 +1,4 @@
-//! Derivatives of the contact solve (METHOD.md section 4) for the backward pass.
+//! Derivatives of the contact solve (docs/method.md section 4) for the backward pass.
 //!
 //! The direct solver's global step with contacts returns `x = A^-1 (r + E lambda)`, where the
 //! impulses are the fixed point of the projected Gauss-Seidel:

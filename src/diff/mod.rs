@@ -1,4 +1,4 @@
-//! Reverse-mode gradients of whole simulations (METHOD.md section 7).
+//! Reverse-mode gradients of whole simulations (docs/method.md section 7).
 //!
 //! A loss `L(q_1, v_1, ..., q_N, v_N)` ([`loss`]) of a trajectory is differentiated with respect
 //! to the initial positions and velocities, the per-tet constraint weights (hence Young's modulus

@@ -1,5 +1,5 @@
-//! Linear tetrahedral FEM operators: per-tet geometry (seed Eq. 23), lumped mass and the
-//! per-axis stiffness ("Laplacian") matrix `L = sum_t mu_t V_t A_t^T A_t` (seed Eq. 22).
+//! Linear tetrahedral FEM operators: per-tet geometry (Eq. 23), lumped mass and the
+//! per-axis stiffness ("Laplacian") matrix `L = sum_t mu_t V_t A_t^T A_t` (Eq. 22).
 //!
 //! The three axes decouple (`L (x) I3`), so everything here is the `n x n` block. The sparsity
 //! pattern of `L` is built once ([`StiffnessPattern`]); assembling new values (other material,
@@ -53,13 +53,13 @@ pub enum FemError {
 /// Rest geometry of one tet.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TetGeometry {
-    /// Rest edge matrix `P = [q1-q0, q2-q0, q3-q0]` (seed Eq. 23).
+    /// Rest edge matrix `P = [q1-q0, q2-q0, q3-q0]` (Eq. 23).
     pub p: Matrix3<f64>,
     /// `P^-1`, so that `F = [x1-x0, x2-x0, x3-x0] P^-1`.
     pub p_inv: Matrix3<f64>,
     /// Rest volume `det P / 6 > 0`.
     pub volume: f64,
-    /// Columns `a_i` of the gradient operator `A = [-P^-T s, P^-T]` (seed Eq. 23).
+    /// Columns `a_i` of the gradient operator `A = [-P^-T s, P^-T]` (Eq. 23).
     pub grads: [Vector3<f64>; 4],
 }
 
@@ -170,7 +170,7 @@ impl FemOperators {
         self.geometry.iter().map(|g| g.volume).sum()
     }
 
-    /// Lumped mass: each tet gives `rho V / 4` to each corner (seed Eq. 22).
+    /// Lumped mass: each tet gives `rho V / 4` to each corner (Eq. 22).
     pub fn lumped_mass(&self, rho: Coefficient<'_>) -> Result<Vec<f64>, FemError> {
         rho.check("density", self.tets.len())?;
         let mut m = vec![0.0; self.num_vertices()];
@@ -183,7 +183,7 @@ impl FemOperators {
         Ok(m)
     }
 
-    /// Values of `L = sum_t mu_t V_t A_t^T A_t` in the pattern's order (seed Eq. 22).
+    /// Values of `L = sum_t mu_t V_t A_t^T A_t` in the pattern's order (Eq. 22).
     pub fn laplacian_values(&self, mu: Coefficient<'_>) -> Result<Vec<f64>, FemError> {
         mu.check("stiffness mu", self.tets.len())?;
         let mut values = vec![0.0; self.pattern.nnz()];

@@ -1,4 +1,4 @@
-//! Actuator constraints (METHOD.md section 5, seed Appendix D, Eqs. 39-40).
+//! Actuator constraints (docs/method.md section 5, appendix D, Eqs. 39-40).
 //!
 //! * **Pneumatic cell** with activation `a > 0` (target volume ratio):
 //!   `Psi = k_p/2 |F - R(a)|^2` (Eq. 39) with `F = U S V^T` and `R(a) = U (S + D) V^T`,
@@ -8,7 +8,7 @@
 //! * **Muscle fibre** with rest direction `m` (unit) and activation `a in [0, 1]`: the fibre
 //!   `F m` of length `l = |F m|` is pulled to length `1 - a` along itself; the projective target
 //!   is `p = (1 - a) F m / |F m|` and `Psi = k_m/2 |F m - p|^2`. This is the normalised form
-//!   (METHOD.md: the seed prints the norm without the square and the reference implementation
+//!   (docs/method.md section 5: the appendix prints the norm without the square and the reference implementation
 //!   uses `(1 - a) F m` without normalising; diffsoft uses the normalised target, so an
 //!   activation `a` means "fibre length `1 - a`" whatever the current stretch).
 //!
@@ -310,7 +310,7 @@ fn fibre(f: &Matrix3<f64>, m: &Vector3<f64>, a: f64) -> Result<(Vector3<f64>, Ve
     Ok((fm, muscle_target(&fm, a)?))
 }
 
-/// Muscle energy `k/2 |F m - p|^2` with `p = (1 - a) F m / |F m|` (METHOD.md section 5).
+/// Muscle energy `k/2 |F m - p|^2` with `p = (1 - a) F m / |F m|` (docs/method.md section 5).
 pub fn muscle_energy(f: &Matrix3<f64>, m: &Vector3<f64>, a: f64, k: f64) -> Result<f64, ActuatorError> {
     check_stiffness(k)?;
     let (fm, p) = fibre(f, m, a)?;
@@ -516,7 +516,7 @@ pub fn pneumatic_target_dual<D: DualNum<Primitive = f64> + Copy>(
 }
 
 /// A tet's weighted projective-dynamics target `w_rot U V^T + w_vol U X V^T` (corotated plus
-/// volume constraint, METHOD.md section 2) in dual arithmetic: an independent reference for the
+/// volume constraint, docs/method.md section 2) in dual arithmetic: an independent reference for the
 /// local step's linearization in the constraint sets' adjoints.
 pub fn tet_target_dual<D: DualNum<Primitive = f64> + Copy>(
     f: &Matrix3<D>,

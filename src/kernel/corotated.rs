@@ -1,6 +1,6 @@
 //! Corotated (as-rigid-as-possible) constraint: project `F` onto the rotations,
 //! `p = U V^T` with `det U = det V = +1`, so an inverted tet is pulled back to a rotation
-//! rather than to a reflection (METHOD.md section 2).
+//! rather than to a reflection (docs/method.md section 2).
 
 use nalgebra::Matrix3;
 

@@ -1,7 +1,7 @@
 //! Signed singular value decomposition of 3 x 3 matrices, `F = U diag(sigma) V^T`, with `U`
 //! and `V` proper rotations (`det = +1`) and the sign of `det F` carried by the smallest
 //! singular value. This is what makes the corotated projection `R = U V^T` a rotation for
-//! inverted tets (METHOD.md section 2).
+//! inverted tets (docs/method.md section 2).
 //!
 //! The fast path follows McAdams et al. (2011): cyclic Jacobi on `F^T F` with exact rotations
 //! (warm-startable from the previous `V`, so a local step of projective dynamics usually needs

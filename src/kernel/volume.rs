@@ -1,5 +1,5 @@
 //! Volume constraint: the nearest deformation gradient whose singular values multiply to a
-//! target `a` (1 for volume preservation; the pneumatic activation in seed Eq. 40).
+//! target `a` (1 for volume preservation; the pneumatic activation in Eq. 40).
 //!
 //! With `F = U diag(s) V^T`, the projection is `U diag(x) V^T` where
 //! `x = argmin |x - s|^2 s.t. x1 x2 x3 = a`, `x > 0`. Stationarity gives

@@ -249,7 +249,7 @@ impl TetMesh {
         self.tets.len()
     }
 
-    /// Rest edge matrix `P = [q1-q0, q2-q0, q3-q0]` of tet `t` (seed Eq. 23).
+    /// Rest edge matrix `P = [q1-q0, q2-q0, q3-q0]` of tet `t` (Eq. 23).
     pub fn edge_matrix(&self, t: usize) -> Matrix3<f64> {
         edge_matrix(&self.vertices, &self.tets[t])
     }

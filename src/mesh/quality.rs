@@ -2,7 +2,7 @@
 //!
 //! The sign structure of the stiffness matrix `L` follows from the dihedral angles: the entry
 //! of edge `ij` is positive exactly when the dihedral angle at the opposite edge is obtuse
-//! (METHOD.md section 1). The `L`-based counts live in `fem::sign_pattern`.
+//! (docs/method.md section 1). The `L`-based counts live in `fem::sign_pattern`.
 
 use nalgebra::{Matrix3, Vector3};
 use serde::Serialize;
@@ -10,7 +10,7 @@ use serde::Serialize;
 use super::TetMesh;
 
 /// Gradients of the four barycentric shape functions of a tet with edge matrix `p`:
-/// the columns `a_i` of `A = [-P^-T s, P^-T]` (seed Eq. 23). `None` if `p` is singular.
+/// the columns `a_i` of `A = [-P^-T s, P^-T]` (Eq. 23). `None` if `p` is singular.
 pub fn barycentric_gradients(p: &Matrix3<f64>) -> Option<[Vector3<f64>; 4]> {
     let p_inv_t = p.try_inverse()?.transpose();
     let a1 = p_inv_t.column(0).into_owned();

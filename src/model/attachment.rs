@@ -1,6 +1,6 @@
 //! Attachment (penalty pin): pulls one vertex to a target with weight `w`; energy
 //! `w/2 |x - target|^2`, selection `e_i`, so it adds `w` to the diagonal of `L` and `w target` to
-//! the right-hand side (METHOD.md section 2).
+//! the right-hand side (docs/method.md section 2).
 
 use nalgebra::Vector3;
 use serde::Serialize;

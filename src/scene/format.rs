@@ -210,7 +210,7 @@ pub struct ClothFile {
 pub struct ActuatorFile {
     /// Name (activations are set by name).
     pub name: String,
-    /// Pneumatic cells (seed Eqs. 39-40): activation = target volume ratio, `> 0`.
+    /// Pneumatic cells (Eqs. 39-40): activation = target volume ratio, `> 0`.
     #[serde(default)]
     pub pneumatic: Option<PneumaticFile>,
     /// Muscle fibres: activation in `[0, 1]` pulls fibres to length `1 - a`.

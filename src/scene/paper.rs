@@ -17,7 +17,7 @@
 //! * `"Volume Verts"` as pneumatic groups `pneumatic0, pneumatic1, ...`: the tets with at least
 //!   two listed vertices, stiffness `"Muscle Stiffness"`, activation 1 (rest) until set (the
 //!   reference turns each list into a chain of edge-length actuators between consecutive
-//!   vertices; diffsoft uses the paper's pneumatic cells, seed Eqs. 39-40, on those tets);
+//!   vertices; diffsoft uses the paper's pneumatic cells, Eqs. 39-40, on those tets);
 //! * `"Muscle filename"` (lines `muscle sample x y z`) as muscle groups `muscle0, muscle1, ...`:
 //!   each tet whose centroid is within half the mean edge length of a muscle's polyline joins
 //!   the nearest one, along its nearest segment; activation 0 (rest) until set.

@@ -1,4 +1,4 @@
-//! Embedded skeletons (paper Eqs. 6-18, seed Appendix C): bones that own mesh vertices rigidly,
+//! Embedded skeletons (paper Eqs. 6-18, appendix C): bones that own mesh vertices rigidly,
 //! linked in a tree by joints.
 //!
 //! A bone `b` moves its vertices by its world transform `T_b = T_parent A_b` (Eq. 11), the

@@ -1,4 +1,4 @@
-//! Prismatic joint (seed Appendix C, Eqs. 36-38): translation by `l` along the unit axis `u`,
+//! Prismatic joint (appendix C, Eqs. 36-38): translation by `l` along the unit axis `u`,
 //! `A = [I, l u; 0, 1]`, `dA/dl = [0, u; 0, 0]`, update `l <- l + dl`.
 
 use nalgebra::{Matrix3, Matrix4, RealField, Vector3};

@@ -1,4 +1,4 @@
-//! Rotational joint (seed Appendix C, Eqs. 32-35): rotation by `theta` about the unit axis `n`
+//! Rotational joint (appendix C, Eqs. 32-35): rotation by `theta` about the unit axis `n`
 //! through the joint position `p` (rest frame):
 //! `A = [R, p - R p; 0, 1]`, `R = cos t I + sin t [n]x + (1 - cos t) n n^T` (33),
 //! `dR/dt = -sin t I + cos t [n]x + sin t n n^T` (34), and the update

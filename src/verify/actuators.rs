@@ -1,4 +1,4 @@
-//! The actuator study (`reports/actuators.json`, seed Appendix D):
+//! The actuator study (`reports/actuators.json`, appendix D):
 //!
 //! * **static checks with closed-form answers**: a free cube made entirely of pneumatic cells
 //!   and a free bar made entirely of muscle fibres are solved to static equilibrium. Their exact

@@ -1,4 +1,4 @@
-//! The cloth study (`reports/cloth.json`): the paper's ball-on-cloth scene (seed Appendix E,
+//! The cloth study (`reports/cloth.json`): the paper's ball-on-cloth scene (appendix E,
 //! Fig. 6) run from its own file, and the cost of collision detection against mesh size.
 //!
 //! Each step's end state is probed: the smallest distance between the ball's surface and the

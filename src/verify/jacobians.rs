@@ -7,7 +7,7 @@
 //! * every column of `B = dq/dz` (Eqs. 12-16) for mixed chains at least four joints deep;
 //! * the rotational update across `+-pi` (Eq. 35) and the root update's projection onto the
 //!   rotations (Eq. 10);
-//! * the actuators (METHOD.md section 5, Eqs. 39-40; [`crate::kernel::actuator`]): for the
+//! * the actuators (docs/method.md section 5, Eqs. 39-40; [`crate::kernel::actuator`]): for the
 //!   pneumatic cell `dR/dF`, `dR/da`, the nearest product's log-log Jacobian
 //!   `d ln x / d ln(s, a)` and `dPsi/dF`; for the muscle fibre `dp/dF`, `dp/da` and `dPsi/dF`;
 //!   each against dual numbers (an independent one-sided Jacobi SVD and Newton in dual
@@ -296,7 +296,7 @@ pub fn random_chain(depth: usize, rng: &mut ChaCha8Rng, near_pi: bool, long: boo
 }
 
 // ---------------------------------------------------------------------------------------------
-// Actuators (METHOD.md section 5, Eqs. 39-40).
+// Actuators (docs/method.md section 5, Eqs. 39-40).
 
 const EPS: f64 = f64::EPSILON;
 
@@ -642,7 +642,7 @@ pub fn with_singular_values(s: [f64; 3], rng: &mut ChaCha8Rng) -> Matrix3<f64> {
     u.matrix() * Matrix3::from_diagonal(&Vector3::from(s)) * v.matrix().transpose()
 }
 
-/// Pneumatic activations checked (METHOD.md section 5: a target volume ratio, from nearly
+/// Pneumatic activations checked (docs/method.md section 5: a target volume ratio, from nearly
 /// collapsed to doubled).
 pub const PNEUMATIC_ACTIVATIONS: [f64; 4] = [1e-6, 0.5, 1.0, 2.0];
 /// Muscle activations checked (the central differences in `a` need `a +- h` in `[0, 1]`).

@@ -21,9 +21,9 @@ pub struct Suite {
     pub physics: PhysicsSuite,
     /// The embedded-skeleton study (paper Fig. 5).
     pub skeleton: SkeletonSuite,
-    /// The actuator study (seed Appendix D).
+    /// The actuator study (appendix D).
     pub actuators: ActuatorSuite,
-    /// Gradient checks, system identification, accuracy against cost, memory (METHOD.md 7).
+    /// Gradient checks, system identification, accuracy against cost, memory (docs/method.md 7).
     pub gradients: GradientSuite,
     /// Accuracy against cost of the solver settings (absent: skipped).
     #[serde(default)]

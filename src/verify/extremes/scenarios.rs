@@ -467,7 +467,7 @@ pub(super) fn hinge_at(angle: f64) -> Trial {
             "largest |joint angle| over the run",
             if finite { largest } else { f64::NAN },
             PI,
-            "the atan2 update (seed Eq. 35) keeps the angle on the circle, in [-pi, pi]",
+            "the atan2 update (Eq. 35) keeps the angle on the circle, in [-pi, pi]",
         ));
         trial.checks.push(Check::at_most(
             "largest change of a distance within the bone (m)",

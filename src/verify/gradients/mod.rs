@@ -1,5 +1,5 @@
 //! Gradient checks of whole simulations (`diffsoft gradcheck`, `reports/gradients.json`),
-//! following METHOD.md section 7: for each scene and parameter group, the analytic derivative
+//! following docs/method.md section 7: for each scene and parameter group, the analytic derivative
 //! (reverse mode, [`crate::diff`]) against central differences over a sweep of relative steps
 //! (the V-curve, its minimum, the truncation slope and a Richardson estimate); random directions
 //! `u` for large parameter vectors (comparing `g . u` with the difference quotient along `u`,

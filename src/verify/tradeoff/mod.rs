@@ -4,7 +4,7 @@
 //! For one scene, a grid of settings (global solver family x iteration cap or tolerance x time
 //! step `h/d`) runs against reference trajectories computed with the direct solver at a tight
 //! tolerance: one at the small step `h/R` (the total error of a setting: time discretisation of
-//! implicit Euler, METHOD.md Eq. 2, plus the truncated local-global iteration, Eqs. 3-5) and one
+//! implicit Euler, docs/method.md Eq. 2, plus the truncated local-global iteration, Eqs. 3-5) and one
 //! at each grid step `h/d` (the solver error alone). Each setting records its time per simulated
 //! second, its trajectory errors (max and RMS vertex error, centre-of-mass error, energy drift)
 //! and, where the backward pass supports the scene, the error of its gradient against
