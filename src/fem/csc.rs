@@ -53,11 +53,13 @@ impl SymCsc {
 
     /// `y = A x` for three right-hand sides stored as 3-vectors (the per-axis matrix applied
     /// to x, y and z at once); parallel for large `n`.
+    #[inline]
     pub fn matvec3(&self, x: &[nalgebra::Vector3<f64>], y: &mut [nalgebra::Vector3<f64>]) {
         let row = |j: usize| -> nalgebra::Vector3<f64> {
+            let (a, b) = (self.col_ptr[j], self.col_ptr[j + 1]);
             let mut s = nalgebra::Vector3::zeros();
-            for k in self.col_ptr[j]..self.col_ptr[j + 1] {
-                s += self.values[k] * x[self.row_idx[k]];
+            for (&i, &v) in self.row_idx[a..b].iter().zip(&self.values[a..b]) {
+                s += v * x[i];
             }
             s
         };
