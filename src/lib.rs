@@ -88,7 +88,10 @@ pub mod verify;
 
 pub use base::{Body, InputError, Material, Schedule};
 pub use diff::loss::Loss;
-pub use diff::{gradient, gradient_with, loss_value, Controls, DiffError, Gradient, Mode, Options, Param, Progress};
+pub use diff::{
+    gradient, gradient_with, loss_value, rollout, vjp, Controls, Cotangent, DiffError, Gradient, Mode, Options, Param,
+    Progress, Rollout,
+};
 pub use mesh::{MeshError, TetMesh};
 pub use model::{BodySpec, MassSpec, Model, ModelBuilder};
 pub use scene::{Scene, SceneError};

@@ -35,6 +35,7 @@
 
 mod backward;
 pub(crate) mod contact;
+mod cotangent;
 mod forward;
 mod gradient;
 mod implicit;
@@ -42,6 +43,7 @@ pub mod loss;
 pub mod optim;
 pub mod params;
 pub(crate) mod recording;
+mod rollout;
 pub(crate) mod skeletal;
 
 use nalgebra::Vector3;
@@ -50,8 +52,10 @@ use serde::Serialize;
 use crate::model::Model;
 use crate::solver::SolverError;
 
+pub use cotangent::{vjp, Cotangent};
 pub use gradient::{gradient, gradient_with, loss_value, Progress};
 pub use params::Param;
+pub use rollout::{rollout, Rollout};
 
 /// Errors of the differentiation.
 #[derive(Debug, Clone, thiserror::Error)]

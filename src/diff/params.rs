@@ -182,3 +182,72 @@ impl Param {
         }
     }
 }
+
+/// Young's modulus of every tet (Pa), read back from the tets' weights (`w_rot = E V/(1+nu)`,
+/// Eq. 24); tets of cloth-free models only, in model order.
+pub fn youngs_modulus_per_tet(model: &Model) -> Vec<f64> {
+    let mut out = vec![0.0; model.tets.len()];
+    for b in &model.bodies {
+        let nu = b.material.poisson_ratio;
+        for t in b.tets.clone() {
+            out[t] = model.w_rot[t] * (1.0 + nu) / model.fem.geometry[t].volume;
+        }
+    }
+    out
+}
+
+/// Set Young's modulus tet by tet (`values` in model order, finite and positive), updating the
+/// tets' rotation and volume weights; the bodies' Poisson ratios stay.
+pub fn set_youngs_modulus_per_tet(model: &mut Model, values: &[f64]) -> Result<(), DiffError> {
+    if values.len() != model.tets.len() {
+        return Err(DiffError::Input(format!(
+            "youngs_modulus_per_tet: {} values for {} tets",
+            values.len(),
+            model.tets.len()
+        )));
+    }
+    if let Some(t) = values.iter().position(|e| !(e.is_finite() && *e > 0.0)) {
+        return Err(DiffError::Input(format!(
+            "youngs_modulus_per_tet: tet {t} has Young's modulus {}, expected finite and positive",
+            values[t]
+        )));
+    }
+    for b in &model.bodies {
+        let nu = b.material.poisson_ratio;
+        for t in b.tets.clone() {
+            let vol = model.fem.geometry[t].volume;
+            model.w_rot[t] = values[t] * vol / (1.0 + nu);
+            model.w_vol[t] = if b.volume_constraint {
+                nu * values[t] * vol / (1.0 + nu)
+            } else {
+                0.0
+            };
+        }
+    }
+    Ok(())
+}
+
+/// The attachments' targets, in model order.
+pub fn attachment_targets(model: &Model) -> Vec<nalgebra::Vector3<f64>> {
+    model.attachments.iter().map(|a| a.target).collect()
+}
+
+/// Move the attachments' targets (`targets` in model order, finite).
+pub fn set_attachment_targets(model: &mut Model, targets: &[nalgebra::Vector3<f64>]) -> Result<(), DiffError> {
+    if targets.len() != model.attachments.len() {
+        return Err(DiffError::Input(format!(
+            "attachment_targets: {} targets for {} attachments",
+            targets.len(),
+            model.attachments.len()
+        )));
+    }
+    if let Some(k) = targets.iter().position(|t| !t.iter().all(|x| x.is_finite())) {
+        return Err(DiffError::Input(format!(
+            "attachment_targets: target {k} is not finite"
+        )));
+    }
+    for (a, t) in model.attachments.iter_mut().zip(targets) {
+        a.target = *t;
+    }
+    Ok(())
+}

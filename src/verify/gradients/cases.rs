@@ -276,7 +276,9 @@ impl Case {
     }
 }
 
-fn gradcheck_settings(dt: f64, iterations: usize) -> Settings {
+/// The settings of a gradient check at time step `dt`: the direct solver with a fixed number of
+/// local-global iterations (tolerance 0), so the forward pass is a smooth function of its inputs.
+pub fn gradcheck_settings(dt: f64, iterations: usize) -> Settings {
     Settings {
         dt,
         solver: SolverKind::Direct,

@@ -1,0 +1,63 @@
+"""diffsoft: differentiable simulation of soft multi-body systems.
+
+Tetrahedral soft bodies with embedded skeletons, pneumatic and muscle actuators, frictional
+contact and cloth, simulated by projective dynamics with implicit Euler (Qiao et al.,
+"Differentiable Simulation of Soft Multi-body Systems", NeurIPS 2021), with reverse-mode
+gradients (unrolled or implicit) and a verification harness.
+
+Quick start::
+
+    import diffsoft
+    scene = diffsoft.Scene.load("verification/paper/bridgesus/bridgesus.json")
+    run = scene.simulate(50)                       # run.positions: (51, n, 3)
+    loss, grads = scene.grad(50, loss="final_com.y", params=["youngs_modulus"])
+
+PyTorch and JAX: ``diffsoft.torch.simulate`` and ``diffsoft.jax.simulate`` return the
+trajectory as a differentiable tensor / array (imported on first use, so neither framework is
+needed for the rest of the package).
+
+Parameters are named as on the command line (``diffsoft.SCALAR_PARAMETERS``) plus the arrays of
+``diffsoft.ARRAY_PARAMETERS`` (name, shape, meaning).
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+from . import _diffsoft
+from ._diffsoft import (
+    Run,
+    Scene,
+    __version__,
+    bounds,
+    grad_batch,
+    gradcheck,
+    jacobians,
+    simulate_batch,
+)
+
+#: Names of the scalar parameters (``Scene.set``/``get``/``grad``), as the CLI's ``--set``.
+SCALAR_PARAMETERS: list[str] = list(_diffsoft.scalar_parameters())
+#: ``(name, shape, meaning)`` of the array parameters.
+ARRAY_PARAMETERS: list[tuple[str, str, str]] = list(_diffsoft.array_parameters())
+
+__all__ = [
+    "ARRAY_PARAMETERS",
+    "SCALAR_PARAMETERS",
+    "Run",
+    "Scene",
+    "__version__",
+    "bounds",
+    "grad_batch",
+    "gradcheck",
+    "jacobians",
+    "simulate_batch",
+]
+
+
+def __getattr__(name: str) -> Any:
+    # `diffsoft.torch` and `diffsoft.jax` import their framework only when first used.
+    if name in ("torch", "jax"):
+        return importlib.import_module(f".{name}", __name__)
+    raise AttributeError(f"module 'diffsoft' has no attribute '{name}'")

@@ -1,0 +1,137 @@
+"""Type stubs of diffsoft's native module."""
+
+from __future__ import annotations
+
+from os import PathLike
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+__version__: str
+
+FloatArray = npt.NDArray[np.float64]
+ParamValue = float | npt.ArrayLike
+
+class Run:
+    """The result of ``Scene.simulate``."""
+
+    positions: FloatArray
+    """Positions of every state, ``(steps + 1, n, 3)``; state 0 is the initial state."""
+    velocities: FloatArray
+    """Velocities of every state, ``(steps + 1, n, 3)``."""
+    times: FloatArray
+    """Time of every state, ``(steps + 1,)``."""
+    stats: dict[str, Any]
+    """The run log (as ``run.json``): ``summary``, ``certificate``, ``settings``,
+    ``unconverged_steps`` and ``steps`` (one dict per step: iterations, converged, contacts,
+    energies, timings)."""
+
+class Scene:
+    """A scene ready to simulate and differentiate."""
+
+    @staticmethod
+    def load(path: str | PathLike[str], passive: bool = False) -> Scene:
+        """Read a scene: native ``diffsoft.scene/1`` or the paper's format.
+
+        Raises ``OSError`` if the file cannot be read and ``ValueError`` (naming file, line
+        and column) if it is malformed."""
+    def set(self, name: str, value: ParamValue) -> None:
+        """Set a scalar (``youngs_modulus``, ``gravity.y``, ...) or array parameter
+        (``initial_positions``, ``youngs_modulus_per_tet``, ``activations``, ...)."""
+    def get(self, name: str) -> float | FloatArray | None:
+        """A parameter's value (``None``: per-step controls that follow the schedules)."""
+    def configure(self, **settings: Any) -> None:
+        """Change solver settings by their scene-file names (``solver``, ``tolerance``,
+        ``max_iterations``, ``dt``, ``anderson``, ...)."""
+    @property
+    def settings(self) -> dict[str, Any]:
+        """The solver settings."""
+    @property
+    def n_vertices(self) -> int: ...
+    @property
+    def n_tets(self) -> int: ...
+    @property
+    def n_attachments(self) -> int: ...
+    @property
+    def dt(self) -> float: ...
+    @property
+    def path(self) -> str: ...
+    @property
+    def notes(self) -> list[str]: ...
+    @property
+    def actuator_groups(self) -> list[str]:
+        """Names of the actuator groups, the columns of ``activations``."""
+    @property
+    def joint_dofs(self) -> int:
+        """Reduced joint coordinates, the columns of ``torques``."""
+    @property
+    def masses(self) -> FloatArray:
+        """Lumped vertex masses (kg), ``(n,)``."""
+    @property
+    def fixed(self) -> list[bool]:
+        """Whether each vertex is pinned."""
+    def copy(self) -> Scene: ...
+    def simulate(self, steps: int) -> Run:
+        """Simulate ``steps`` steps (raises ``RuntimeError`` on divergence)."""
+    def grad(
+        self,
+        steps: int,
+        loss: str = "final_com.y",
+        params: list[str] | None = None,
+        mode: str = "unrolled",
+    ) -> tuple[float, dict[str, float | FloatArray]]:
+        """The loss (``final_com.x|y|z``, ``mean_com.x|y|z``, ``joint_angle.BONE``,
+        ``mean_joint_angle.BONE``) and its derivatives with respect to ``params``."""
+    def vjp(
+        self,
+        steps: int,
+        params: list[str],
+        cotangent: npt.ArrayLike,
+        velocity_cotangent: npt.ArrayLike | None = None,
+        mode: str = "unrolled",
+    ) -> dict[str, float | FloatArray]:
+        """Gradient of ``sum(cotangent * positions) + sum(velocity_cotangent * velocities)``
+        (both ``(steps + 1, n, 3)``) with respect to ``params``."""
+
+def grad_batch(
+    scene: Scene,
+    steps: int,
+    loss: str,
+    params: list[str],
+    values: list[dict[str, ParamValue]],
+    mode: str = "unrolled",
+) -> list[tuple[float, dict[str, float | FloatArray]]]:
+    """``scene.grad`` for every parameter set of ``values``, in parallel on all cores."""
+
+def simulate_batch(scene: Scene, steps: int, values: list[dict[str, ParamValue]]) -> list[Run]:
+    """``scene.simulate`` for every parameter set of ``values``, in parallel on all cores."""
+
+def bounds(
+    mesh: str | PathLike[str],
+    rho: float,
+    mu: float,
+    dt: float,
+    scale: float = 1.0,
+    empirical: bool = False,
+    method: str = "auto",
+) -> dict[str, Any]:
+    """The ``diffsoft bounds`` report: spectral radii and critical time steps of the paper's
+    iterations (19) and (21) on a mesh, with the appendix's verdicts."""
+
+def gradcheck(
+    scene: Scene,
+    steps: int,
+    loss: str = "final_com.y",
+    params: list[str] | None = None,
+    iterations: int = 30,
+    seed: int = 2021,
+) -> dict[str, Any]:
+    """A ``diffsoft gradcheck`` case on ``scene``: reverse mode against central differences
+    (step sweeps) and dual numbers; ``passes`` says whether it holds."""
+
+def jacobians(seed: int = 2021) -> dict[str, Any]:
+    """The ``diffsoft jacobians`` report (joint and ``B = dq/dz`` Jacobians)."""
+
+def scalar_parameters() -> list[str]: ...
+def array_parameters() -> list[tuple[str, str, str]]: ...

@@ -1,0 +1,64 @@
+//! Independent parameter sets run in parallel on all cores (rayon), without the GIL.
+
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyTuple};
+use rayon::prelude::*;
+
+use crate::run::Run;
+use crate::scene::{self, Scene};
+
+fn scenes(base: &Scene, values: &[Bound<'_, PyDict>]) -> PyResult<Vec<Scene>> {
+    values
+        .iter()
+        .enumerate()
+        .map(|(k, v)| {
+            let vals =
+                scene::values(&base.inner.model, v).map_err(|e| crate::errors::value(format!("values[{k}]: {e}")))?;
+            base.with(vals)
+        })
+        .collect()
+}
+
+/// `[(loss, grads)]`, one per dict of `values` (each sets parameters on a copy of `scene`).
+#[pyfunction]
+#[pyo3(signature = (scene, steps, loss, params, values, mode = "unrolled"))]
+pub fn grad_batch<'py>(
+    py: Python<'py>,
+    scene: &Scene,
+    steps: usize,
+    loss: &str,
+    params: Vec<String>,
+    values: Vec<Bound<'py, PyDict>>,
+    mode: &str,
+) -> PyResult<Vec<Bound<'py, PyTuple>>> {
+    scene::names(&params)?;
+    let m = scene::mode(mode)?;
+    let runs = scenes(scene, &values)?;
+    let results: Vec<PyResult<diffsoft::Gradient>> =
+        py.detach(|| runs.par_iter().map(|s| s.gradient(steps, loss, m)).collect());
+    runs.iter()
+        .zip(results)
+        .map(|(s, g)| {
+            let g = g?;
+            let d = scene::grads(py, &s.inner.model, &g, &params)?;
+            PyTuple::new(py, [g.loss.into_pyobject(py)?.into_any(), d.into_any()])
+        })
+        .collect()
+}
+
+/// `[Run]`, one per dict of `values` (each sets parameters on a copy of `scene`).
+#[pyfunction]
+pub fn simulate_batch<'py>(
+    py: Python<'py>,
+    scene: &Scene,
+    steps: usize,
+    values: Vec<Bound<'py, PyDict>>,
+) -> PyResult<Vec<Run>> {
+    let runs = scenes(scene, &values)?;
+    let results: Vec<PyResult<diffsoft::diff::Rollout>> =
+        py.detach(|| runs.par_iter().map(|s| s.rollout(steps)).collect());
+    runs.iter()
+        .zip(results)
+        .map(|(s, r)| Run::new(py, r?, &s.inner.settings))
+        .collect()
+}

@@ -1,0 +1,112 @@
+//! The verification harness from Python: the same reports as the CLI's `bounds`, `gradcheck`
+//! and `jacobians`, as dicts.
+
+use diffsoft::analysis::bounds::{analyze, BoundsParams};
+use diffsoft::analysis::spectral::EigenMethod;
+use diffsoft::verify::gradients::{self, Case, Group};
+use pyo3::prelude::*;
+
+use crate::arrays;
+use crate::errors;
+use crate::params::Name;
+use crate::scene::{self, Scene};
+
+/// Spectral radii and critical time steps of the paper's iterations (19) and (21) on a mesh,
+/// with the appendix's verdicts (the `diffsoft bounds` report).
+#[pyfunction]
+#[pyo3(signature = (mesh, rho, mu, dt, scale = 1.0, empirical = false, method = "auto"))]
+#[allow(clippy::too_many_arguments)] // the Python signature: keyword arguments with defaults
+pub fn bounds<'py>(
+    py: Python<'py>,
+    mesh: std::path::PathBuf,
+    rho: f64,
+    mu: f64,
+    dt: f64,
+    scale: f64,
+    empirical: bool,
+    method: &str,
+) -> PyResult<Bound<'py, PyAny>> {
+    if !(scale.is_finite() && scale > 0.0) {
+        return Err(errors::value(format!("scale must be finite and positive, got {scale}")));
+    }
+    let method = match method {
+        "auto" => EigenMethod::Auto,
+        "dense" => EigenMethod::Dense,
+        "krylov" => EigenMethod::Krylov,
+        _ => {
+            return Err(errors::value(format!(
+                "method '{method}': expected auto, dense or krylov"
+            )))
+        }
+    };
+    let report = py.detach(|| -> PyResult<_> {
+        let loaded = diffsoft::mesh::load(&mesh).map_err(errors::mesh)?;
+        let params = BoundsParams {
+            rho,
+            mu,
+            dt,
+            attachments: Default::default(),
+            method,
+            empirical,
+        };
+        analyze(&loaded.mesh.scaled(scale), &loaded.info, &params).map_err(|e| errors::value(e.to_string()))
+    })?;
+    arrays::report(py, &report)
+}
+
+/// Reverse-mode gradients of `scene` checked against central finite differences (step sweeps)
+/// and dual numbers, per parameter group (a `diffsoft gradcheck` case).
+#[pyfunction]
+#[pyo3(signature = (scene, steps, loss = "final_com.y", params = None, iterations = 30, seed = 2021))]
+pub fn gradcheck<'py>(
+    py: Python<'py>,
+    scene: &Scene,
+    steps: usize,
+    loss: &str,
+    params: Option<Vec<String>>,
+    iterations: usize,
+    seed: u64,
+) -> PyResult<Bound<'py, PyAny>> {
+    if steps == 0 || iterations == 0 {
+        return Err(errors::value("steps and iterations must be at least 1"));
+    }
+    let params = params.unwrap_or_else(|| vec!["youngs_modulus".into(), "initial_velocities".into()]);
+    let groups = scene::names(&params)?
+        .into_iter()
+        .map(|n| match n {
+            Name::Scalar(p) => Ok(Group::Scalar(p)),
+            Name::InitialPositions => Ok(Group::InitialPositions),
+            Name::InitialVelocities => Ok(Group::InitialVelocities),
+            Name::YoungsPerTet => Ok(Group::YoungsPerTet),
+            Name::AttachmentTargets => Ok(Group::AttachmentTargets),
+            Name::Activations => Ok(Group::Activations),
+            Name::Torques => Ok(Group::Torques),
+            Name::InitialJointState => Err(errors::value("gradcheck: initial_joint_state cannot be perturbed")),
+        })
+        .collect::<PyResult<Vec<_>>>()?;
+    let case = Case {
+        name: scene
+            .inner
+            .path
+            .file_stem()
+            .map_or("scene".into(), |s| s.to_string_lossy().into_owned()),
+        description: format!("{} (from Python)", scene.inner.path.display()),
+        model: scene.inner.model.clone(),
+        settings: gradients::gradcheck_settings(scene.inner.settings.dt, iterations),
+        steps,
+        loss: diffsoft::diff::loss::by_name(loss).map_err(errors::diff)?,
+        controls: scene.inputs.controls(&scene.inner.model),
+        groups,
+    };
+    let check = py.detach(|| gradients::check_case(&case, seed));
+    arrays::report(py, &check)
+}
+
+/// Jacobians of the joints and of `B = dq/dz` against dual numbers and finite differences
+/// (the `diffsoft jacobians` report).
+#[pyfunction]
+#[pyo3(signature = (seed = 2021))]
+pub fn jacobians(py: Python<'_>, seed: u64) -> PyResult<Bound<'_, PyAny>> {
+    let report = py.detach(|| diffsoft::verify::jacobians::run(seed));
+    arrays::report(py, &report)
+}

@@ -1,0 +1,40 @@
+//! The native module of the `diffsoft` Python package (`diffsoft._diffsoft`): bindings of the
+//! library's curated API. The Python layer (`python/diffsoft/`) adds the PyTorch and JAX
+//! wrappers and the type stubs.
+
+mod arrays;
+mod batch;
+mod errors;
+mod harness;
+mod params;
+mod run;
+mod scene;
+
+use pyo3::prelude::*;
+
+/// Names and shapes of the array parameters, `[(name, shape, description)]`.
+#[pyfunction]
+fn array_parameters() -> Vec<(&'static str, &'static str, &'static str)> {
+    params::ARRAYS.to_vec()
+}
+
+/// Names of the scalar parameters (those of the CLI's `--set` and `--param`).
+#[pyfunction]
+fn scalar_parameters() -> Vec<&'static str> {
+    diffsoft::diff::params::NAMES.to_vec()
+}
+
+#[pymodule]
+fn _diffsoft(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<scene::Scene>()?;
+    m.add_class::<run::Run>()?;
+    m.add_function(wrap_pyfunction!(batch::grad_batch, m)?)?;
+    m.add_function(wrap_pyfunction!(batch::simulate_batch, m)?)?;
+    m.add_function(wrap_pyfunction!(harness::bounds, m)?)?;
+    m.add_function(wrap_pyfunction!(harness::gradcheck, m)?)?;
+    m.add_function(wrap_pyfunction!(harness::jacobians, m)?)?;
+    m.add_function(wrap_pyfunction!(array_parameters, m)?)?;
+    m.add_function(wrap_pyfunction!(scalar_parameters, m)?)?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    Ok(())
+}

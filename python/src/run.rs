@@ -1,0 +1,56 @@
+//! `diffsoft.Run`: the trajectory of a simulation as numpy arrays and its run log as a dict.
+
+use diffsoft::diff::Rollout;
+use diffsoft::output::RunSummary;
+use diffsoft::Settings;
+use pyo3::prelude::*;
+
+use crate::arrays;
+
+/// The result of `Scene.simulate`.
+#[pyclass(name = "Run", module = "diffsoft", frozen)]
+pub struct Run {
+    /// Positions of every state, float64 `(steps + 1, n, 3)`.
+    #[pyo3(get)]
+    positions: Py<PyAny>,
+    /// Velocities of every state, float64 `(steps + 1, n, 3)`.
+    #[pyo3(get)]
+    velocities: Py<PyAny>,
+    /// Time of every state, float64 `(steps + 1,)`.
+    #[pyo3(get)]
+    times: Py<PyAny>,
+    /// The run log: summary, certificate, settings and every step's figures (as `run.json`).
+    #[pyo3(get)]
+    stats: Py<PyAny>,
+}
+
+impl Run {
+    /// Arrays and log of `r`.
+    pub fn new(py: Python<'_>, r: Rollout, settings: &Settings) -> PyResult<Self> {
+        let (states, n) = (r.times.len(), r.n);
+        let stats = serde_json::json!({
+            "schema": "diffsoft.run/1",
+            "crate_version": diffsoft::report::CRATE_VERSION,
+            "vertices": n,
+            "settings": settings,
+            "certificate": r.certificate,
+            "summary": RunSummary::of(&r.stats),
+            "unconverged_steps": r.unconverged_steps(),
+            "steps": r.stats,
+        });
+        Ok(Self {
+            positions: arrays::array(py, arrays::flatten(r.positions), &[states, n, 3])?.unbind(),
+            velocities: arrays::array(py, arrays::flatten(r.velocities), &[states, n, 3])?.unbind(),
+            times: arrays::array(py, r.times, &[states])?.unbind(),
+            stats: arrays::json(py, &stats)?.unbind(),
+        })
+    }
+}
+
+#[pymethods]
+impl Run {
+    fn __repr__(&self, py: Python<'_>) -> PyResult<String> {
+        let shape = self.positions.bind(py).getattr("shape")?.str()?.to_string();
+        Ok(format!("Run(positions{shape})"))
+    }
+}

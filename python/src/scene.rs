@@ -1,0 +1,319 @@
+//! `diffsoft.Scene`: a loaded scene with the parameters and controls a caller set, and its
+//! simulation, gradient and vector-Jacobian product. The GIL is released while the library
+//! runs.
+
+use diffsoft::diff::{self, Cotangent, Options};
+use diffsoft::{scene as lib_scene, Mode, Model, Settings};
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyTuple};
+
+use crate::arrays;
+use crate::errors;
+use crate::params::{self, Inputs, Name, Value};
+use crate::run::Run;
+
+/// A scene ready to simulate and differentiate.
+#[pyclass(name = "Scene", module = "diffsoft")]
+#[derive(Clone)]
+pub struct Scene {
+    pub(crate) inner: lib_scene::Scene,
+    pub(crate) inputs: Inputs,
+}
+
+/// A differentiation mode by name.
+pub fn mode(name: &str) -> PyResult<Mode> {
+    match name {
+        "unrolled" => Ok(Mode::Unrolled),
+        "implicit" => Ok(Mode::Implicit),
+        _ => Err(errors::value(format!(
+            "mode '{name}': expected 'unrolled' or 'implicit'"
+        ))),
+    }
+}
+
+/// Parameter names, parsed.
+pub fn names(params: &[String]) -> PyResult<Vec<Name>> {
+    params.iter().map(|p| Name::parse(p)).collect()
+}
+
+/// `name -> derivative` for `params`.
+pub fn grads<'py>(
+    py: Python<'py>,
+    model: &Model,
+    g: &diffsoft::Gradient,
+    params: &[String],
+) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    for (p, n) in params.iter().zip(names(params)?) {
+        d.set_item(p, params::derivative(py, model, g, n)?)?;
+    }
+    Ok(d)
+}
+
+/// Read `{name: value}` pairs for `model`.
+pub fn values(model: &Model, values: &Bound<'_, PyDict>) -> PyResult<Vec<Value>> {
+    values
+        .iter()
+        .map(|(k, v)| {
+            let name: String = k
+                .extract()
+                .map_err(|_| errors::value("parameter names must be strings"))?;
+            Value::read(model, &name, &v)
+        })
+        .collect()
+}
+
+impl Scene {
+    /// This scene with `values` set.
+    pub fn with(&self, values: Vec<Value>) -> PyResult<Scene> {
+        let mut s = self.clone();
+        for v in values {
+            v.apply(&mut s.inner.model, &mut s.inputs)?;
+        }
+        Ok(s)
+    }
+
+    fn check_steps(steps: usize) -> PyResult<()> {
+        if steps == 0 {
+            return Err(errors::value("steps must be at least 1"));
+        }
+        Ok(())
+    }
+
+    /// The gradient of `loss` (the library's call, without the GIL).
+    pub fn gradient(&self, steps: usize, loss: &str, mode: Mode) -> PyResult<diffsoft::Gradient> {
+        Self::check_steps(steps)?;
+        let loss = diff::loss::by_name(loss).map_err(errors::diff)?;
+        let controls = self.inputs.controls(&self.inner.model);
+        diff::gradient(
+            &self.inner.model,
+            &self.inner.settings,
+            steps,
+            &controls,
+            loss.as_ref(),
+            Options::mode(mode),
+        )
+        .map_err(errors::diff)
+    }
+
+    /// A rollout (the library's call, without the GIL).
+    pub fn rollout(&self, steps: usize) -> PyResult<diff::Rollout> {
+        Self::check_steps(steps)?;
+        let controls = self.inputs.controls(&self.inner.model);
+        diff::rollout(&self.inner.model, &self.inner.settings, steps, &controls).map_err(errors::diff)
+    }
+}
+
+#[pymethods]
+impl Scene {
+    /// Load a scene file: native `diffsoft.scene/1` or the paper's format. Relative paths in
+    /// the scene resolve against the scene file's directory.
+    #[staticmethod]
+    #[pyo3(signature = (path, passive = false))]
+    fn load(py: Python<'_>, path: std::path::PathBuf, passive: bool) -> PyResult<Self> {
+        let inner = py
+            .detach(|| lib_scene::load(&path, lib_scene::LoadOptions { passive }))
+            .map_err(errors::scene)?;
+        Ok(Scene {
+            inner,
+            inputs: Inputs::default(),
+        })
+    }
+
+    /// Set a parameter: a scalar of the CLI (`youngs_modulus`, `gravity.y`, ...) or an array
+    /// (`initial_positions`, `youngs_modulus_per_tet`, `activations`, ...).
+    fn set(&mut self, name: &str, value: &Bound<'_, PyAny>) -> PyResult<()> {
+        let v = Value::read(&self.inner.model, name, value)?;
+        let mut model = self.inner.model.clone();
+        let mut inputs = self.inputs.clone();
+        v.apply(&mut model, &mut inputs)?;
+        self.inner.model = model;
+        self.inputs = inputs;
+        Ok(())
+    }
+
+    /// A parameter's current value (float or ndarray; `None` for per-step controls that follow
+    /// the scene's schedules).
+    fn get<'py>(&self, py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyAny>> {
+        params::get(py, &self.inner.model, &self.inputs, name)
+    }
+
+    /// Change solver settings by their scene-file names (`solver`, `tolerance`,
+    /// `max_iterations`, `dt`, `anderson`, ...).
+    #[pyo3(signature = (**settings))]
+    fn configure(&mut self, py: Python<'_>, settings: Option<&Bound<'_, PyDict>>) -> PyResult<()> {
+        let Some(settings) = settings else { return Ok(()) };
+        let mut current = serde_json::to_value(&self.inner.settings).map_err(errors::other)?;
+        let json = py.import("json")?;
+        for (k, v) in settings.iter() {
+            let key: String = k.extract()?;
+            let text: String = json.call_method1("dumps", (v,))?.extract()?;
+            let value: serde_json::Value = serde_json::from_str(&text).map_err(errors::other)?;
+            if current.get(&key).is_none() {
+                return Err(errors::value(format!("unknown setting '{key}'")));
+            }
+            current[&key] = value;
+        }
+        let s: Settings = serde_json::from_value(current).map_err(|e| errors::value(format!("settings: {e}")))?;
+        self.inner.settings = s;
+        Ok(())
+    }
+
+    /// The solver settings as a dict (scene-file names).
+    #[getter]
+    fn settings<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        arrays::report(py, &self.inner.settings)
+    }
+
+    /// Number of vertices (rows of the position arrays).
+    #[getter]
+    fn n_vertices(&self) -> usize {
+        self.inner.model.n()
+    }
+
+    /// Lumped mass of every vertex (kg), `(n,)`: for losses such as a centre of mass.
+    #[getter]
+    fn masses<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let m = self.inner.model.mass().to_vec();
+        let n = m.len();
+        arrays::array(py, m, &[n])
+    }
+
+    /// Whether each vertex is fixed (pinned), `(n,)` bool as a list.
+    #[getter]
+    fn fixed(&self) -> Vec<bool> {
+        self.inner.model.fixed().to_vec()
+    }
+
+    /// Number of tets.
+    #[getter]
+    fn n_tets(&self) -> usize {
+        self.inner.model.tets().len()
+    }
+
+    /// Time step (s).
+    #[getter]
+    fn dt(&self) -> f64 {
+        self.inner.settings.dt
+    }
+
+    /// The scene file.
+    #[getter]
+    fn path(&self) -> String {
+        self.inner.path.display().to_string()
+    }
+
+    /// What the importer noted (defaults applied, keys not simulated).
+    #[getter]
+    fn notes(&self) -> Vec<String> {
+        self.inner.notes.clone()
+    }
+
+    /// Names of the actuator groups (columns of `activations`).
+    #[getter]
+    fn actuator_groups(&self) -> Vec<String> {
+        self.inner
+            .model
+            .actuators()
+            .map_or(Vec::new(), |a| a.groups.iter().map(|g| g.name.clone()).collect())
+    }
+
+    /// Number of reduced joint coordinates (columns of `torques`; 0 without a skeleton).
+    #[getter]
+    fn joint_dofs(&self) -> usize {
+        self.inner.model.skeleton().map_or(0, |s| s.dofs)
+    }
+
+    /// Number of attachments (rows of `attachment_targets`).
+    #[getter]
+    fn n_attachments(&self) -> usize {
+        self.inner.model.attachments().len()
+    }
+
+    /// An independent copy.
+    fn copy(&self) -> Self {
+        self.clone()
+    }
+
+    /// Simulate `steps` steps: positions and velocities of every state and the run log.
+    fn simulate(&self, py: Python<'_>, steps: usize) -> PyResult<Run> {
+        let r = py.detach(|| self.rollout(steps))?;
+        Run::new(py, r, &self.inner.settings)
+    }
+
+    /// The loss and its derivatives with respect to `params` (name -> float or ndarray).
+    #[pyo3(signature = (steps, loss = "final_com.y", params = None, mode = "unrolled"))]
+    fn grad<'py>(
+        &self,
+        py: Python<'py>,
+        steps: usize,
+        loss: &str,
+        params: Option<Vec<String>>,
+        mode: &str,
+    ) -> PyResult<Bound<'py, PyTuple>> {
+        let params = params.unwrap_or_default();
+        names(&params)?;
+        let m = self::mode(mode)?;
+        let g = py.detach(|| self.gradient(steps, loss, m))?;
+        let d = grads(py, &self.inner.model, &g, &params)?;
+        PyTuple::new(py, [g.loss.into_pyobject(py)?.into_any(), d.into_any()])
+    }
+
+    /// The gradient of `sum(cotangent * positions) + sum(velocity_cotangent * velocities)` over
+    /// the states `0..=steps` (arrays of shape `(steps + 1, n, 3)`) with respect to `params`.
+    #[pyo3(signature = (steps, params, cotangent, velocity_cotangent = None, mode = "unrolled"))]
+    fn vjp<'py>(
+        &self,
+        py: Python<'py>,
+        steps: usize,
+        params: Vec<String>,
+        cotangent: &Bound<'py, PyAny>,
+        velocity_cotangent: Option<&Bound<'py, PyAny>>,
+        mode: &str,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        names(&params)?;
+        let m = self::mode(mode)?;
+        let n = self.inner.model.n();
+        let read = |name: &str, c: &Bound<'py, PyAny>| -> PyResult<Vec<nalgebra::Vector3<f64>>> {
+            let (data, shape) = arrays::read(name, c)?;
+            if shape != [steps + 1, n, 3] {
+                return Err(errors::value(format!(
+                    "{name}: shape {shape:?}, expected (steps + 1, n, 3) = ({}, {n}, 3)",
+                    steps + 1
+                )));
+            }
+            Ok(data
+                .chunks_exact(3)
+                .map(|c| nalgebra::Vector3::new(c[0], c[1], c[2]))
+                .collect())
+        };
+        let cq = read("cotangent", cotangent)?;
+        let cv = velocity_cotangent.map(|c| read("velocity_cotangent", c)).transpose()?;
+        Self::check_steps(steps)?;
+        let cot = Cotangent::new(n, steps, cq, cv).map_err(errors::diff)?;
+        let controls = self.inputs.controls(&self.inner.model);
+        let g = py
+            .detach(|| {
+                diff::vjp(
+                    &self.inner.model,
+                    &self.inner.settings,
+                    steps,
+                    &controls,
+                    &cot,
+                    Options::mode(m),
+                )
+            })
+            .map_err(errors::diff)?;
+        grads(py, &self.inner.model, &g, &params)
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "Scene('{}', vertices={}, tets={}, dt={})",
+            self.inner.path.display(),
+            self.inner.model.n(),
+            self.inner.model.tets().len(),
+            self.inner.settings.dt
+        )
+    }
+}

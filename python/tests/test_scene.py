@@ -1,0 +1,128 @@
+"""Loading, parameters, settings, simulation and the errors a user sees."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import diffsoft
+from conftest import DATA
+
+
+def test_load_both_formats(beam, bridgesus):
+    assert beam.n_vertices == 20 and beam.n_tets == 24
+    assert bridgesus.n_vertices > 100 and bridgesus.dt == pytest.approx(1 / 200)
+    assert "Scene(" in repr(beam)
+
+
+def test_simulate_shapes_and_initial_state(beam):
+    run = beam.simulate(5)
+    assert run.positions.shape == (6, 20, 3) and run.positions.dtype == np.float64
+    assert run.velocities.shape == (6, 20, 3)
+    np.testing.assert_array_equal(run.positions[0], beam.get("initial_positions"))
+    np.testing.assert_allclose(run.times, np.arange(6) * beam.dt, rtol=1e-12)
+    assert run.stats["schema"] == "diffsoft.run/1"
+    assert len(run.stats["steps"]) == 5 and run.stats["summary"]["steps"] == 5
+    # The beam moves upwards (initial velocity 0.5 m/s) against gravity.
+    assert run.positions[1, :, 1].mean() > run.positions[0, :, 1].mean()
+
+
+def test_simulate_reports_convergence(bridgesus):
+    run = bridgesus.simulate(3)
+    assert run.stats["unconverged_steps"] == 0
+    assert all(s["converged"] for s in run.stats["steps"])
+
+
+def test_scalar_set_get_changes_the_run(beam):
+    assert beam.get("youngs_modulus") == pytest.approx(2e4)
+    soft = beam.simulate(10).positions
+    beam.set("youngs_modulus", 2e5)
+    assert beam.get("youngs_modulus") == pytest.approx(2e5)
+    stiff = beam.simulate(10).positions
+    assert np.abs(soft - stiff).max() > 1e-4
+
+
+def test_array_parameters_round_trip(beam):
+    q = beam.get("initial_positions") + np.array([0.0, 0.1, 0.0])
+    beam.set("initial_positions", q)
+    np.testing.assert_array_equal(beam.get("initial_positions"), q)
+    e = np.linspace(1e4, 3e4, beam.n_tets)
+    beam.set("youngs_modulus_per_tet", e)
+    np.testing.assert_allclose(beam.get("youngs_modulus_per_tet"), e, rtol=1e-12)
+    t = beam.get("attachment_targets")
+    assert t.shape == (beam.n_attachments, 3)
+    beam.set("attachment_targets", t + 0.01)
+    np.testing.assert_allclose(beam.get("attachment_targets"), t + 0.01)
+    assert beam.get("activations") is None
+
+
+def test_initial_velocity_scalar_updates_array(beam):
+    beam.set("initial_velocities", np.zeros((20, 3)))
+    beam.set("initial_velocity.y", 2.0)
+    np.testing.assert_array_equal(beam.get("initial_velocities")[:, 1], 2.0)
+
+
+def test_copy_is_independent(beam):
+    c = beam.copy()
+    c.set("density", 500.0)
+    assert beam.get("density") == pytest.approx(1000.0)
+    np.testing.assert_allclose(c.masses.sum() * 2, beam.masses.sum(), rtol=1e-12)
+
+
+def test_configure(beam):
+    beam.configure(solver="split", dt=0.005)
+    assert beam.settings["solver"] == "split" and beam.dt == 0.005
+    with pytest.raises(ValueError, match="unknown setting 'tolerence'"):
+        beam.configure(tolerence=1e-3)
+    with pytest.raises(ValueError, match="settings"):
+        beam.configure(solver="fastest")
+
+
+def test_parameter_names_are_documented():
+    assert "youngs_modulus" in diffsoft.SCALAR_PARAMETERS
+    names = [a[0] for a in diffsoft.ARRAY_PARAMETERS]
+    assert {"initial_positions", "activations", "torques", "youngs_modulus_per_tet"} <= set(names)
+
+
+def test_missing_file_is_oserror(tmp_path):
+    with pytest.raises(OSError, match="nope.json"):
+        diffsoft.Scene.load(tmp_path / "nope.json")
+
+
+def test_malformed_scene_is_valueerror_with_line(tmp_path):
+    p = tmp_path / "bad.json"
+    p.write_text('{\n  "schema": "diffsoft.scene/1",\n  "time_step": 0.01,\n  "bodies": [ { "name": 3 } ]\n}\n')
+    with pytest.raises(ValueError, match=r"bad.json.*line 4"):
+        diffsoft.Scene.load(p)
+
+
+def test_bad_parameters_are_valueerrors(beam):
+    with pytest.raises(ValueError, match="unknown parameter 'youngs'"):
+        beam.set("youngs", 1.0)
+    with pytest.raises(ValueError, match="finite"):
+        beam.set("youngs_modulus", float("nan"))
+    with pytest.raises(ValueError, match=r"shape \[20, 2\], expected \(20, 3\)"):
+        beam.set("initial_positions", np.zeros((20, 2)))
+    with pytest.raises(ValueError, match="tet 3"):
+        e = np.full(beam.n_tets, 1e4)
+        e[3] = -1.0
+        beam.set("youngs_modulus_per_tet", e)
+    with pytest.raises(ValueError, match="no actuators"):
+        beam.set("activations", np.zeros((3, 1)))
+    with pytest.raises(ValueError, match="steps must be at least 1"):
+        beam.simulate(0)
+    # A failed set leaves the scene as it was.
+    assert beam.get("youngs_modulus") == pytest.approx(2e4)
+
+
+def test_divergence_is_runtimeerror(beam):
+    # Pushing every vertex 1e200 m/s apart overflows: the solver must say so, not return NaN.
+    v = np.random.default_rng(0).normal(size=(20, 3)) * 1e200
+    beam.set("initial_velocities", v)
+    with pytest.raises(RuntimeError, match="non-finite"):
+        beam.simulate(3)
+
+
+def test_a_run_that_cannot_fit_in_memory_is_refused(beam):
+    with pytest.raises(ValueError, match="do not fit in memory"):
+        beam.simulate(10**15)
