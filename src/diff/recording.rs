@@ -50,6 +50,16 @@ impl<T: Clone> Rows<T> {
         self.len += 1;
     }
 
+    /// Append a row of `len` entries whose contents the caller overwrites: a reused buffer keeps
+    /// its stale entries (no fill), so only a new or shorter buffer is written here.
+    pub(crate) fn push_uninit(&mut self, len: usize, fill: T) {
+        if self.len == self.rows.len() {
+            self.rows.push(Vec::new());
+        }
+        self.rows[self.len].resize(len, fill);
+        self.len += 1;
+    }
+
     /// Append a copy of `row`.
     pub(crate) fn push(&mut self, row: &[T]) {
         self.push_with(|r| r.extend_from_slice(row));
@@ -246,7 +256,8 @@ impl StepObserver for Recording {
         if replace_last {
             self.svds.pop();
         }
-        self.svds.push_with(|b| b.resize(tets, TetSvd::default()));
+        // Every entry is written by the projection that follows: reuse the buffer unfilled.
+        self.svds.push_uninit(tets, TetSvd::default());
         self.svds.last_mut()
     }
 
