@@ -853,7 +853,7 @@ fn simulate(
         ProgressStyle::with_template("{bar:40} {pos}/{len} steps {elapsed_precise} eta {eta} {msg}")
             .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
-    let mut stats = Vec::with_capacity(steps);
+    let mut stats = Vec::new();
     let mut error = None;
     for k in 0..steps {
         match sim.step() {

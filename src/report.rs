@@ -82,7 +82,8 @@ impl Verdict {
     }
 }
 
-/// Write a report as pretty JSON, creating parent directories. Errors name the path.
+/// Write a report as pretty JSON, creating parent directories; atomically (a temporary file
+/// renamed over the target). Errors name the path.
 pub fn write_json<T: Serialize>(path: impl AsRef<Path>, report: &T) -> std::io::Result<()> {
     let path = path.as_ref();
     let named = |e: std::io::Error| std::io::Error::new(e.kind(), format!("{}: {e}", path.display()));
@@ -93,5 +94,5 @@ pub fn write_json<T: Serialize>(path: impl AsRef<Path>, report: &T) -> std::io::
     }
     let mut text = serde_json::to_string_pretty(report).map_err(|e| named(std::io::Error::other(e)))?;
     text.push('\n');
-    std::fs::write(path, text).map_err(named)
+    crate::output::write_atomic(path, text.as_bytes())
 }

@@ -330,3 +330,42 @@ fn gmsh41_truncated_and_inconsistent_headers() {
     assert!(matches!(e.kind, MeshErrorKind::RepeatedVertex { vertex: 3, .. }));
     assert_line(&e, 29);
 }
+
+/// Counts a header declares are never trusted for allocation or arithmetic: a block that claims
+/// 2^64-1 or 1e12 entries, or an element with 2^64-1 tags, is an error naming the file and line
+/// (the reader stops at the end of what the file holds), never a panic or an abort.
+#[test]
+fn gmsh_astronomical_declared_counts_are_errors() {
+    let max = u64::MAX.to_string();
+    for (name, text) in [
+        ("g41nmax", MSH41.replace("3 1 0 5", &format!("3 1 0 {max}"))),
+        ("g41n1e12", MSH41.replace("3 1 0 5", "3 1 0 1000000000000")),
+        ("g41blocks", MSH41.replace("2 6 1 6", &format!("{max} 6 1 6"))),
+        ("g41emax", MSH41.replace("3 1 4 2", &format!("3 1 4 {max}"))),
+        ("g22nmax", MSH22.replace("$Nodes\n6\n", &format!("$Nodes\n{max}\n"))),
+        ("g22emax", MSH22.replace("$Elements\n3\n", "$Elements\n1000000000000\n")),
+        (
+            "g22tags",
+            MSH22.replace("2 4 2 0 1 1 2 3 4", &format!("2 4 {max} 0 1 1 2 3 4")),
+        ),
+        (
+            "g22tags2",
+            MSH22.replace("2 4 2 0 1 1 2 3 4", &format!("2 4 {} 0 1 1 2 3 4", u64::MAX - 5)),
+        ),
+    ] {
+        assert_ne!(
+            text,
+            if name.starts_with("g41") { MSH41 } else { MSH22 },
+            "{name}: pattern not found"
+        );
+        let e = msh_err(name, &text);
+        assert!(e.location.line.is_some(), "{name}: names a line: {e}");
+        assert!(
+            matches!(
+                e.kind,
+                MeshErrorKind::Truncated(_) | MeshErrorKind::Syntax(_) | MeshErrorKind::BadNumber { .. }
+            ),
+            "{name}: {e}"
+        );
+    }
+}

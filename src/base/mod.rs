@@ -7,10 +7,13 @@
 //!   section 2).
 //! * [`Body`]: where one body lives in the assembled system.
 //! * [`Schedule`]: a piecewise-linear time series (activations, torques).
+//! * [`memory`]: sizes from files and flags checked against overflow and the machine's memory
+//!   before anything is allocated for them.
 
 mod body;
 mod error;
 mod material;
+pub mod memory;
 mod schedule;
 
 pub use body::Body;

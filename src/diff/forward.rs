@@ -11,7 +11,7 @@ use super::recording::Recording;
 use super::{Controls, DiffError, Progress};
 use crate::model::Model;
 use crate::solver::free_contact::FreeContact;
-use crate::solver::{Settings, Simulator};
+use crate::solver::{Settings, Simulator, StepStats};
 
 /// What a forward pass keeps for the backward pass.
 #[derive(Debug, Clone, Copy, Default)]
@@ -309,11 +309,17 @@ pub(crate) fn forward(
         recording = Some(r);
     }
     let n = model.n();
-    let rows = if keep { steps + 1 } else { 1 };
+    let rows = if keep { steps.saturating_add(1) } else { 1 };
     let groups = model.actuators.as_ref().map_or(0, |a| a.groups.len());
     let dofs = model.skeleton.as_ref().map_or(0, |s| s.dofs);
     let mut skel = Vec::new();
     sim.save_skeleton_state(&mut skel);
+    // The trajectory is held for the backward pass: its size comes from `steps`, so it is checked
+    // against the machine's memory before anything is reserved for it.
+    let row_bytes = (2 * n * std::mem::size_of::<Vector3<f64>>())
+        .saturating_add(8 * (skel.len() + groups + dofs))
+        .saturating_add(std::mem::size_of::<StepStats>());
+    crate::base::memory::check(&format!("{steps} steps of {n} vertices"), rows, row_bytes)?;
     let mut f = Forward {
         loss: 0.0,
         q: Flat::with_capacity(n, rows),

@@ -50,6 +50,8 @@ pub fn rollout(model: &Model, settings: &Settings, steps: usize, controls: &Cont
         .checked_add(1)
         .and_then(|s| s.checked_mul(n))
         .ok_or_else(|| DiffError::Input(format!("{steps} steps of {n} vertices do not fit in memory")))?;
+    let row_bytes = 2 * n * std::mem::size_of::<Vector3<f64>>() + std::mem::size_of::<StepStats>() + 8;
+    crate::base::memory::check(&format!("{steps} steps of {n} vertices"), steps + 1, row_bytes)?;
     let mut sim = Simulator::new(model.clone(), settings.clone())?;
     if let Some((q, v)) = &controls.initial {
         sim.set_state_from(q, v)?;

@@ -80,6 +80,9 @@ pub enum MeshErrorKind {
     /// The mesh has no tetrahedra.
     #[error("mesh has no tetrahedra")]
     NoTets,
+    /// Declared or requested sizes overflow or do not fit in memory.
+    #[error("{0}")]
+    TooLarge(String),
 }
 
 /// A mesh error with its location.

@@ -5,7 +5,7 @@ use nalgebra::Vector3;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use super::{MeshError, TetMesh};
+use super::{MeshError, MeshErrorKind, TetMesh};
 
 /// How each hexahedral cell is split into tets.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -67,13 +67,13 @@ impl BoxSpec {
         self
     }
 
-    /// Number of tets this spec produces.
+    /// Number of tets this spec produces (saturating at `usize::MAX`).
     pub fn num_tets(&self) -> usize {
         let per = match self.split {
             CellSplit::Kuhn6 => 6,
             CellSplit::Five => 5,
         };
-        per * self.cells.iter().product::<usize>()
+        self.cells.iter().fold(per, |n, &c| n.saturating_mul(c))
     }
 
     /// Build the mesh (validated and oriented like a loaded one).
@@ -97,6 +97,31 @@ pub fn box_with_about(target_tets: usize, aspect: f64) -> BoxSpec {
     BoxSpec::new([k, k, nz], [1.0, 1.0, nz as f64 / k as f64])
 }
 
+/// Vertex and tet counts of `spec`, checked against overflow and against the machine's memory
+/// (the mesh and the model built on it need well over 200 bytes per tet; 256 are checked here).
+fn checked_sizes(spec: &BoxSpec) -> Result<(usize, usize), MeshError> {
+    let [nx, ny, nz] = spec.cells;
+    let what = format!("a box of {nx} x {ny} x {nz} cells");
+    let too_large = |m: String| MeshError::file("generated mesh", MeshErrorKind::TooLarge(m));
+    let per = match spec.split {
+        CellSplit::Kuhn6 => 6,
+        CellSplit::Five => 5,
+    };
+    let vertices = [nx, ny, nz]
+        .iter()
+        .try_fold(1usize, |acc, &c| c.checked_add(1).and_then(|c| acc.checked_mul(c)));
+    let tets = [nx, ny, nz, per].iter().try_fold(1usize, |acc, &c| acc.checked_mul(c));
+    if spec.cells.contains(&0) {
+        let m = format!("{what}: every axis needs at least one cell");
+        return Err(MeshError::file("generated mesh", MeshErrorKind::Syntax(m)));
+    }
+    let (Some(vertices), Some(tets)) = (vertices, tets) else {
+        return Err(too_large(format!("{what}: the vertex or tet count overflows")));
+    };
+    crate::base::memory::check(&what, tets, 256).map_err(|e| too_large(e.message().to_string()))?;
+    Ok((vertices, tets))
+}
+
 fn box_mesh(spec: &BoxSpec) -> Result<TetMesh, MeshError> {
     let [nx, ny, nz] = spec.cells;
     let h = [
@@ -104,9 +129,10 @@ fn box_mesh(spec: &BoxSpec) -> Result<TetMesh, MeshError> {
         spec.size[1] / ny as f64,
         spec.size[2] / nz as f64,
     ];
+    let (num_vertices, num_tets) = checked_sizes(spec)?;
     let id = |i: usize, j: usize, k: usize| i + (nx + 1) * (j + (ny + 1) * k);
     let mut rng = ChaCha8Rng::seed_from_u64(spec.seed);
-    let mut vertices = Vec::with_capacity((nx + 1) * (ny + 1) * (nz + 1));
+    let mut vertices = Vec::with_capacity(num_vertices);
     for k in 0..=nz {
         for j in 0..=ny {
             for i in 0..=nx {
@@ -124,7 +150,7 @@ fn box_mesh(spec: &BoxSpec) -> Result<TetMesh, MeshError> {
             }
         }
     }
-    let mut tets = Vec::with_capacity(spec.num_tets());
+    let mut tets = Vec::with_capacity(num_tets);
     for k in 0..nz {
         for j in 0..ny {
             for i in 0..nx {
@@ -164,6 +190,20 @@ fn box_mesh(spec: &BoxSpec) -> Result<TetMesh, MeshError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn absurd_cell_counts_are_errors_not_aborts() {
+        assert!(BoxSpec::new([0, 1, 1], [1.0; 3]).build().is_err());
+        for cells in [
+            [usize::MAX, 2, 2],
+            [1 << 22, 1 << 22, 1 << 22],
+            [100_000, 100_000, 100_000],
+        ] {
+            let e = BoxSpec::new(cells, [1.0; 3]).build().unwrap_err();
+            assert!(matches!(e.kind, MeshErrorKind::TooLarge(_)), "{cells:?}: {e}");
+            assert!(e.to_string().contains(&format!("{} x", cells[0])), "{e}");
+        }
+    }
 
     #[test]
     fn kuhn_box_counts_and_volume() {

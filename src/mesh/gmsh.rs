@@ -223,7 +223,9 @@ fn read_nodes_v41(
         let dim = parse_count(path, line, toks[0])?;
         let parametric = parse_count(path, line, toks[2])?;
         let n = parse_count(path, line, toks[3])?;
-        let mut tags = Vec::with_capacity(n);
+        // Grown as tags are read, never sized from the declared count: a header may claim more
+        // entries than the file holds (the loop stops with an error at the end of the file).
+        let mut tags = Vec::new();
         for k in 0..n {
             let (line, content) = cur.expect_line(&format!("{n} node tags in block {b}, found only {k}"))?;
             tags.push((line, parse_int(path, line, content)?));
@@ -239,7 +241,7 @@ fn read_nodes_v41(
             ];
             add_node(path, line, tag, x, raw, tag_to_index)?;
         }
-        seen += n;
+        seen = checked_total(path, line, seen, n, "nodes")?;
     }
     if seen != total {
         return Err(MeshError::at(
@@ -249,6 +251,18 @@ fn read_nodes_v41(
         ));
     }
     Ok(())
+}
+
+/// `seen + n` for the running count of a section's blocks, an error (naming the block's line)
+/// when the declared counts overflow.
+fn checked_total(path: &str, line: usize, seen: usize, n: usize, what: &str) -> Result<usize, MeshError> {
+    seen.checked_add(n).ok_or_else(|| {
+        MeshError::at(
+            path,
+            line,
+            MeshErrorKind::Syntax(format!("block counts of {what} overflow ({seen} + {n})")),
+        )
+    })
 }
 
 fn push_tet(
@@ -297,8 +311,17 @@ fn read_elements_v2(
         let ntags = parse_count(path, line, toks[2])?;
         match tet_nodes(ty) {
             Some(nn) => {
-                let toks = tokens_at_least(path, line, content, 3 + ntags + nn, "tetrahedron element line")?;
-                push_tet(path, line, &toks[3 + ntags..3 + ntags + nn], raw, tag_to_index)?;
+                // `ntags` comes from the file: a count beyond the line's tokens is an error, not
+                // wrapped arithmetic.
+                let end = ntags.checked_add(3 + nn).ok_or_else(|| {
+                    MeshError::at(
+                        path,
+                        line,
+                        MeshErrorKind::Syntax(format!("element declares {ntags} tags, more than the line holds")),
+                    )
+                })?;
+                let toks = tokens_at_least(path, line, content, end, "tetrahedron element line")?;
+                push_tet(path, line, &toks[3 + ntags..end], raw, tag_to_index)?;
             }
             None => raw.skipped_elements += 1,
         }
@@ -345,7 +368,7 @@ fn read_elements_v41(
                 None => raw.skipped_elements += 1,
             }
         }
-        seen += n;
+        seen = checked_total(path, line, seen, n, "elements")?;
     }
     if seen != total {
         return Err(MeshError::at(
