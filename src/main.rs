@@ -14,6 +14,32 @@ use diffsoft::mesh::{self, LoadOptions};
 use diffsoft::report::write_json;
 use diffsoft::verify;
 
+/// Set when a report goes to standard output (`--json -`): the human-readable text then goes
+/// to standard error, so the JSON on standard output is parseable as it stands.
+static JSON_ON_STDOUT: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+/// `println!`, or `eprintln!` when a report goes to standard output.
+macro_rules! say {
+    ($($t:tt)*) => {
+        if JSON_ON_STDOUT.load(std::sync::atomic::Ordering::Relaxed) {
+            eprintln!($($t)*)
+        } else {
+            println!($($t)*)
+        }
+    };
+}
+
+/// `print!`, or `eprint!` when a report goes to standard output.
+macro_rules! say_raw {
+    ($($t:tt)*) => {
+        if JSON_ON_STDOUT.load(std::sync::atomic::Ordering::Relaxed) {
+            eprint!($($t)*)
+        } else {
+            print!($($t)*)
+        }
+    };
+}
+
 #[derive(Parser)]
 #[command(
     name = "diffsoft",
@@ -110,9 +136,12 @@ enum Command {
         /// Output directory for frames and the run log.
         #[arg(long)]
         out: Option<PathBuf>,
-        /// Write a frame every this many steps (0: no frames).
+        /// Write a frame every this many steps (0: no frames; the run log is still written).
         #[arg(long, default_value_t = 1)]
         every: usize,
+        /// Replace the files of an earlier run in --out (run.json, frames) instead of refusing.
+        #[arg(long)]
+        overwrite: bool,
         /// Override the global solver.
         #[arg(long, value_enum)]
         solver: Option<diffsoft::solver::SolverKind>,
@@ -328,6 +357,9 @@ static ALLOC: diffsoft::alloc::Counting = diffsoft::alloc::Counting;
 
 fn main() {
     let cli = Cli::parse();
+    let args: Vec<String> = std::env::args().collect();
+    let stdout_json = args.windows(2).any(|w| w[0] == "--json" && w[1] == "-") || args.iter().any(|a| a == "--json=-");
+    JSON_ON_STDOUT.store(stdout_json, std::sync::atomic::Ordering::Relaxed);
     // The whole command runs on a worker of the pool, so parallel sections fork from a worker
     // (cheap) instead of being injected from an outside thread that then sleeps.
     let pool = match rayon::ThreadPoolBuilder::new()
@@ -354,6 +386,7 @@ fn run(command: Command) -> Result<()> {
             empirical,
             json,
         } => {
+            preflight(json.as_deref(), &[&input.mesh])?;
             let (mesh, info) = input.load()?;
             let params = BoundsParams {
                 rho: input.rho,
@@ -364,7 +397,12 @@ fn run(command: Command) -> Result<()> {
                 empirical,
             };
             let report = bounds::analyze(&mesh, &info, &params)?;
-            emit(&verify::bounds_summary(&report), &report, json.as_deref())?;
+            emit(
+                &verify::bounds_summary(&report),
+                &report,
+                json.as_deref(),
+                &[&input.mesh],
+            )?;
         }
         Command::Sweep {
             input,
@@ -375,6 +413,8 @@ fn run(command: Command) -> Result<()> {
             json,
             svg,
         } => {
+            preflight(json.as_deref(), &[&input.mesh])?;
+            preflight(svg.as_deref(), &[&input.mesh])?;
             let (mesh, info) = input.load()?;
             let sys = IterationSystem::new(&mesh, input.rho, input.mu, &Attachments::default())?;
             let spectrum = Spectrum::compute(&sys, input.method)?;
@@ -385,19 +425,25 @@ fn run(command: Command) -> Result<()> {
             }
             let pts = sweep::sweep(&sys, &spectrum, &log_space(lo, hi, points), spectrum.method)?;
             let report = verify::SweepReport::new(&info.path, input.rho, input.mu, mark_dt, &spectrum, pts);
-            emit(&verify::sweep_summary(&report), &report, json.as_deref())?;
+            emit(
+                &verify::sweep_summary(&report),
+                &report,
+                json.as_deref(),
+                &[&input.mesh],
+            )?;
             if let Some(path) = svg {
                 diffsoft::plot::write_svg(
                     &path,
                     &report.chart(&format!("{}: spectral radius vs time step", info.path)),
                 )?;
-                println!("wrote {}", path.display());
+                say!("wrote {}", path.display());
             }
         }
         Command::Quality { mesh: path, json } => {
+            preflight(json.as_deref(), &[&path])?;
             let loaded = mesh::load(&path)?;
             let report = verify::QualityReport::new(&loaded)?;
-            emit(&verify::quality_summary(&report), &report, json.as_deref())?;
+            emit(&verify::quality_summary(&report), &report, json.as_deref(), &[&path])?;
         }
         Command::Generate {
             cells,
@@ -425,7 +471,7 @@ fn run(command: Command) -> Result<()> {
                 .jitter(jitter, seed);
             let m = spec.build()?;
             write_mesh(&m, &out, &gmsh_version)?;
-            println!(
+            say!(
                 "wrote {} ({} vertices, {} tets)",
                 out.display(),
                 m.num_vertices(),
@@ -443,6 +489,7 @@ fn run(command: Command) -> Result<()> {
             max_iterations,
             passive,
             activation,
+            overwrite,
         } => {
             let mut sc = diffsoft::scene::load(&scene, diffsoft::scene::LoadOptions { passive })?;
             if let Some(s) = solver {
@@ -467,11 +514,17 @@ fn run(command: Command) -> Result<()> {
                     .map_err(|_| anyhow::anyhow!("--activation {a}: {value} is not a number"))?;
                 held.push((name.to_string(), value));
             }
-            simulate(sc, steps, out.as_deref(), every, &held)?;
+            let output = RunOutput {
+                dir: out.as_deref(),
+                every,
+                overwrite,
+            };
+            simulate(sc, steps, output, &held)?;
         }
         Command::Jacobians { seed, json } => {
+            preflight(json.as_deref(), &[])?;
             let report = verify::jacobians::run(seed);
-            emit(&verify::jacobians_table(&report), &report, json.as_deref())?;
+            emit(&verify::jacobians_table(&report), &report, json.as_deref(), &[])?;
             if report.verdicts.iter().any(|v| !v.holds) {
                 bail!("some Jacobian checks failed");
             }
@@ -479,14 +532,14 @@ fn run(command: Command) -> Result<()> {
         Command::Grad(a) => grad(a)?,
         Command::Gradcheck { steps, json } => {
             use verify::gradients;
+            preflight(Some(&json), &[])?;
             let cases = gradients::builtin_cases(&gradients::CaseScenes::under(Path::new("verification")), steps)?;
             let checks = gradients::check_all(&cases, 2021);
-            print!("{}", gradients::checks_table(&checks));
+            say_raw!("{}", gradients::checks_table(&checks));
             let failed = checks.iter().filter(|c| !c.passes).count();
-            write_json(&json, &checks)?;
-            println!(
-                "wrote {} ({} of {} cases pass in unrolled mode)",
-                json.display(),
+            save(&json, &checks, &[])?;
+            say!(
+                "{} of {} cases pass in unrolled mode",
                 checks.len() - failed,
                 checks.len()
             );
@@ -504,11 +557,18 @@ fn run(command: Command) -> Result<()> {
         } => {
             use diffsoft::verify::cloth;
             let scenes: Vec<(PathBuf, usize)> = scene.into_iter().map(|p| (p, steps)).collect();
+            let inputs: Vec<&Path> = scenes.iter().map(|(p, _)| p.as_path()).collect();
+            preflight(json.as_deref(), &inputs)?;
             let r = cloth::study(&scenes, &sizes, &out)?;
-            print!("{}", cloth::table(&r));
+            say_raw!("{}", cloth::table(&r));
             if let Some(path) = json {
-                write_json(&path, &r)?;
-                println!("wrote {}", path.display());
+                save(&path, &r, &inputs)?;
+            }
+            if !r.plot_errors.is_empty() {
+                bail!(
+                    "the report is complete, but plots were not drawn: {}",
+                    r.plot_errors.join("; ")
+                );
             }
             if r.verdicts.iter().any(|v| !v.holds) {
                 bail!("some cloth claims failed");
@@ -516,26 +576,25 @@ fn run(command: Command) -> Result<()> {
         }
         Command::Extremes { subset, shard, json } => {
             use diffsoft::verify::extremes;
+            preflight(json.as_deref(), &[])?;
             match shard {
                 Some(k) => {
                     let Some(path) = json else {
                         bail!("--shard needs --json (where the partial report goes)");
                     };
                     let part = extremes::run_shard(subset, k, true);
-                    write_json(&path, &part)?;
-                    println!(
-                        "wrote {} (shard {k}: {} of {} cases); merge all shards with `diffsoft merge`",
-                        path.display(),
+                    save(&path, &part, &[])?;
+                    say!(
+                        "shard {k}: {} of {} cases; merge all shards with `diffsoft merge`",
                         part.cases.len(),
                         part.total_cases
                     );
                 }
                 None => {
                     let r = extremes::run(subset, true);
-                    print!("{}", extremes::table(&r));
+                    say_raw!("{}", extremes::table(&r));
                     if let Some(path) = json {
-                        write_json(&path, &r)?;
-                        println!("wrote {}", path.display());
+                        save(&path, &r, &[])?;
                     }
                     let failing = r.cases.iter().filter(|c| !c.passes).count();
                     if failing > 0 {
@@ -546,24 +605,31 @@ fn run(command: Command) -> Result<()> {
         }
         Command::Merge { inputs, out, svg_dir } => {
             use diffsoft::verify::merge::{merge_files, Merged};
+            let sources: Vec<&Path> = inputs.iter().map(PathBuf::as_path).collect();
+            preflight(Some(&out), &sources)?;
             match merge_files(&inputs)? {
                 Merged::Tradeoff(mut r) => {
                     let dir = svg_dir
                         .or_else(|| out.parent().map(Path::to_path_buf))
                         .filter(|d| !d.as_os_str().is_empty())
                         .unwrap_or_else(|| PathBuf::from("."));
+                    // Data before plots: a plot that fails (nothing to draw) loses no data.
+                    let mut plots = Ok(());
                     for s in r.scenes.iter_mut() {
-                        diffsoft::verify::tradeoff::write_plots(s, &dir)?;
-                        print!("{}", diffsoft::verify::tradeoff::summary(s));
+                        if plots.is_ok() {
+                            plots = diffsoft::verify::tradeoff::write_plots(s, &dir);
+                        }
+                        say_raw!("{}", diffsoft::verify::tradeoff::summary(s));
                     }
-                    write_json(&out, &r)?;
+                    save(&out, &r, &sources)?;
+                    plots.context("the merged report is written, a plot is not")?;
                 }
                 Merged::Extremes(r) => {
-                    print!("{}", diffsoft::verify::extremes::table(&r));
-                    write_json(&out, &r)?;
+                    say_raw!("{}", diffsoft::verify::extremes::table(&r));
+                    save(&out, &r, &sources)?;
                 }
             }
-            println!("wrote {} from {} partial reports", out.display(), inputs.len());
+            say!("merged {} partial reports", inputs.len());
         }
         Command::Verify { suite, out } => {
             verify::run_suite(&suite, &out)?;
@@ -598,6 +664,9 @@ fn tradeoff(args: TradeoffArgs) -> Result<()> {
         svg_dir,
     } = args;
     use diffsoft::verify::tradeoff::{self, Cantilever, SceneSource, TradeoffSpec};
+    let input_paths: Vec<PathBuf> = spec.iter().chain(scene.iter()).cloned().collect();
+    let inputs: Vec<&Path> = input_paths.iter().map(PathBuf::as_path).collect();
+    preflight(json.as_deref(), &inputs)?;
     let (spec, base) = match (spec, scene, cantilever) {
         (Some(path), None, None) => {
             let text = std::fs::read_to_string(&path).with_context(|| format!("cannot read {}", path.display()))?;
@@ -646,10 +715,9 @@ fn tradeoff(args: TradeoffArgs) -> Result<()> {
                 bail!("--shard needs --json (where the partial report goes)");
             };
             let part = tradeoff::run_shard(&spec, &base, k, workers, true)?;
-            write_json(&path, &part)?;
-            println!(
-                "wrote {} (shard {k}: {} of {} settings, {:.1} s); merge all shards with `diffsoft merge`",
-                path.display(),
+            save(&path, &part, &inputs)?;
+            say!(
+                "shard {k}: {} of {} settings, {:.1} s; merge all shards with `diffsoft merge`",
                 part.rows.len(),
                 part.total_rows,
                 part.wall_time_s
@@ -661,13 +729,14 @@ fn tradeoff(args: TradeoffArgs) -> Result<()> {
                 .or_else(|| json.as_ref().and_then(|j| j.parent().map(Path::to_path_buf)))
                 .filter(|d| !d.as_os_str().is_empty())
                 .unwrap_or_else(|| PathBuf::from("."));
-            tradeoff::write_plots(&mut s, &dir)?;
-            print!("{}", tradeoff::summary(&s));
+            // Data before plots: a plot that fails (nothing to draw) loses no data.
+            let plots = tradeoff::write_plots(&mut s, &dir);
+            say_raw!("{}", tradeoff::summary(&s));
             let report = tradeoff::TradeoffReport::new(vec![s]);
             if let Some(path) = json {
-                write_json(&path, &report)?;
-                println!("wrote {}", path.display());
+                save(&path, &report, &inputs)?;
             }
+            plots.context("the report is written, a plot is not")?;
         }
     }
     Ok(())
@@ -713,6 +782,10 @@ struct GradArgs {
     /// instead of replaying them from checkpoints (0: pure checkpointing).
     #[arg(long, default_value_t = 0.0)]
     store_mb: f64,
+    /// Return the loss and gradient even if forward steps miss the tolerance or a replay
+    /// deviates from the forward pass (otherwise an error; the counts are printed).
+    #[arg(long)]
+    allow_unconverged: bool,
 }
 
 /// A memory budget in MB as bytes.
@@ -726,6 +799,7 @@ fn store_bytes(mb: f64) -> Result<usize> {
 /// `diffsoft grad`: overrides, one forward and one backward pass, the loss and the derivatives.
 fn grad(a: GradArgs) -> Result<()> {
     use diffsoft::diff::{self, Controls, Options, Param};
+    preflight(a.json.as_deref(), &[&a.scene])?;
     let mut sc = diffsoft::scene::load(&a.scene, diffsoft::scene::LoadOptions::default())?;
     if let Some(s) = a.solver {
         sc.settings.solver = s;
@@ -760,15 +834,22 @@ fn grad(a: GradArgs) -> Result<()> {
         loss.as_ref(),
         Options {
             store_bytes: store_bytes(a.store_mb)?,
+            allow_unconverged: a.allow_unconverged,
             ..Options::mode(a.mode)
         },
-    )?;
+    )
+    .map_err(|e| match e {
+        diff::DiffError::Unconverged { .. } | diff::DiffError::NotReplayable { .. } => {
+            anyhow::anyhow!("{e} (--allow-unconverged)")
+        }
+        e => e.into(),
+    })?;
     let mut gradient = serde_json::Map::new();
     let mut values = serde_json::Map::new();
-    println!("loss {} = {:.17e}", a.loss, g.loss);
+    say!("loss {} = {:.17e}", a.loss, g.loss);
     for p in &params {
         let d = p.derivative(&sc.model, &g);
-        println!(
+        say!(
             "d loss / d {p} = {d:.17e}   (at {p} = {})",
             p.get(&sc.model).map_or("-".into(), |v| v.to_string())
         );
@@ -777,10 +858,20 @@ fn grad(a: GradArgs) -> Result<()> {
             values.insert(p.to_string(), v.into());
         }
     }
-    println!(
+    say!(
         "forward {:.1} ms, backward {:.1} ms ({:?} mode), {} forward iterations",
-        g.stats.forward_ms, g.stats.backward_ms, a.mode, g.stats.forward_iterations
+        g.stats.forward_ms,
+        g.stats.backward_ms,
+        a.mode,
+        g.stats.forward_iterations
     );
+    let missed = sc.settings.tolerance > 0.0 && g.stats.unconverged_steps > 0;
+    if missed || g.stats.replay_deviation > 1e-9 * sc.model.length_scale() {
+        say!(
+            "warning: {} of {} forward steps did not converge, replay deviation {:.3e} m (allowed by --allow-unconverged)",
+            g.stats.unconverged_steps, a.steps, g.stats.replay_deviation
+        );
+    }
     if let Some(path) = &a.json {
         let out = serde_json::json!({
             "schema": "diffsoft.grad/1",
@@ -794,27 +885,43 @@ fn grad(a: GradArgs) -> Result<()> {
             "gradient": gradient,
             "stats": g.stats,
         });
-        write_json(path, &out)?;
-        println!("wrote {}", path.display());
+        save(path, &out, &[&a.scene])?;
     }
     Ok(())
 }
 
-/// Run a scene, printing a summary and writing frames and the run log.
-fn simulate(
-    sc: diffsoft::scene::Scene,
-    steps: usize,
-    out: Option<&Path>,
+/// Set by SIGINT/SIGTERM: the run stops after its current step and finalises its log.
+static INTERRUPTED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+/// Where `simulate` writes, and whether it may replace an earlier run's files.
+struct RunOutput<'a> {
+    dir: Option<&'a Path>,
     every: usize,
-    activations: &[(String, f64)],
-) -> Result<()> {
-    use diffsoft::output::{FrameWriter, RunLog, RunSummary, RUN_SCHEMA};
+    overwrite: bool,
+}
+
+/// Run a scene, printing a summary and writing frames and the run log. The output directory is
+/// checked before the first step; the log is kept current during the run and finalised however
+/// it ends (completed, failed, or interrupted by SIGINT/SIGTERM, exit status 130).
+fn simulate(sc: diffsoft::scene::Scene, steps: usize, out: RunOutput<'_>, activations: &[(String, f64)]) -> Result<()> {
+    use diffsoft::output::{FrameWriter, RunDir, RunLog, RunStatus, RunSummary, RUN_SCHEMA};
     use diffsoft::report::Header;
     use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+    use std::sync::atomic::Ordering;
+    // The run log holds every step's figures: a step count it cannot hold is refused up front.
+    diffsoft::base::memory::check(
+        &format!("--steps {steps}"),
+        steps,
+        std::mem::size_of::<diffsoft::StepStats>(),
+    )?;
+    let mut run_dir = match out.dir {
+        Some(dir) => Some(RunDir::prepare(dir, &[sc.path.as_path()], out.overwrite)?),
+        None => None,
+    };
     let model_size = (sc.model.n(), sc.model.tets().len());
     let bodies = sc.model.bodies().to_vec();
     let cloth = sc.model.cloth().map_or(Vec::new(), |c| c.bodies.clone());
-    println!(
+    say!(
         "scene       {} ({:?}): {} vertices, {} tets, {} bodies{}",
         sc.path.display(),
         sc.format,
@@ -828,22 +935,48 @@ fn simulate(
         }
     );
     for n in &sc.notes {
-        println!("note        {n}");
+        say!("note        {n}");
     }
     let mut sim = diffsoft::solver::Simulator::new(sc.model, sc.settings.clone())?;
-    println!("solver      {}", sim.certificate().message);
+    say!("solver      {}", sim.certificate().message);
     for (name, a) in activations {
         sim.set_activation(name, *a)?;
-        println!("activation  {name} held at {a}");
+        say!("activation  {name} held at {a}");
     }
-    let mut frames = match out {
-        Some(dir) if every > 0 => Some(FrameWriter::new(dir, sim.model())?),
+    let mut frames = match (&run_dir, out.every) {
+        (Some(d), every) if every > 0 => Some(FrameWriter::new(d.path(), sim.model())?),
         _ => None,
     };
-    let mut frame_files = Vec::new();
+    let mut log = RunLog {
+        header: Header::new(RUN_SCHEMA),
+        scene: sc.path.display().to_string(),
+        notes: sc.notes.clone(),
+        bodies,
+        cloth,
+        size: model_size,
+        settings: sim.settings().clone(),
+        certificate: sim.certificate().clone(),
+        summary: RunSummary::of(&[]),
+        steps: Vec::new(),
+        frames: Vec::new(),
+        status: RunStatus::Running,
+        error: None,
+    };
+    let frame_name = |p: PathBuf| p.file_name().unwrap_or_default().to_string_lossy().into_owned();
     if let Some(f) = frames.as_mut() {
-        let p = f.write(0.0, &sim.state().q, &sim.state().v)?;
-        frame_files.push(p.file_name().unwrap_or_default().to_string_lossy().into_owned());
+        log.frames
+            .push(frame_name(f.write(0.0, &sim.state().q, &sim.state().v)?));
+    }
+    if let Some(d) = run_dir.as_mut() {
+        d.write_log(&log)?;
+    }
+    if let Err(e) = ctrlc::set_handler(|| {
+        // A second signal ends the process at once; the log of the last refresh stays.
+        if INTERRUPTED.swap(true, Ordering::SeqCst) {
+            std::process::exit(130);
+        }
+    }) {
+        eprintln!("warning: cannot catch SIGINT/SIGTERM ({e}); an interrupted run keeps its last log refresh");
     }
     let bar = ProgressBar::new(steps as u64);
     if steps < 50 || !std::io::IsTerminal::is_terminal(&std::io::stderr()) {
@@ -853,30 +986,45 @@ fn simulate(
         ProgressStyle::with_template("{bar:40} {pos}/{len} steps {elapsed_precise} eta {eta} {msg}")
             .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
-    let mut stats = Vec::new();
-    let mut error = None;
     for k in 0..steps {
+        if INTERRUPTED.load(Ordering::SeqCst) {
+            log.status = RunStatus::Interrupted;
+            break;
+        }
         match sim.step() {
             Ok(s) => {
                 bar.set_message(format!("{} it", s.iterations));
-                stats.push(s);
+                log.steps.push(s);
             }
             Err(e) => {
-                error = Some(format!("step {}: {e}", k + 1));
+                log.status = RunStatus::Failed;
+                log.error = Some(format!("step {}: {e}", k + 1));
                 break;
             }
         }
         bar.inc(1);
         if let Some(f) = frames.as_mut() {
-            if (k + 1) % every == 0 {
-                let p = f.write(sim.state().time, &sim.state().q, &sim.state().v)?;
-                frame_files.push(p.file_name().unwrap_or_default().to_string_lossy().into_owned());
+            if (k + 1) % out.every == 0 {
+                log.frames
+                    .push(frame_name(f.write(sim.state().time, &sim.state().q, &sim.state().v)?));
             }
         }
+        if let Some(d) = run_dir.as_mut().filter(|d| d.log_due()) {
+            log.summary = RunSummary::of(&log.steps);
+            d.write_log(&log)?;
+        }
+    }
+    if log.status == RunStatus::Running {
+        log.status = if INTERRUPTED.load(Ordering::SeqCst) && log.steps.len() < steps {
+            RunStatus::Interrupted
+        } else {
+            RunStatus::Completed
+        };
     }
     bar.finish_and_clear();
-    let summary = RunSummary::of(&stats);
-    println!(
+    log.summary = RunSummary::of(&log.steps);
+    let summary = &log.summary;
+    say!(
         "ran         {} steps ({:.4} s simulated) in {:.3} s: median {:.3} ms/step, {:.2} iterations/step, {} of {} converged, max penetration {:.3e} m, max contacts {} (between bodies {})",
         summary.steps,
         summary.simulated_time,
@@ -889,42 +1037,56 @@ fn simulate(
         summary.max_contacts,
         summary.max_pair_contacts
     );
-    if let Some(dir) = out {
-        let log = RunLog {
-            header: Header::new(RUN_SCHEMA),
-            scene: sc.path.display().to_string(),
-            notes: sc.notes.clone(),
-            bodies,
-            cloth,
-            size: model_size,
-            settings: sim.settings().clone(),
-            certificate: sim.certificate().clone(),
-            summary,
-            steps: stats,
-            frames: frame_files,
-            error: error.clone(),
-        };
-        let path = dir.join("run.json");
-        write_json(&path, &log)?;
-        println!(
-            "wrote       {} and {} frames (frames.pvd)",
-            path.display(),
-            log.frames.len()
+    if let Some(d) = run_dir.as_mut() {
+        d.write_log(&log)?;
+        say!(
+            "wrote       {} ({:?}) and {} frames{}",
+            d.log_path().display(),
+            log.status,
+            log.frames.len(),
+            if log.frames.is_empty() { "" } else { " (frames.pvd)" }
         );
     }
-    match error {
-        Some(e) => bail!(e),
-        None => Ok(()),
+    match (log.status, log.error) {
+        (RunStatus::Interrupted, _) => {
+            eprintln!("interrupted after {} of {steps} steps", log.steps.len());
+            std::process::exit(130);
+        }
+        (_, Some(e)) => bail!(e),
+        _ => Ok(()),
     }
 }
 
-/// Print a report's summary and write its JSON if asked.
-fn emit<T: serde::Serialize>(summary: &str, report: &T, json: Option<&Path>) -> Result<()> {
-    print!("{summary}");
+/// Print a report's summary and write its JSON if asked (never over one of `inputs`).
+fn emit<T: serde::Serialize>(summary: &str, report: &T, json: Option<&Path>, inputs: &[&Path]) -> Result<()> {
+    say_raw!("{summary}");
     if let Some(path) = json {
-        write_json(path, report)?;
-        println!("wrote {}", path.display());
+        save(path, report, inputs)?;
     }
+    Ok(())
+}
+
+/// Before the work: an output file (not `-`) must be writable and not one of `inputs`.
+fn preflight(path: Option<&Path>, inputs: &[&Path]) -> Result<()> {
+    if let Some(p) = path.filter(|p| *p != Path::new("-")) {
+        diffsoft::output::refuse_input(p, inputs)?;
+        diffsoft::output::check_writable(p)?;
+    }
+    Ok(())
+}
+
+/// Write a report as JSON to `path` (atomically, never over one of `inputs`, then say so), or
+/// to standard output for `-`.
+fn save<T: serde::Serialize>(path: &Path, report: &T, inputs: &[&Path]) -> Result<()> {
+    if path == Path::new("-") {
+        let mut text = serde_json::to_string_pretty(report)?;
+        text.push('\n');
+        std::io::Write::write_all(&mut std::io::stdout().lock(), text.as_bytes()).context("standard output")?;
+        return Ok(());
+    }
+    diffsoft::output::refuse_input(path, inputs)?;
+    write_json(path, report)?;
+    say!("wrote {}", path.display());
     Ok(())
 }
 

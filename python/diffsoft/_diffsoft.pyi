@@ -80,9 +80,12 @@ class Scene:
         loss: str = "final_com.y",
         params: list[str] | None = None,
         mode: str = "unrolled",
+        allow_unconverged: bool = False,
     ) -> tuple[float, dict[str, float | FloatArray]]:
         """The loss (``final_com.x|y|z``, ``mean_com.x|y|z``, ``joint_angle.BONE``,
-        ``mean_joint_angle.BONE``) and its derivatives with respect to ``params``."""
+        ``mean_joint_angle.BONE``) and its derivatives with respect to ``params``. A forward
+        that misses its tolerance (or an unrolled replay that deviates from it) raises
+        ``RuntimeError`` unless ``allow_unconverged``."""
     def vjp(
         self,
         steps: int,
@@ -90,9 +93,11 @@ class Scene:
         cotangent: npt.ArrayLike,
         velocity_cotangent: npt.ArrayLike | None = None,
         mode: str = "unrolled",
+        allow_unconverged: bool = False,
     ) -> dict[str, float | FloatArray]:
         """Gradient of ``sum(cotangent * positions) + sum(velocity_cotangent * velocities)``
-        (both ``(steps + 1, n, 3)``) with respect to ``params``."""
+        (both ``(steps + 1, n, 3)``) with respect to ``params``; ``allow_unconverged`` as in
+        ``grad``."""
 
 def grad_batch(
     scene: Scene,
@@ -101,6 +106,7 @@ def grad_batch(
     params: list[str],
     values: list[dict[str, ParamValue]],
     mode: str = "unrolled",
+    allow_unconverged: bool = False,
 ) -> list[tuple[float, dict[str, float | FloatArray]]]:
     """``scene.grad`` for every parameter set of ``values``, in parallel on all cores."""
 

@@ -21,7 +21,8 @@ fn scenes(base: &Scene, values: &[Bound<'_, PyDict>]) -> PyResult<Vec<Scene>> {
 
 /// `[(loss, grads)]`, one per dict of `values` (each sets parameters on a copy of `scene`).
 #[pyfunction]
-#[pyo3(signature = (scene, steps, loss, params, values, mode = "unrolled"))]
+#[pyo3(signature = (scene, steps, loss, params, values, mode = "unrolled", allow_unconverged = false))]
+#[allow(clippy::too_many_arguments)]
 pub fn grad_batch<'py>(
     py: Python<'py>,
     scene: &Scene,
@@ -30,12 +31,16 @@ pub fn grad_batch<'py>(
     params: Vec<String>,
     values: Vec<Bound<'py, PyDict>>,
     mode: &str,
+    allow_unconverged: bool,
 ) -> PyResult<Vec<Bound<'py, PyTuple>>> {
     scene::names(&params)?;
     let m = scene::mode(mode)?;
     let runs = scenes(scene, &values)?;
-    let results: Vec<PyResult<diffsoft::Gradient>> =
-        py.detach(|| runs.par_iter().map(|s| s.gradient(steps, loss, m)).collect());
+    let results: Vec<PyResult<diffsoft::Gradient>> = py.detach(|| {
+        runs.par_iter()
+            .map(|s| s.gradient(steps, loss, m, allow_unconverged))
+            .collect()
+    });
     runs.iter()
         .zip(results)
         .map(|(s, g)| {

@@ -81,7 +81,13 @@ impl Scene {
     }
 
     /// The gradient of `loss` (the library's call, without the GIL).
-    pub fn gradient(&self, steps: usize, loss: &str, mode: Mode) -> PyResult<diffsoft::Gradient> {
+    pub fn gradient(
+        &self,
+        steps: usize,
+        loss: &str,
+        mode: Mode,
+        allow_unconverged: bool,
+    ) -> PyResult<diffsoft::Gradient> {
         Self::check_steps(steps)?;
         let loss = diff::loss::by_name(loss).map_err(errors::diff)?;
         let controls = self.inputs.controls(&self.inner.model);
@@ -91,7 +97,10 @@ impl Scene {
             steps,
             &controls,
             loss.as_ref(),
-            Options::mode(mode),
+            Options {
+                allow_unconverged,
+                ..Options::mode(mode)
+            },
         )
         .map_err(errors::diff)
     }
@@ -241,8 +250,9 @@ impl Scene {
         Run::new(py, r, &self.inner.settings)
     }
 
-    /// The loss and its derivatives with respect to `params` (name -> float or ndarray).
-    #[pyo3(signature = (steps, loss = "final_com.y", params = None, mode = "unrolled"))]
+    /// The loss and its derivatives with respect to `params` (name -> float or ndarray). A
+    /// forward that misses its tolerance raises `RuntimeError` unless `allow_unconverged`.
+    #[pyo3(signature = (steps, loss = "final_com.y", params = None, mode = "unrolled", allow_unconverged = false))]
     fn grad<'py>(
         &self,
         py: Python<'py>,
@@ -250,18 +260,21 @@ impl Scene {
         loss: &str,
         params: Option<Vec<String>>,
         mode: &str,
+        allow_unconverged: bool,
     ) -> PyResult<Bound<'py, PyTuple>> {
         let params = params.unwrap_or_default();
         names(&params)?;
         let m = self::mode(mode)?;
-        let g = py.detach(|| self.gradient(steps, loss, m))?;
+        let g = py.detach(|| self.gradient(steps, loss, m, allow_unconverged))?;
         let d = grads(py, &self.inner.model, &g, &params)?;
         PyTuple::new(py, [g.loss.into_pyobject(py)?.into_any(), d.into_any()])
     }
 
     /// The gradient of `sum(cotangent * positions) + sum(velocity_cotangent * velocities)` over
-    /// the states `0..=steps` (arrays of shape `(steps + 1, n, 3)`) with respect to `params`.
-    #[pyo3(signature = (steps, params, cotangent, velocity_cotangent = None, mode = "unrolled"))]
+    /// the states `0..=steps` (arrays of shape `(steps + 1, n, 3)`) with respect to `params`. A
+    /// forward that misses its tolerance raises `RuntimeError` unless `allow_unconverged`.
+    #[pyo3(signature = (steps, params, cotangent, velocity_cotangent = None, mode = "unrolled", allow_unconverged = false))]
+    #[allow(clippy::too_many_arguments)]
     fn vjp<'py>(
         &self,
         py: Python<'py>,
@@ -270,6 +283,7 @@ impl Scene {
         cotangent: &Bound<'py, PyAny>,
         velocity_cotangent: Option<&Bound<'py, PyAny>>,
         mode: &str,
+        allow_unconverged: bool,
     ) -> PyResult<Bound<'py, PyDict>> {
         names(&params)?;
         let m = self::mode(mode)?;
@@ -300,7 +314,10 @@ impl Scene {
                     steps,
                     &controls,
                     &cot,
-                    Options::mode(m),
+                    Options {
+                        allow_unconverged,
+                        ..Options::mode(m)
+                    },
                 )
             })
             .map_err(errors::diff)?;

@@ -91,6 +91,14 @@ pub fn gradient_with(
         progress,
     )?;
     let forward_ms = t0.elapsed().as_secs_f64() * 1e3;
+    if !opts.allow_unconverged && settings.tolerance > 0.0 && fwd.unconverged > 0 {
+        return Err(DiffError::Unconverged {
+            steps: fwd.unconverged,
+            of: steps,
+            tolerance: settings.tolerance,
+            max_iterations: settings.max_iterations,
+        });
+    }
     let t1 = Instant::now();
     let n = model.n();
     let groups = model.actuators.as_ref().map_or(0, |a| a.groups.len());
@@ -165,6 +173,13 @@ pub fn gradient_with(
                 .map(|(a, b)| (a - b).amax())
                 .fold(0.0, f64::max);
             g.stats.replay_deviation = g.stats.replay_deviation.max(dev);
+            let allowed = 1e-9 * model.length_scale;
+            if !opts.allow_unconverged && !(dev <= allowed) {
+                return Err(DiffError::NotReplayable {
+                    deviation: dev,
+                    allowed,
+                });
+            }
         }
         g.stats.replay_ms += tr.elapsed().as_secs_f64() * 1e3;
         let rec = stored.or_else(|| replayer.as_ref().map(|(_, r)| r));

@@ -70,6 +70,33 @@ pub enum DiffError {
     /// The simulation passes through a point where it is not differentiable.
     #[error("not differentiable: {0}")]
     NotDifferentiable(String),
+    /// The forward pass did not meet its tolerance on some steps, so the loss and gradient
+    /// would be of an unconverged simulation (opt in with [`Options::allow_unconverged`]).
+    #[error(
+        "the forward simulation did not converge on {steps} of {of} steps (tolerance {tolerance:e}, cap {max_iterations} iterations): its loss and gradient would be those of an unconverged run; raise the iteration cap, lower the tolerance or the time step, or allow unconverged steps explicitly"
+    )]
+    Unconverged {
+        /// Steps that hit the iteration cap.
+        steps: usize,
+        /// Steps simulated.
+        of: usize,
+        /// The tolerance they missed.
+        tolerance: f64,
+        /// The iteration cap.
+        max_iterations: usize,
+    },
+    /// Unrolled mode: replaying a step from its checkpoint did not reproduce the forward pass
+    /// (e.g. an accelerated forward that did not converge), so the backward pass would
+    /// differentiate another trajectory.
+    #[error(
+        "the backward pass's replay deviates from the forward pass by {deviation:e} m (allowed {allowed:e} m): the gradient would be of another trajectory; use a tolerance the forward meets, or Anderson memory 0"
+    )]
+    NotReplayable {
+        /// Largest position difference between replay and forward (m).
+        deviation: f64,
+        /// The allowed difference (m): 1e-9 of the model's length scale.
+        allowed: f64,
+    },
     /// The forward simulation failed.
     #[error(transparent)]
     Solver(#[from] SolverError),
@@ -115,6 +142,12 @@ pub struct Options {
     /// pass; the steps beyond it are replayed from their checkpoints. 0: pure checkpointing, as
     /// the paper (memory: one state per step).
     pub store_bytes: usize,
+    /// Return a gradient even when forward steps missed their tolerance (`settings.tolerance >
+    /// 0`) or, in unrolled mode, a replay deviates from the forward pass; the counts are in
+    /// [`DiffStats`]. Default `false`: such a run is an error ([`DiffError::Unconverged`],
+    /// [`DiffError::NotReplayable`]). A tolerance of 0 (a fixed iteration count, the smooth
+    /// forward the gradient checks use) is never an error.
+    pub allow_unconverged: bool,
 }
 
 impl Default for Options {
@@ -126,6 +159,7 @@ impl Default for Options {
             contact_tolerance: 1e-14,
             contact_max_sweeps: 100_000,
             store_bytes: 0,
+            allow_unconverged: false,
         }
     }
 }

@@ -23,10 +23,54 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     result.map_err(named)
 }
 
+/// Check, before a long computation, that `path` can be written: its directory is created if
+/// needed and a probe file is written into it and removed. Errors name the path.
+pub fn check_writable(path: &Path) -> std::io::Result<()> {
+    let named =
+        |e: std::io::Error| std::io::Error::new(e.kind(), format!("{}: cannot write here: {e}", path.display()));
+    if path.is_dir() {
+        return Err(named(std::io::Error::new(
+            std::io::ErrorKind::IsADirectory,
+            "is a directory, expected a file",
+        )));
+    }
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    std::fs::create_dir_all(&dir).map_err(named)?;
+    let probe = temporary_name(path);
+    std::fs::write(&probe, b"").map_err(named)?;
+    std::fs::remove_file(&probe).map_err(named)
+}
+
+/// Refuse to write `out` when it is one of `inputs` (the same file, however named): an output
+/// never replaces what the command read. The error names both.
+pub fn refuse_input(out: &Path, inputs: &[&Path]) -> std::io::Result<()> {
+    let Ok(target) = out.canonicalize() else {
+        return Ok(()); // does not exist yet: cannot be an input
+    };
+    for input in inputs {
+        if input.canonicalize().is_ok_and(|p| p == target) {
+            return Err(std::io::Error::new(
+                std::io::ErrorKind::AlreadyExists,
+                format!(
+                    "{}: refusing to write the output over the input {}; choose another output path",
+                    out.display(),
+                    input.display()
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// `dir/.name.tmp.PID`: hidden, in the target's directory (so the rename stays on one file
 /// system), unique per process.
 fn temporary_name(path: &Path) -> PathBuf {
-    let name = path.file_name().map_or_else(|| "out".into(), |n| n.to_string_lossy().into_owned());
+    let name = path
+        .file_name()
+        .map_or_else(|| "out".into(), |n| n.to_string_lossy().into_owned());
     path.with_file_name(format!(".{name}.tmp.{}", std::process::id()))
 }
 
@@ -42,10 +86,34 @@ mod tests {
         write_atomic(&p, b"old").unwrap();
         write_atomic(&p, b"new").unwrap();
         assert_eq!(std::fs::read(&p).unwrap(), b"new");
-        let names: Vec<_> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name()).collect();
+        let names: Vec<_> = std::fs::read_dir(&dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
         assert_eq!(names, vec![std::ffi::OsString::from("a.json")]);
         let e = write_atomic(&dir.join("missing/b.json"), b"x").unwrap_err();
         assert!(e.to_string().contains("missing/b.json"), "{e}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn unwritable_outputs_are_found_before_the_work() {
+        let e = check_writable(Path::new("/proc/diffsoft/report.json")).unwrap_err();
+        assert!(e.to_string().contains("/proc/diffsoft/report.json"), "{e}");
+        let e = check_writable(&std::env::temp_dir()).unwrap_err();
+        assert!(e.to_string().contains("directory"), "{e}");
+    }
+
+    #[test]
+    fn an_output_never_replaces_an_input() {
+        let dir = std::env::temp_dir().join(format!("diffsoft-refuse-{}", std::process::id()));
+        std::fs::create_dir_all(dir.join("sub")).unwrap();
+        let input = dir.join("mesh.obj");
+        std::fs::write(&input, "v 0 0 0").unwrap();
+        let e = refuse_input(&dir.join("sub/../mesh.obj"), &[&input]).unwrap_err();
+        assert!(e.to_string().contains("mesh.obj"), "{e}");
+        refuse_input(&dir.join("other.json"), &[&input]).unwrap();
+        refuse_input(&input, &[&dir.join("x.obj")]).unwrap();
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -62,6 +62,9 @@ pub struct RunLog {
     pub steps: Vec<StepStats>,
     /// Frames written (relative to the output directory).
     pub frames: Vec<String>,
+    /// How the run stands or ended (`running` while it goes on; the log is refreshed every
+    /// few seconds).
+    pub status: super::RunStatus,
     /// Error that ended the run early, if any.
     pub error: Option<String>,
 }

@@ -146,6 +146,9 @@ pub struct ClothReport {
     pub verdicts: Vec<Verdict>,
     /// Wall time of the study (s).
     pub wall_time_s: f64,
+    /// Plots that could not be drawn (e.g. nothing to draw); the data above is complete.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub plot_errors: Vec<String>,
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -278,9 +281,22 @@ pub fn run(scene_path: &Path, steps: usize, frames: Option<(&Path, usize)>) -> R
     })
 }
 
+/// A detection-cost cloth of `n x n` cells must have a cell and fit in memory (about 1 KB per
+/// cloth vertex for the model, the collision structures and the detector).
+fn check_cloth_size(n: usize) -> Result<()> {
+    anyhow::ensure!(n >= 1, "cloth sizes must be at least 1 cell per side, got {n}");
+    let vertices = n
+        .checked_add(1)
+        .and_then(|k| k.checked_mul(k))
+        .with_context(|| format!("a cloth of {n} x {n} cells: the vertex count overflows"))?;
+    crate::base::memory::check(&format!("a cloth of {n} x {n} cells"), vertices, 1024)?;
+    Ok(())
+}
+
 /// A cloth grid of `n x n` cells (1 m square, in the plane y = 0) under a box of
 /// `n/4 x n/8 x n/4` cells resting 0.5 mm above it: the collision surfaces for the cost study.
 pub fn detection_scene(n: usize) -> Result<Model> {
+    check_cloth_size(n)?;
     let m = (n / 4).max(1);
     let mesh = BoxSpec::new([m, (m / 2).max(1), m], [0.5, 0.25, 0.5])
         .origin([-0.23, 5e-4, -0.27])
@@ -354,13 +370,21 @@ fn loglog_slope(xs: &[f64], ys: &[f64]) -> f64 {
 /// file) and the detection cost at `sizes` cloth cells per side.
 pub fn study(scenes: &[(std::path::PathBuf, usize)], sizes: &[usize], out: &Path) -> Result<ClothReport> {
     let t0 = Instant::now();
+    // Sizes first: an impossible one is refused before the scenes run.
+    for &n in sizes {
+        check_cloth_size(n)?;
+    }
     let mut runs = Vec::new();
     let mut verdicts = Vec::new();
+    // Plot failures are collected, not raised: the data is returned whatever a plot does.
+    let mut plot_errors = Vec::new();
     for (path, steps) in scenes {
         let name = path.file_stem().and_then(|s| s.to_str()).unwrap_or("scene").to_string();
         let r = run(path, *steps, Some((&out.join("frames").join(&name), 5)))?;
         verdicts.extend(run_verdicts(&name, &r, *steps));
-        write_plots(&name, &r, out)?;
+        if let Err(e) = write_plots(&name, &r, out) {
+            plot_errors.push(format!("{e:#}"));
+        }
         runs.push(r);
     }
     let detection: Vec<DetectionCost> = sizes.iter().map(|&n| detection_cost(n, 7)).collect::<Result<_>>()?;
@@ -375,7 +399,7 @@ pub fn study(scenes: &[(std::path::PathBuf, usize)], sizes: &[usize], out: &Path
         1.25,
     ));
     if !detection.is_empty() {
-        plot::write_svg(
+        let drawn = plot::write_svg(
             &out.join("cloth_detection.svg"),
             &LogLogChart {
                 title: "Collision detection cost against surface size".into(),
@@ -387,7 +411,10 @@ pub fn study(scenes: &[(std::path::PathBuf, usize)], sizes: &[usize], out: &Path
                 }],
                 ..Default::default()
             },
-        )?;
+        );
+        if let Err(e) = drawn {
+            plot_errors.push(e.to_string());
+        }
     }
     Ok(ClothReport {
         header: Header::new(CLOTH_SCHEMA),
@@ -396,6 +423,7 @@ pub fn study(scenes: &[(std::path::PathBuf, usize)], sizes: &[usize], out: &Path
         detection_exponent: exponent,
         verdicts,
         wall_time_s: t0.elapsed().as_secs_f64(),
+        plot_errors,
     })
 }
 

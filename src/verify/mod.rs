@@ -772,6 +772,9 @@ pub fn run_suite(suite_path: &Path, out: &Path) -> Result<SuiteBoundsReport> {
         let cl = cloth::study(&scenes, &c.detection_sizes, out)?;
         write_json(out.join("cloth.json"), &cl)?;
         print!("{}", cloth::table(&cl));
+        for e in &cl.plot_errors {
+            eprintln!("warning: cloth plot not drawn: {e}");
+        }
     }
     println!(
         "wrote {}, {}, {}, {}, {}, gradients.json, tradeoff.json, extremes.json, cloth.json, t_scaling.svg, cantilever.svg, skeleton_*.svg, gradient_cost.svg, tradeoff_*.svg, cloth_*.svg, actuator and cloth frames and {} sweep plots in {:.1} s",

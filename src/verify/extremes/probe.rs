@@ -254,7 +254,11 @@ impl Probe {
             self.steps,
             &controls,
             loss,
-            Options::mode(Mode::Unrolled),
+            // The study measures gradients of unconverged settings too (their stats say so).
+            Options {
+                allow_unconverged: true,
+                ..Options::mode(Mode::Unrolled)
+            },
         ) {
             Ok(g) => {
                 let mut v: Vec<f64> = params.iter().map(|p| p.derivative(&self.model, &g)).collect();

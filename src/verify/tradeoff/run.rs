@@ -97,7 +97,11 @@ fn gradient(ctx: &Ctx<'_>, settings: &Settings, steps: usize) -> GradientResult 
         steps,
         &Controls::default(),
         ctx.loss.as_ref(),
-        Options::mode(Mode::Unrolled),
+        // The study measures gradients of unconverged settings too (their stats say so).
+        Options {
+            allow_unconverged: true,
+            ..Options::mode(Mode::Unrolled)
+        },
     );
     let wall_s = Some(t0.elapsed().as_secs_f64());
     let cpu_s = match (cpu0, trajectory::thread_cpu_s()) {
