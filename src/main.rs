@@ -57,6 +57,7 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// Spectral radii and critical time steps of iterations (19) and (21), Appendix A/B verdicts.
+    #[command(allow_negative_numbers = true)]
     Bounds {
         #[command(flatten)]
         input: MeshArgs,
@@ -71,6 +72,7 @@ enum Command {
         json: Option<PathBuf>,
     },
     /// rho(G19) and rho(G21) over a log range of time steps, as JSON and an SVG plot.
+    #[command(allow_negative_numbers = true)]
     Sweep {
         #[command(flatten)]
         input: MeshArgs,
@@ -103,6 +105,7 @@ enum Command {
         json: Option<PathBuf>,
     },
     /// Write a structured box mesh (for tests and studies).
+    #[command(allow_negative_numbers = true)]
     Generate {
         /// Cells per axis, e.g. 4,4,8.
         #[arg(long, value_delimiter = ',', required = true)]
@@ -127,6 +130,7 @@ enum Command {
         gmsh_version: String,
     },
     /// Simulate a scene (diffsoft or paper format), writing VTK frames and a JSON run log.
+    #[command(allow_negative_numbers = true)]
     Simulate {
         /// Scene file (.json, diffsoft.scene/1 or a paper scene).
         scene: PathBuf,
@@ -164,6 +168,7 @@ enum Command {
         activation: Vec<String>,
     },
     /// Loss and gradient of a simulation with respect to a scalar parameter (reverse mode).
+    #[command(allow_negative_numbers = true)]
     Grad(GradArgs),
     /// Gradient checks (reverse mode vs finite differences and dual numbers) on the built-in
     /// cases, writing gradients.json.
@@ -186,6 +191,7 @@ enum Command {
     },
     /// Accuracy against cost of solver settings on one scene: errors against tight references,
     /// Pareto front, recommended setting per target error (reports/tradeoff.json format).
+    #[command(allow_negative_numbers = true)]
     Tradeoff(Box<TradeoffArgs>),
     /// The extremes suite: the simulator and its gradients at the edges of their input ranges
     /// (reports/extremes.json format); exits 1 if a case fails.
@@ -533,7 +539,8 @@ fn run(command: Command) -> Result<()> {
         Command::Gradcheck { steps, json } => {
             use verify::gradients;
             preflight(Some(&json), &[])?;
-            let cases = gradients::builtin_cases(&gradients::CaseScenes::under(Path::new("verification")), steps)?;
+            let data = find_data(Path::new("verification"))?;
+            let cases = gradients::builtin_cases(&gradients::CaseScenes::under(&data), steps)?;
             let checks = gradients::check_all(&cases, 2021);
             say_raw!("{}", gradients::checks_table(&checks));
             let failed = checks.iter().filter(|c| !c.passes).count();
@@ -556,7 +563,10 @@ fn run(command: Command) -> Result<()> {
             json,
         } => {
             use diffsoft::verify::cloth;
-            let scenes: Vec<(PathBuf, usize)> = scene.into_iter().map(|p| (p, steps)).collect();
+            let scenes: Vec<(PathBuf, usize)> = scene
+                .iter()
+                .map(|p| Ok((find_data(p)?, steps)))
+                .collect::<Result<_>>()?;
             let inputs: Vec<&Path> = scenes.iter().map(|(p, _)| p.as_path()).collect();
             preflight(json.as_deref(), &inputs)?;
             let r = cloth::study(&scenes, &sizes, &out)?;
@@ -632,7 +642,7 @@ fn run(command: Command) -> Result<()> {
             say!("merged {} partial reports", inputs.len());
         }
         Command::Verify { suite, out } => {
-            verify::run_suite(&suite, &out)?;
+            verify::run_suite(&find_data(&suite)?, &out)?;
         }
     }
     Ok(())
@@ -1064,6 +1074,25 @@ fn emit<T: serde::Serialize>(summary: &str, report: &T, json: Option<&Path>, inp
         save(path, report, inputs)?;
     }
     Ok(())
+}
+
+/// The project's data (`verification/...`) from any working directory: `path` as given if it
+/// exists, else under the working directory's ancestors, else under the source tree this binary
+/// was built from. The error lists every place looked in.
+fn find_data(path: &Path) -> Result<PathBuf> {
+    if path.exists() || path.is_absolute() {
+        return Ok(path.to_path_buf());
+    }
+    let mut looked = vec![path.to_path_buf()];
+    if let Ok(cwd) = std::env::current_dir() {
+        looked.extend(cwd.ancestors().skip(1).map(|a| a.join(path)));
+    }
+    looked.push(Path::new(env!("CARGO_MANIFEST_DIR")).join(path));
+    if let Some(found) = looked.iter().find(|p| p.exists()) {
+        return Ok(found.clone());
+    }
+    let shown: Vec<String> = looked.iter().map(|p| p.display().to_string()).collect();
+    bail!("cannot find {} (looked in {})", path.display(), shown.join(", "))
 }
 
 /// Before the work: an output file (not `-`) must be writable and not one of `inputs`.

@@ -40,6 +40,8 @@ pub enum Outcome {
     Diverged,
     /// Neither within the iteration cap.
     IterationCap,
+    /// The correction overflowed or became NaN (no rate can be observed).
+    NonFinite,
 }
 
 /// Observed vs predicted contraction of one scheme at one time step.
@@ -53,7 +55,7 @@ pub struct EmpiricalCheck {
     pub predicted_spectral_radius: f64,
     /// Last ratio `|d_{k+1}|_W / |d_k|_W`.
     pub observed_rate: f64,
-    /// `|observed - predicted| / predicted`.
+    /// `|observed - predicted| / predicted` (the absolute difference when the prediction is 0).
     pub relative_difference: f64,
     /// Iterations run (including the propagation of the correction after convergence).
     pub iterations: usize,
@@ -124,7 +126,20 @@ pub fn contraction(
         iterations += 1;
         let dn = norm_w(&d);
         let new_rate = dn / prev;
-        if !new_rate.is_finite() || new_rate == 0.0 {
+        if new_rate == 0.0 {
+            // The correction vanished exactly (e.g. h^2 L underflows): the iterate is the
+            // solution and the observed contraction is 0.
+            if !settled {
+                converged_at = Some(iterations);
+                outcome = Outcome::Converged;
+            }
+            rate = 0.0;
+            break;
+        }
+        if !new_rate.is_finite() {
+            if !settled {
+                outcome = Outcome::NonFinite;
+            }
             break;
         }
         stable = if (new_rate - rate).abs() <= 1e-14 * new_rate {
@@ -174,7 +189,12 @@ pub fn contraction(
         dt: h,
         predicted_spectral_radius: predicted,
         observed_rate: rate,
-        relative_difference: (rate - predicted).abs() / predicted,
+        // Relative to the prediction, or absolute when the prediction is 0.
+        relative_difference: if predicted == 0.0 {
+            (rate - predicted).abs()
+        } else {
+            (rate - predicted).abs() / predicted
+        },
         iterations,
         converged_at,
         rate_stable: stable >= 20,

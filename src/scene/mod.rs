@@ -66,7 +66,7 @@ pub enum SceneError {
         message: String,
     },
     /// A mesh referenced by the scene is invalid.
-    #[error("{0}")]
+    #[error(transparent)]
     Mesh(#[from] mesh::MeshError),
     /// The assembled model is invalid.
     #[error("{path}: invalid input: {source}")]

@@ -209,15 +209,20 @@ impl Ctx<'_> {
             })
             .ok_or_else(|| self.invalid(format!("{where_}: \"{key}\" must be a list of vertex indices")))
     }
+    /// A file the scene names, relative to the paper's data root (the scene's parent
+    /// directory), the scene's own directory, or by its name beside the scene; from any working
+    /// directory (the scene path is made absolute first).
     fn resolve(&self, file: &str) -> Result<PathBuf, SceneError> {
-        let dir = self.path.parent().unwrap_or(Path::new("."));
-        let candidates = [dir.parent().unwrap_or(dir).join(file), dir.join(file)];
-        candidates.iter().find(|p| p.exists()).cloned().ok_or_else(|| {
-            self.invalid(format!(
-                "cannot find \"{file}\" (looked in {} and {})",
-                candidates[0].display(),
-                candidates[1].display()
-            ))
+        let scene = std::path::absolute(self.path).unwrap_or_else(|_| self.path.to_path_buf());
+        let dir = scene.parent().unwrap_or(Path::new("."));
+        let mut candidates = vec![dir.parent().unwrap_or(dir).join(file), dir.join(file)];
+        if let Some(name) = Path::new(file).file_name() {
+            candidates.push(dir.join(name));
+        }
+        candidates.dedup();
+        candidates.iter().find(|p| p.is_file()).cloned().ok_or_else(|| {
+            let looked: Vec<String> = candidates.iter().map(|p| p.display().to_string()).collect();
+            self.invalid(format!("cannot find \"{file}\" (looked in {})", looked.join(", ")))
         })
     }
 }

@@ -10,7 +10,7 @@ use crate::kernel::ProjectionError;
 pub enum SolverError {
     /// Physically meaningless or inconsistent input.
     #[error("invalid input: {0}")]
-    Input(#[from] InputError),
+    Input(InputError),
     /// The chosen iteration diverges at this time step (certified check).
     #[error("time step rejected by certification: {0}")]
     Uncertified(String),
@@ -61,5 +61,13 @@ impl SolverError {
     /// An input error with this message.
     pub(crate) fn input(message: impl Into<String>) -> Self {
         Self::Input(InputError::new(message))
+    }
+}
+
+/// Not `#[from]`: the message already holds the input error's text, and a `source()` would make
+/// error chains (`{:#}`) print it twice.
+impl From<InputError> for SolverError {
+    fn from(e: InputError) -> Self {
+        Self::Input(e)
     }
 }

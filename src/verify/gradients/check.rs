@@ -325,7 +325,7 @@ pub fn checks_table(checks: &[CaseCheck]) -> String {
                 for m in &c.modes {
                     let _ = writeln!(
                         out,
-                        "{:<16} {:<9} {}  worst {} : analytic {:.10e} fd {:.10e} rel {:.1e}",
+                        "{:<16} {:<9} {}  worst {} : analytic {:.10e} fd {:.10e} {}",
                         c.name,
                         format!("{:?}", m.mode).to_lowercase(),
                         match (m.mode, m.passes) {
@@ -336,7 +336,7 @@ pub fn checks_table(checks: &[CaseCheck]) -> String {
                         m.worst.as_deref().unwrap_or("-"),
                         m.worst_analytic.unwrap_or(f64::NAN),
                         m.worst_fd.unwrap_or(f64::NAN),
-                        m.worst_rel_error.unwrap_or(f64::NAN),
+                        deciding_error(m.worst_analytic, m.worst_fd),
                     );
                 }
                 if let Some(e) = &c.implicit_error {
@@ -346,4 +346,19 @@ pub fn checks_table(checks: &[CaseCheck]) -> String {
         }
     }
     out
+}
+
+/// The error that decides `|a - fd| <= atol + rtol |fd|`: the relative error where the
+/// relative term dominates, else the absolute error against `atol` (a relative error of two
+/// values near 0 means nothing).
+pub fn deciding_error(analytic: Option<f64>, fd: Option<f64>) -> String {
+    let (Some(a), Some(fd)) = (analytic, fd) else {
+        return "-".into();
+    };
+    let abs = (a - fd).abs();
+    if RTOL * fd.abs() >= ATOL {
+        format!("rel {:.1e} (rtol {RTOL:.0e})", abs / fd.abs())
+    } else {
+        format!("abs {abs:.1e} (atol {ATOL:.0e}; |fd| too small for a relative error)")
+    }
 }

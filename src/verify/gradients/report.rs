@@ -86,9 +86,9 @@ pub fn study(inp: &Inputs<'_>, out: &Path) -> Result<GradientsReport> {
             c.name,
             if c.passes {
                 format!(
-                    "passes: worst {} rel error {:.1e}",
+                    "passes: worst {} {}",
                     c.modes[0].worst.as_deref().unwrap_or("-"),
-                    c.modes[0].worst_rel_error.unwrap_or(0.0)
+                    super::check::deciding_error(c.modes[0].worst_analytic, c.modes[0].worst_fd)
                 )
             } else {
                 format!(
