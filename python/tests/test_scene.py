@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -124,5 +126,19 @@ def test_divergence_is_runtimeerror(beam):
 
 
 def test_a_run_that_cannot_fit_in_memory_is_refused(beam):
-    with pytest.raises(ValueError, match="do not fit in memory"):
+    with pytest.raises(ValueError, match=r"10+ steps of 20 vertices: needs .* of memory"):
         beam.simulate(10**15)
+
+
+def test_an_unconverged_forward_is_refused_unless_allowed(beam):
+    """A body so stiff the local-global iteration cannot meet its tolerance: its loss and
+    gradient would be those of an unconverged run, so they are refused unless asked for."""
+    stiff = beam.copy()
+    stiff.set("youngs_modulus", 1e20)
+    stiff.configure(tolerance=1e-6, max_iterations=5)
+    with pytest.raises(RuntimeError, match="did not converge"):
+        stiff.grad(10, params=["density"])
+    with pytest.raises(RuntimeError, match="did not converge"):
+        diffsoft.grad_batch(stiff, 10, "final_com.y", ["density"], [{}])
+    loss, grads = stiff.grad(10, params=["density"], allow_unconverged=True)
+    assert math.isfinite(loss) and math.isfinite(grads["density"])
