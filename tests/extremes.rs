@@ -81,7 +81,7 @@ fn fast_subset_has_no_nan_panic_or_unexplained_failure() {
 fn strip(v: &mut serde_json::Value) {
     match v {
         serde_json::Value::Object(m) => {
-            for k in ["wall_s", "wall_time_s", "shards"] {
+            for k in ["wall_s", "wall_time_s", "shards", "provenance"] {
                 m.remove(k);
             }
             m.values_mut().for_each(strip);

@@ -106,7 +106,16 @@ fn errors_are_monotone_in_each_knob() {
 fn strip(v: &mut Value) {
     match v {
         Value::Object(m) => {
-            for k in ["timing", "wall_s", "cpu_s", "wall_time_s", "workers", "shards", "svg"] {
+            for k in [
+                "timing",
+                "wall_s",
+                "cpu_s",
+                "wall_time_s",
+                "workers",
+                "shards",
+                "svg",
+                "provenance",
+            ] {
                 m.remove(k);
             }
             m.values_mut().for_each(strip);
