@@ -283,12 +283,12 @@ struct TradeoffArgs {
     /// Solver families.
     #[arg(long, value_enum, value_delimiter = ',', default_values = ["direct", "split", "chebyshev", "certified"])]
     families: Vec<diffsoft::verify::tradeoff::Family>,
-    /// Iteration caps (tolerance 0); `--caps ''` for none.
-    #[arg(long, value_delimiter = ',', default_values_t = [1, 3, 10, 30, 100])]
-    caps: Vec<usize>,
-    /// Tolerances; `--tolerances ''` for none.
-    #[arg(long, value_delimiter = ',', default_values_t = [1e-2, 1e-4, 1e-6, 1e-8, 1e-10])]
-    tolerances: Vec<f64>,
+    /// Iteration caps (tolerance 0), comma-separated; `--caps ''` for none.
+    #[arg(long, default_value = "1,3,10,30,100")]
+    caps: List<usize>,
+    /// Tolerances, comma-separated; `--tolerances ''` for none.
+    #[arg(long, default_value = "1e-2,1e-4,1e-6,1e-8,1e-10")]
+    tolerances: List<f64>,
     /// Time-step divisors whose settings also get a gradient (default: none).
     #[arg(long, value_delimiter = ',')]
     gradient_dt_divisors: Vec<usize>,
@@ -313,6 +313,25 @@ struct TradeoffArgs {
     /// Write the SVG plots into this directory (default: the JSON's directory).
     #[arg(long)]
     svg_dir: Option<PathBuf>,
+}
+
+/// A comma-separated list given as one value, which may be empty (`--caps ''`: none).
+#[derive(Clone, Debug)]
+struct List<T>(Vec<T>);
+
+impl<T: std::str::FromStr> std::str::FromStr for List<T> {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        s.split(',')
+            .map(str::trim)
+            .filter(|t| !t.is_empty())
+            .map(|t| {
+                t.parse()
+                    .map_err(|_| format!("'{t}' is not a valid entry of the list '{s}'"))
+            })
+            .collect::<Result<_, _>>()
+            .map(List)
+    }
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -707,8 +726,8 @@ fn tradeoff(args: TradeoffArgs) -> Result<()> {
             s.reference_tolerance = reference_tolerance;
             s.reference_anderson = reference_anderson;
             s.families = families;
-            s.caps = caps;
-            s.tolerances = tolerances;
+            s.caps = caps.0;
+            s.tolerances = tolerances.0;
             s.gradient_dt_divisors = gradient_dt_divisors;
             s.loss = loss;
             s.targets = targets;
@@ -743,10 +762,14 @@ fn tradeoff(args: TradeoffArgs) -> Result<()> {
             let plots = tradeoff::write_plots(&mut s, &dir);
             say_raw!("{}", tradeoff::summary(&s));
             let report = tradeoff::TradeoffReport::new(vec![s]);
-            if let Some(path) = json {
-                save(&path, &report, &inputs)?;
+            if let Some(path) = &json {
+                save(path, &report, &inputs)?;
             }
-            plots.context("the report is written, a plot is not")?;
+            plots.context(if json.is_some() {
+                "the report is written, a plot is not"
+            } else {
+                "a plot could not be drawn"
+            })?;
         }
     }
     Ok(())
