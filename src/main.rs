@@ -777,9 +777,12 @@ fn tradeoff(args: TradeoffArgs) -> Result<()> {
 
 #[derive(clap::Args)]
 struct GradArgs {
-    /// Scene file (.json, diffsoft.scene/1 or a paper scene).
-    #[arg(long)]
-    scene: PathBuf,
+    /// Scene file (.json, diffsoft.scene/1 or a paper scene), positional as in `simulate`.
+    #[arg(required_unless_present = "scene_flag", conflicts_with = "scene_flag")]
+    scene: Option<PathBuf>,
+    /// The scene as a flag (the older spelling; same as the positional SCENE).
+    #[arg(long = "scene", value_name = "SCENE", hide = true)]
+    scene_flag: Option<PathBuf>,
     /// Steps to simulate.
     #[arg(long, default_value_t = 100)]
     steps: usize,
@@ -832,8 +835,11 @@ fn store_bytes(mb: f64) -> Result<usize> {
 /// `diffsoft grad`: overrides, one forward and one backward pass, the loss and the derivatives.
 fn grad(a: GradArgs) -> Result<()> {
     use diffsoft::diff::{self, Controls, Options, Param};
-    preflight(a.json.as_deref(), &[&a.scene])?;
-    let mut sc = diffsoft::scene::load(&a.scene, diffsoft::scene::LoadOptions::default())?;
+    let Some(scene) = a.scene.clone().or_else(|| a.scene_flag.clone()) else {
+        bail!("give the scene file: diffsoft grad SCENE --param P");
+    };
+    preflight(a.json.as_deref(), &[&scene])?;
+    let mut sc = diffsoft::scene::load(&scene, diffsoft::scene::LoadOptions::default())?;
     if let Some(s) = a.solver {
         sc.settings.solver = s;
     }
@@ -909,7 +915,7 @@ fn grad(a: GradArgs) -> Result<()> {
         let out = serde_json::json!({
             "schema": "diffsoft.grad/1",
             "crate_version": diffsoft::report::CRATE_VERSION,
-            "scene": a.scene.display().to_string(),
+            "scene": scene.display().to_string(),
             "steps": a.steps,
             "mode": a.mode,
             "loss_name": a.loss,
@@ -918,7 +924,7 @@ fn grad(a: GradArgs) -> Result<()> {
             "gradient": gradient,
             "stats": g.stats,
         });
-        save(path, &out, &[&a.scene])?;
+        save(path, &out, &[&scene])?;
     }
     Ok(())
 }
