@@ -231,8 +231,9 @@ enum Command {
         /// Partial reports (every shard 0/N .. N-1/N once).
         #[arg(required = true)]
         inputs: Vec<PathBuf>,
-        /// The merged report.
-        #[arg(short, long)]
+        /// Write the merged report here (a file, as `--json` everywhere; `-o`/`--out` are
+        /// accepted too).
+        #[arg(long = "json", short = 'o', alias = "out")]
         out: PathBuf,
         /// Trade-off plots go into this directory (default: the output's directory).
         #[arg(long)]
