@@ -1004,8 +1004,7 @@ fn simulate(sc: diffsoft::scene::Scene, steps: usize, out: RunOutput<'_>, activa
     };
     let frame_name = |p: PathBuf| p.file_name().unwrap_or_default().to_string_lossy().into_owned();
     if let Some(f) = frames.as_mut() {
-        log.frames
-            .push(frame_name(f.write(0.0, &sim.state().q, &sim.state().v)?));
+        log.frames.push(frame_name(f.write_state(&sim)?));
     }
     if let Some(d) = run_dir.as_mut() {
         d.write_log(&log)?;
@@ -1045,8 +1044,7 @@ fn simulate(sc: diffsoft::scene::Scene, steps: usize, out: RunOutput<'_>, activa
         bar.inc(1);
         if let Some(f) = frames.as_mut() {
             if (k + 1) % out.every == 0 {
-                log.frames
-                    .push(frame_name(f.write(sim.state().time, &sim.state().q, &sim.state().v)?));
+                log.frames.push(frame_name(f.write_state(&sim)?));
             }
         }
         if let Some(d) = run_dir.as_mut().filter(|d| d.log_due()) {

@@ -174,16 +174,19 @@ fn simulate_writes_vtk_frames_and_a_run_log() {
     for f in ["frame_00000.vtu", "frame_00002.vtu", "frames.pvd"] {
         assert!(dir.join(f).exists(), "{f}");
     }
-    // The frame is a VTK XML unstructured grid with the mesh's points and tets.
-    let vtu = vtkio::Vtk::import(dir.join("frame_00002.vtu")).unwrap();
-    match vtu.data {
-        vtkio::model::DataSet::UnstructuredGrid { pieces, .. } => {
-            let piece = pieces[0].load_piece_data(None).unwrap();
-            assert_eq!(piece.num_points(), 212);
-            assert_eq!(piece.cells.types.len(), 668);
-        }
-        other => panic!("not an unstructured grid: {other:?}"),
-    }
+    // The frame is a VTK XML unstructured grid with the mesh's points and tets (its arrays are
+    // decoded and checked in tests/vtk_frames.rs).
+    let vtu = std::fs::read_to_string(dir.join("frame_00002.vtu")).unwrap();
+    assert!(
+        vtu.contains("<VTKFile type=\"UnstructuredGrid\""),
+        "{}",
+        &vtu[..200.min(vtu.len())]
+    );
+    assert!(
+        vtu.contains("NumberOfPoints=\"212\" NumberOfCells=\"668\""),
+        "{}",
+        &vtu[..400.min(vtu.len())]
+    );
     // Divergence is a clear failure with exit status 1, not a panic.
     let out = Command::new(env!("CARGO_BIN_EXE_diffsoft"))
         .args([

@@ -174,7 +174,7 @@ pub fn gradient_with(
                 .fold(0.0, f64::max);
             g.stats.replay_deviation = g.stats.replay_deviation.max(dev);
             let allowed = 1e-9 * model.length_scale;
-            if !opts.allow_unconverged && !(dev <= allowed) {
+            if !opts.allow_unconverged && (dev.is_nan() || dev > allowed) {
                 return Err(DiffError::NotReplayable {
                     deviation: dev,
                     allowed,

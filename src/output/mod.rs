@@ -1,5 +1,6 @@
-//! Simulation output: VTK frames that ParaView reads (vtkio) with a `.pvd` time collection, the
-//! JSON run log, and atomic file writes (never a half-written file).
+//! Simulation output: VTK XML frames that ParaView reads (written here, no VTK library) with a
+//! `.pvd` time collection, the JSON run log, the run's output directory, and atomic file
+//! writes (never a half-written file).
 
 mod file;
 mod run_dir;

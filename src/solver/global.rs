@@ -62,6 +62,13 @@ pub(crate) trait GlobalSolver: Send {
     fn impulses(&self) -> Option<&[Vector3<f64>]> {
         None
     }
+
+    /// The contact impulses of the last solve for output (VTK frames): those of
+    /// [`GlobalSolver::impulses`], or the last projection's of a solver that keeps none for
+    /// the backward pass.
+    fn contact_impulses(&self) -> Option<&[Vector3<f64>]> {
+        self.impulses()
+    }
 }
 
 /// Tolerances of the inner iterations.

@@ -48,6 +48,15 @@ impl GlobalStep {
             GlobalStep::Skeletal { direct, .. } => direct.impulses(),
         }
     }
+
+    /// The contact impulses of the last solve for output (see
+    /// [`GlobalSolver::contact_impulses`]).
+    pub(crate) fn contact_impulses(&self) -> Option<&[Vector3<f64>]> {
+        match self {
+            GlobalStep::Free(s) => s.contact_impulses(),
+            GlobalStep::Skeletal { direct, .. } => direct.contact_impulses(),
+        }
+    }
 }
 
 /// Per-step buffers of the iterations (full numbering unless noted).

@@ -30,6 +30,9 @@ pub(crate) struct Stationary {
     lx: Vec<Vector3<f64>>,
     x_hat: Vec<Vector3<f64>>,
     x_prev: Vec<Vector3<f64>>,
+    /// Each contact's impulse at the last projection (for output only: the backward pass
+    /// treats these solvers as keeping none).
+    lambda: Vec<Vector3<f64>>,
 }
 
 impl Stationary {
@@ -63,6 +66,7 @@ impl Stationary {
             lx: vec![Vector3::zeros(); n],
             x_hat: vec![Vector3::zeros(); n],
             x_prev: vec![Vector3::zeros(); n],
+            lambda: Vec::new(),
         }
     }
 }
@@ -70,6 +74,10 @@ impl Stationary {
 impl GlobalSolver for Stationary {
     fn kind(&self) -> SolverKind {
         self.kind
+    }
+
+    fn contact_impulses(&self) -> Option<&[Vector3<f64>]> {
+        Some(&self.lambda)
     }
 
     fn solve(
@@ -88,6 +96,9 @@ impl GlobalSolver for Stationary {
         };
         let rho = if with_contacts { None } else { self.chebyshev_rho };
         self.x_prev.copy_from_slice(x);
+        // Grows to the largest contact count seen, then reuses its capacity.
+        self.lambda.clear();
+        self.lambda.resize(contacts.len(), Vector3::zeros());
         let mut omega = 1.0;
         let mut stats = GlobalStats::default();
         let mut first_update = f64::NAN;
@@ -96,10 +107,11 @@ impl GlobalSolver for Stationary {
             for i in 0..n {
                 self.x_hat[i] = (b[i] - self.lx[i] + x[i] * self.shift[i]) / self.w[i];
             }
-            for c in contacts {
+            for (c, kept) in contacts.iter().zip(self.lambda.iter_mut()) {
                 let i = c.index;
                 let (lambda, _) = project(&self.x_hat[i], self.w[i], &c.contact);
                 self.x_hat[i] += lambda / self.w[i];
+                *kept = lambda;
             }
             // Chebyshev weights (Wang 2015): omega_1 = 1, omega_2 = 2/(2 - rho^2),
             // omega_{k+1} = 4/(4 - rho^2 omega_k).
