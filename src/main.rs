@@ -374,7 +374,18 @@ impl MeshArgs {
                 min_quality: self.min_tet_quality,
             },
         )?;
-        Ok((loaded.mesh.scaled(self.scale), loaded.info))
+        let mesh = loaded.mesh.scaled(self.scale);
+        // Volumes go like the cube of the coordinates: they must neither overflow nor vanish.
+        let reach = mesh.vertices.iter().map(|v| v.amax()).fold(0.0, f64::max);
+        let cube = reach.powi(3);
+        if !(cube.is_finite() && cube > f64::MIN_POSITIVE) {
+            bail!(
+                "--scale {:e}: coordinates up to {reach:e} make tet volumes {} f64's range",
+                self.scale,
+                if cube.is_finite() { "fall below" } else { "overflow" }
+            );
+        }
+        Ok((mesh, loaded.info))
     }
 }
 
@@ -388,6 +399,16 @@ fn main() {
     JSON_ON_STDOUT.store(stdout_json, std::sync::atomic::Ordering::Relaxed);
     // The whole command runs on a worker of the pool, so parallel sections fork from a worker
     // (cheap) instead of being injected from an outside thread that then sleeps.
+    // A thread count far beyond the machine only costs memory and start-up time.
+    const MAX_THREADS: usize = 4096;
+    if cli.threads.is_some_and(|t| t > MAX_THREADS) {
+        eprintln!(
+            "error: --threads {}: at most {MAX_THREADS} (this machine has {})",
+            cli.threads.unwrap_or(0),
+            std::thread::available_parallelism().map_or(1, |n| n.get())
+        );
+        std::process::exit(2);
+    }
     let pool = match rayon::ThreadPoolBuilder::new()
         .num_threads(cli.threads.unwrap_or(0))
         .build()
@@ -441,6 +462,8 @@ fn run(command: Command) -> Result<()> {
         } => {
             preflight(json.as_deref(), &[&input.mesh])?;
             preflight(svg.as_deref(), &[&input.mesh])?;
+            // Each point holds its spectral radii, critical steps and verdicts.
+            diffsoft::base::memory::check(&format!("--points {points}"), points, 1024)?;
             let (mesh, info) = input.load()?;
             let sys = IterationSystem::new(&mesh, input.rho, input.mu, &Attachments::default())?;
             let spectrum = Spectrum::compute(&sys, input.method)?;
@@ -559,6 +582,8 @@ fn run(command: Command) -> Result<()> {
         Command::Gradcheck { steps, json } => {
             use verify::gradients;
             preflight(Some(&json), &[])?;
+            // The largest case keeps about 1000 vertices' positions and velocities per step.
+            diffsoft::base::memory::check(&format!("--steps {steps}"), steps, 64 * 1024)?;
             let data = find_data(Path::new("verification"))?;
             let cases = gradients::builtin_cases(&gradients::CaseScenes::under(&data), steps)?;
             let checks = gradients::check_all(&cases, 2021);
@@ -589,6 +614,8 @@ fn run(command: Command) -> Result<()> {
                 .collect::<Result<_>>()?;
             let inputs: Vec<&Path> = scenes.iter().map(|(p, _)| p.as_path()).collect();
             preflight(json.as_deref(), &inputs)?;
+            // The study keeps a probe of every step (penetration, distances, stretch).
+            diffsoft::base::memory::check(&format!("--steps {steps}"), steps, 4096)?;
             let r = cloth::study(&scenes, &sizes, &out)?;
             say_raw!("{}", cloth::table(&r));
             if let Some(path) = json {
@@ -697,6 +724,15 @@ fn tradeoff(args: TradeoffArgs) -> Result<()> {
     let input_paths: Vec<PathBuf> = spec.iter().chain(scene.iter()).cloned().collect();
     let inputs: Vec<&Path> = input_paths.iter().map(PathBuf::as_path).collect();
     preflight(json.as_deref(), &inputs)?;
+    // The reference runs take `steps x reference_divisor` steps and keep their states.
+    let reference_steps = steps
+        .checked_mul(reference_divisor)
+        .with_context(|| format!("--steps {steps} x --reference-divisor {reference_divisor} overflows"))?;
+    diffsoft::base::memory::check(
+        &format!("--steps {steps} at h/{reference_divisor}"),
+        reference_steps,
+        1024,
+    )?;
     let (spec, base) = match (spec, scene, cantilever) {
         (Some(path), None, None) => {
             let text = std::fs::read_to_string(&path).with_context(|| format!("cannot read {}", path.display()))?;

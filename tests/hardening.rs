@@ -322,3 +322,76 @@ fn sizes_a_user_types_are_checked_before_allocating() {
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     assert!(stderr(&o).contains("4000000000"), "{}", stderr(&o));
 }
+
+#[test]
+fn counts_and_scales_beyond_reason_are_errors_naming_the_flag() {
+    let dir = tmp_dir("hard-flags");
+    let mesh = root().join("python/tests/data/beam.obj");
+    let m = mesh.to_str().unwrap();
+    let max = u64::MAX.to_string();
+    let cases: Vec<(Vec<&str>, &str)> = vec![
+        (
+            vec!["sweep", "--mesh", m, "--rho", "1000", "--mu", "1e5", "--points", &max],
+            "--points",
+        ),
+        (
+            vec![
+                "sweep",
+                "--mesh",
+                m,
+                "--rho",
+                "1000",
+                "--mu",
+                "1e5",
+                "--points",
+                "100000000000",
+            ],
+            "--points",
+        ),
+        (
+            vec!["gradcheck", "--steps", &max, "--json", "/tmp/diffsoft-never.json"],
+            "--steps",
+        ),
+        (vec!["tradeoff", "--cantilever", "4,1,1", "--steps", &max], "--steps"),
+        (
+            vec!["tradeoff", "--cantilever", "4,1,1", "--steps", "1000000000000"],
+            "--steps",
+        ),
+        (
+            vec![
+                "bounds", "--mesh", m, "--rho", "1000", "--mu", "1e5", "--dt", "0.01", "--scale", "1e300",
+            ],
+            "--scale",
+        ),
+        (
+            vec![
+                "bounds", "--mesh", m, "--rho", "1000", "--mu", "1e5", "--dt", "0.01", "--scale", "1e-300",
+            ],
+            "--scale",
+        ),
+    ];
+    for (args, flag) in cases {
+        let o = diffsoft(&args);
+        assert_eq!(o.status.code(), Some(1), "{args:?}: {}", stderr(&o));
+        assert!(
+            stderr(&o).contains(flag) && !stderr(&o).contains("panicked"),
+            "{args:?}: {}",
+            stderr(&o)
+        );
+    }
+    let o = diffsoft(&["--threads", "100000", "quality", "--mesh", m]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("--threads"), "{}", stderr(&o));
+    let out = dir.join("huge.obj");
+    let o = diffsoft(&[
+        "generate",
+        "--cells",
+        "1,1,1",
+        "--size",
+        "1e308,1e308,1e308",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("overflows"), "not 'degenerate': {}", stderr(&o));
+}

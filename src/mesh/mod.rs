@@ -205,6 +205,16 @@ impl TetMesh {
         for (t, tet) in raw.tets.iter().enumerate() {
             let mut tet = tet.map(|i| new_index[i]);
             let (volume, quality) = volume_and_quality(&vertices, &tet);
+            if !volume.is_finite() {
+                // Coordinates near f64's range: the volume overflows, the tet is not degenerate.
+                let reach = tet.iter().map(|&i| vertices[i].amax()).fold(0.0, f64::max);
+                return Err(err_at(
+                    t,
+                    MeshErrorKind::TooLarge(format!(
+                        "tet {t}: its volume overflows f64 (coordinates up to {reach:e}); scale the mesh down"
+                    )),
+                ));
+            }
             if quality.is_nan() || quality < opts.min_quality {
                 return Err(err_at(
                     t,
