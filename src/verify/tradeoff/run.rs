@@ -465,9 +465,13 @@ pub fn write_plots(s: &mut super::SceneTradeoff, dir: &Path) -> Result<(), Trade
 pub fn suite_section(base: &Path, out: &Path, specs: &[TradeoffSpec]) -> Result<super::TradeoffReport, TradeoffError> {
     let workers = rayon::current_num_threads();
     let mut scenes = Vec::new();
+    // Data before plots: a plot that cannot be drawn is reported after the report is written.
+    let mut plots = Ok(());
     for spec in specs {
         let mut s = run_scene(spec, base, workers, true)?;
-        write_plots(&mut s, out)?;
+        if let Err(e) = write_plots(&mut s, out) {
+            plots = plots.and(Err(e));
+        }
         print!("{}", super::summary(&s));
         scenes.push(s);
     }
@@ -476,5 +480,6 @@ pub fn suite_section(base: &Path, out: &Path, specs: &[TradeoffSpec]) -> Result<
         name: "tradeoff".into(),
         message: e.to_string(),
     })?;
+    plots?;
     Ok(report)
 }
