@@ -698,7 +698,10 @@ pub fn run_suite(suite_path: &Path, out: &Path) -> Result<SuiteBoundsReport> {
     let path = out.join("bounds.json");
     write_json(&path, &report)?;
     plot::write_svg(&out.join("t_scaling.svg"), &t_scaling_chart(&report.t_scaling))?;
-    print!("{}", summary::table(&report));
+    let table = summary::table(&report);
+    // The table as printed, for the documentation that quotes it (tests/doc_numbers.rs).
+    crate::output::write_atomic(&out.join("bounds_table.txt"), table.as_bytes())?;
+    print!("{table}");
     println!("\nJacobian checks of the skeleton:");
     let jac = jacobians::run(2021);
     write_json(out.join("jacobians.json"), &jac)?;
