@@ -67,7 +67,7 @@ enum Command {
         /// Also run both iterations and compare observed and predicted contraction.
         #[arg(long)]
         empirical: bool,
-        /// Write the JSON report here.
+        /// Write the JSON report here (`-`: standard output).
         #[arg(long)]
         json: Option<PathBuf>,
     },
@@ -88,7 +88,7 @@ enum Command {
         /// Mark this time step on the plot (e.g. the scene's).
         #[arg(long)]
         mark_dt: Option<f64>,
-        /// Write the JSON here.
+        /// Write the JSON here (`-`: standard output).
         #[arg(long)]
         json: Option<PathBuf>,
         /// Write the SVG plot here.
@@ -100,7 +100,7 @@ enum Command {
         /// Mesh file (.obj with t lines, .node/.ele, .msh).
         #[arg(long)]
         mesh: PathBuf,
-        /// Write the JSON report here.
+        /// Write the JSON report here (`-`: standard output).
         #[arg(long)]
         json: Option<PathBuf>,
     },
@@ -176,7 +176,7 @@ enum Command {
         /// Steps per case.
         #[arg(long, default_value_t = 20)]
         steps: usize,
-        /// Write the JSON report here.
+        /// Write the JSON report here (`-`: standard output).
         #[arg(long, default_value = "reports/gradcheck.json")]
         json: PathBuf,
     },
@@ -185,7 +185,7 @@ enum Command {
         /// Seed of the random configurations.
         #[arg(long, default_value_t = 2021)]
         seed: u64,
-        /// Write the JSON report here.
+        /// Write the JSON report here (`-`: standard output).
         #[arg(long)]
         json: Option<PathBuf>,
     },
@@ -202,7 +202,7 @@ enum Command {
         /// Run only shard K of N (0 <= K < N): writes a partial report for `diffsoft merge`.
         #[arg(long, value_name = "K/N")]
         shard: Option<diffsoft::verify::shard::Shard>,
-        /// Write the JSON report (or the shard's partial report) here.
+        /// Write the JSON report (or the shard's partial report) here (`-`: standard output).
         #[arg(long)]
         json: Option<PathBuf>,
     },
@@ -222,7 +222,7 @@ enum Command {
         /// Directory for the plots and VTK frames.
         #[arg(long, default_value = "out/cloth")]
         out: PathBuf,
-        /// Write the JSON report here.
+        /// Write the JSON report here (`-`: standard output).
         #[arg(long)]
         json: Option<PathBuf>,
     },
@@ -308,7 +308,7 @@ struct TradeoffArgs {
     /// Run only shard K of N (0 <= K < N): writes a partial report for `diffsoft merge`.
     #[arg(long, value_name = "K/N")]
     shard: Option<diffsoft::verify::shard::Shard>,
-    /// Write the JSON report (or the shard's partial report) here.
+    /// Write the JSON report (or the shard's partial report) here (`-`: standard output).
     #[arg(long)]
     json: Option<PathBuf>,
     /// Write the SVG plots into this directory (default: the JSON's directory).
@@ -848,7 +848,7 @@ struct GradArgs {
     /// Override the Anderson memory (unrolled mode differentiates plain iterations: 0).
     #[arg(long)]
     anderson: Option<usize>,
-    /// Write `{loss, gradient}` as JSON here.
+    /// Write `{loss, gradient}` as JSON here (`-`: standard output).
     #[arg(long)]
     json: Option<PathBuf>,
     /// Unrolled mode: keep whole steps' recordings from the forward pass up to this many MB
