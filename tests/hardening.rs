@@ -95,9 +95,8 @@ fn an_unconverged_forward_is_an_error_unless_allowed() {
     assert!(matches!(e, DiffError::NotReplayable { .. }), "{e}");
 
     let s = scene.to_str().unwrap();
-    let o = diffsoft(&[
+    let stiff = [
         "grad",
-        "--scene",
         s,
         "--steps",
         "10",
@@ -105,7 +104,8 @@ fn an_unconverged_forward_is_an_error_unless_allowed() {
         "density",
         "--set",
         "youngs_modulus=1e20",
-    ]);
+    ];
+    let o = diffsoft(&stiff);
     assert_eq!(o.status.code(), Some(1), "{}", stdout(&o));
     assert!(
         stderr(&o).contains("did not converge") && stderr(&o).contains("--allow-unconverged"),
@@ -113,18 +113,7 @@ fn an_unconverged_forward_is_an_error_unless_allowed() {
         stderr(&o)
     );
     assert!(!stdout(&o).contains("d loss"), "no gradient is printed: {}", stdout(&o));
-    let o = diffsoft(&[
-        "grad",
-        "--scene",
-        s,
-        "--steps",
-        "10",
-        "--param",
-        "density",
-        "--set",
-        "youngs_modulus=1e20",
-        "--allow-unconverged",
-    ]);
+    let o = diffsoft(&[&stiff[..], &["--allow-unconverged"]].concat());
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(
         stdout(&o).contains("warning: ") && stdout(&o).contains("did not converge"),
