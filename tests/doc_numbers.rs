@@ -29,14 +29,20 @@ fn lookup(v: &Value, path: &str) -> Result<f64, String> {
             None => (*seg, None),
         };
         if !key.is_empty() {
-            cur = cur.get(key).cloned().ok_or_else(|| format!("no key '{key}' at '{seg}'"))?;
+            cur = cur
+                .get(key)
+                .cloned()
+                .ok_or_else(|| format!("no key '{key}' at '{seg}'"))?;
         }
         match sel {
             None => {}
             Some(s) => match s.split_once('=') {
                 None => {
                     let i: usize = s.parse().map_err(|_| format!("bad index '{s}'"))?;
-                    cur = cur.get(i).cloned().ok_or_else(|| format!("no element {i} at '{seg}'"))?;
+                    cur = cur
+                        .get(i)
+                        .cloned()
+                        .ok_or_else(|| format!("no element {i} at '{seg}'"))?;
                 }
                 Some((field, want)) => {
                     let arr = cur.as_array().ok_or_else(|| format!("'{seg}' is not an array"))?;
@@ -115,7 +121,12 @@ fn markers(doc: &str) -> Vec<(usize, String, String, String)> {
             let body = rest[i + 6..end - 3].trim();
             if let Some((file, path)) = body.split_once(':') {
                 if file != "file" {
-                    out.push((n + 1, number.trim_start_matches(['e', 'E']).to_string(), file.into(), path.into()));
+                    out.push((
+                        n + 1,
+                        number.trim_start_matches(['e', 'E']).to_string(),
+                        file.into(),
+                        path.into(),
+                    ));
                 }
             }
             offset += end;
@@ -165,7 +176,12 @@ fn quoted_numbers_match_the_committed_reports() {
         }
     }
     assert!(checked >= 10, "only {checked} quoted numbers are marked");
-    assert!(failures.is_empty(), "{} quoted numbers drifted:\n{}", failures.len(), failures.join("\n"));
+    assert!(
+        failures.is_empty(),
+        "{} quoted numbers drifted:\n{}",
+        failures.len(),
+        failures.join("\n")
+    );
 }
 
 #[test]
@@ -176,15 +192,34 @@ fn quoted_tables_match_the_tables_the_main_job_writes() {
         let text = std::fs::read_to_string(&doc).unwrap();
         let lines: Vec<&str> = text.lines().collect();
         for (i, line) in lines.iter().enumerate() {
-            let Some(name) = line.trim().strip_prefix("<!-- @file:").and_then(|r| r.strip_suffix("-->")) else {
+            let Some(name) = line
+                .trim()
+                .strip_prefix("<!-- @file:")
+                .and_then(|r| r.strip_suffix("-->"))
+            else {
                 continue;
             };
             let name = name.trim();
-            assert!(lines.get(i + 1).is_some_and(|l| l.starts_with("```")), "{}:{}: a fenced block follows", doc.display(), i + 1);
-            let block: Vec<&str> = lines[i + 2..].iter().take_while(|l| !l.starts_with("```")).copied().collect();
+            assert!(
+                lines.get(i + 1).is_some_and(|l| l.starts_with("```")),
+                "{}:{}: a fenced block follows",
+                doc.display(),
+                i + 1
+            );
+            let block: Vec<&str> = lines[i + 2..]
+                .iter()
+                .take_while(|l| !l.starts_with("```"))
+                .copied()
+                .collect();
             let table = std::fs::read_to_string(root.join("reports").join(name)).unwrap();
             let want: Vec<&str> = table.lines().collect();
-            assert_eq!(block, want, "{}:{}: the block differs from reports/{name}", doc.display(), i + 1);
+            assert_eq!(
+                block,
+                want,
+                "{}:{}: the block differs from reports/{name}",
+                doc.display(),
+                i + 1
+            );
             checked += 1;
         }
     }
