@@ -239,6 +239,12 @@ enum Command {
         #[arg(long)]
         svg_dir: Option<PathBuf>,
     },
+    /// Write the JSON Schemas of every report, the run log, the scene format and the suite file.
+    Schemas {
+        /// Output directory (one `<name>.schema.json` per schema).
+        #[arg(long, default_value = "schemas")]
+        out: PathBuf,
+    },
     /// The main job: run the verification suite and write reports/.
     Verify {
         /// Suite definition.
@@ -579,6 +585,13 @@ fn run(command: Command) -> Result<()> {
             }
         }
         Command::Grad(a) => grad(a)?,
+        Command::Schemas { out } => {
+            let all = verify::schemas();
+            for (file, schema) in &all {
+                write_json(out.join(file), schema)?;
+            }
+            say!("wrote {} schemas in {}", all.len(), out.display());
+        }
         Command::Gradcheck { steps, json } => {
             use verify::gradients;
             preflight(Some(&json), &[])?;
@@ -588,13 +601,9 @@ fn run(command: Command) -> Result<()> {
             let cases = gradients::builtin_cases(&gradients::CaseScenes::under(&data), steps)?;
             let checks = gradients::check_all(&cases, 2021);
             say_raw!("{}", gradients::checks_table(&checks));
-            let failed = checks.iter().filter(|c| !c.passes).count();
-            save(&json, &checks, &[])?;
-            say!(
-                "{} of {} cases pass in unrolled mode",
-                checks.len() - failed,
-                checks.len()
-            );
+            let (failed, total) = (checks.iter().filter(|c| !c.passes).count(), checks.len());
+            save(&json, &gradients::GradcheckReport::new(checks), &[])?;
+            say!("{} of {total} cases pass in unrolled mode", total - failed);
             if failed > 0 {
                 bail!("{failed} gradient check case(s) failed");
             }
@@ -920,8 +929,8 @@ fn grad(a: GradArgs) -> Result<()> {
         }
         e => e.into(),
     })?;
-    let mut gradient = serde_json::Map::new();
-    let mut values = serde_json::Map::new();
+    let mut gradient = std::collections::BTreeMap::new();
+    let mut values = std::collections::BTreeMap::new();
     say!("loss {} = {:.17e}", a.loss, g.loss);
     for p in &params {
         let d = p.derivative(&sc.model, &g);
@@ -929,9 +938,9 @@ fn grad(a: GradArgs) -> Result<()> {
             "d loss / d {p} = {d:.17e}   (at {p} = {})",
             p.get(&sc.model).map_or("-".into(), |v| v.to_string())
         );
-        gradient.insert(p.to_string(), d.into());
+        gradient.insert(p.to_string(), d);
         if let Ok(v) = p.get(&sc.model) {
-            values.insert(p.to_string(), v.into());
+            values.insert(p.to_string(), v);
         }
     }
     say!(
@@ -949,18 +958,17 @@ fn grad(a: GradArgs) -> Result<()> {
         );
     }
     if let Some(path) = &a.json {
-        let out = serde_json::json!({
-            "schema": "diffsoft.grad/1",
-            "crate_version": diffsoft::report::CRATE_VERSION,
-            "scene": scene.display().to_string(),
-            "steps": a.steps,
-            "mode": a.mode,
-            "loss_name": a.loss,
-            "loss": g.loss,
-            "parameters": values,
-            "gradient": gradient,
-            "stats": g.stats,
-        });
+        let out = diffsoft::output::GradReport {
+            header: diffsoft::report::Header::new(diffsoft::output::GRAD_SCHEMA),
+            scene: scene.display().to_string(),
+            steps: a.steps,
+            mode: a.mode,
+            loss_name: a.loss.clone(),
+            loss: g.loss,
+            parameters: values,
+            gradient,
+            stats: g.stats,
+        };
         save(path, &out, &[&scene])?;
     }
     Ok(())
@@ -994,15 +1002,15 @@ fn simulate(sc: diffsoft::scene::Scene, steps: usize, out: RunOutput<'_>, activa
         Some(dir) => Some(RunDir::prepare(dir, &[sc.path.as_path()], out.overwrite)?),
         None => None,
     };
-    let model_size = (sc.model.n(), sc.model.tets().len());
+    let model_size = diffsoft::report::ModelSize::of(&sc.model);
     let bodies = sc.model.bodies().to_vec();
     let cloth = sc.model.cloth().map_or(Vec::new(), |c| c.bodies.clone());
     say!(
         "scene       {} ({:?}): {} vertices, {} tets, {} bodies{}",
         sc.path.display(),
         sc.format,
-        model_size.0,
-        model_size.1,
+        model_size.vertices,
+        model_size.tets,
         bodies.len(),
         if cloth.is_empty() {
             String::new()

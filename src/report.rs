@@ -8,7 +8,7 @@ use std::path::Path;
 pub const CRATE_VERSION: &str = env!("CARGO_PKG_VERSION");
 
 /// First fields of every report.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct Header {
     /// Schema name and version, e.g. `diffsoft.bounds/1`.
     pub schema: String,
@@ -31,7 +31,7 @@ impl Header {
 
 /// Where and how a report was made: the code (crate version, git commit), the compiler, the
 /// machine (CPU model, worker threads, OS) and the time, so timings in it can be compared.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct Provenance {
     /// `git rev-parse HEAD` of the working directory's repository when the report was written,
     /// with `-dirty` if it had uncommitted changes (`null` outside a git checkout).
@@ -116,16 +116,37 @@ fn utc_date(secs: u64) -> String {
     )
 }
 
+/// Size of a simulated model in the global numbering.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, schemars::JsonSchema)]
+pub struct ModelSize {
+    /// Vertices (every body and cloth).
+    pub vertices: usize,
+    /// Tets (every soft body).
+    pub tets: usize,
+}
+
+impl ModelSize {
+    /// The size of `model`.
+    pub fn of(model: &crate::model::Model) -> Self {
+        Self {
+            vertices: model.n(),
+            tets: model.tets().len(),
+        }
+    }
+}
+
 /// A claim checked against a measurement.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct Verdict {
     /// The claim, in words, with its source (paper equation or appendix).
     pub claim: String,
     /// Whether the claim holds on this input.
     pub holds: bool,
-    /// The measured value the verdict rests on.
+    /// The measured value the verdict rests on (its unit is in `claim` or `comparison`; 1 when none
+    /// is named).
     pub measured: Option<f64>,
-    /// The value it is compared with (`null` when the claim is not a comparison).
+    /// The value it is compared with, in the unit of `measured` (`null` when the claim is not a
+    /// comparison).
     pub threshold: Option<f64>,
     /// How the comparison reads, e.g. `measured <= threshold`.
     pub comparison: String,

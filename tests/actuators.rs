@@ -253,8 +253,8 @@ fn the_drone_closes_and_the_octopus_moves_one_tentacle() {
     let dir = tmp_dir("actuated-paper-scenes");
     let v = root().join("verification/paper");
     let d = drone(&v.join("droneman/droneman.json"), 1.5, 40, &dir.join("drone")).unwrap();
-    let r0 = d.series[0].1;
-    let closest = d.series.iter().map(|p| p.1).fold(f64::INFINITY, f64::min);
+    let r0 = d.series[0].value;
+    let closest = d.series.iter().map(|p| p.value).fold(f64::INFINITY, f64::min);
     assert!(closest < 0.9 * r0, "tips from {r0} to at best {closest}");
     assert!(dir.join("drone/frames.pvd").exists());
     let o = octopus(
@@ -265,7 +265,7 @@ fn the_drone_closes_and_the_octopus_moves_one_tentacle() {
         &dir.join("octopus"),
     )
     .unwrap();
-    let tip = o.series.iter().map(|p| p.1).fold(0.0, f64::max);
-    let others = o.control.iter().map(|p| p.1).fold(0.0, f64::max);
+    let tip = o.series.iter().map(|p| p.value).fold(0.0, f64::max);
+    let others = o.control.iter().map(|p| p.value).fold(0.0, f64::max);
     assert!(tip > 0.1 && tip > 3.0 * others, "driven tip {tip}, others {others}");
 }

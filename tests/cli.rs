@@ -219,7 +219,7 @@ fn jacobians_writes_its_report_with_every_check_passing() {
     let o = diffsoft(&["jacobians", "--seed", "7", "--json", out.to_str().unwrap()]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let r: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
-    assert_eq!(r["schema"], "diffsoft.jacobians/2");
+    assert_eq!(r["schema"], "diffsoft.jacobians/3");
     assert_eq!(r["seed"], 7);
     let checks = r["checks"].as_array().unwrap();
     assert!(checks.len() >= 30, "{} checks", checks.len());

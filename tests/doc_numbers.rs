@@ -48,7 +48,8 @@ fn lookup(v: &Value, path: &str) -> Result<f64, String> {
                     let arr = cur.as_array().ok_or_else(|| format!("'{seg}' is not an array"))?;
                     let matches = |e: &&Value| match e.get(field) {
                         Some(Value::String(x)) => x == want,
-                        Some(x) => x.to_string() == want,
+                        // Numbers and booleans compare in their JSON spelling (`3`, `true`).
+                        Some(x) => serde_json::to_string(x).is_ok_and(|shown| shown == want),
                         None => false,
                     };
                     if last && count {

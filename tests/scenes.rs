@@ -167,7 +167,7 @@ fn simulate_writes_vtk_frames_and_a_run_log() {
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(stdout.contains("falling back to the direct solver"), "{stdout}");
     let log: Value = serde_json::from_str(&std::fs::read_to_string(dir.join("run.json")).unwrap()).unwrap();
-    assert_eq!(log["schema"], "diffsoft.run/1");
+    assert_eq!(log["schema"], "diffsoft.run/2");
     assert_eq!(log["steps"].as_array().unwrap().len(), 6);
     assert_eq!(log["certificate"]["used"], "direct");
     assert_eq!(log["frames"].as_array().unwrap().len(), 3);

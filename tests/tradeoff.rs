@@ -225,7 +225,7 @@ fn cli_shards_and_merge() {
     let read = |f: &str| -> Value { serde_json::from_str(&std::fs::read_to_string(dir.join(f)).unwrap()).unwrap() };
     let (mut w, mut m) = (read("whole.json"), read("merged.json"));
     assert_eq!(w["schema"], "diffsoft.tradeoff/1");
-    assert_eq!(read("a.json")["schema"], "diffsoft.tradeoff.partial/1");
+    assert_eq!(read("a.json")["schema"], "diffsoft.tradeoff_partial/1");
     assert!(dir.join("tradeoff_cantilever_24.svg").exists());
     strip(&mut w);
     strip(&mut m);

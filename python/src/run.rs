@@ -29,7 +29,7 @@ impl Run {
     pub fn new(py: Python<'_>, r: Rollout, settings: &Settings) -> PyResult<Self> {
         let (states, n) = (r.times.len(), r.n);
         let stats = serde_json::json!({
-            "schema": "diffsoft.run/1",
+            "schema": diffsoft::output::RUN_SCHEMA,
             "crate_version": diffsoft::report::CRATE_VERSION,
             "vertices": n,
             "settings": settings,

@@ -23,7 +23,7 @@ def test_simulate_shapes_and_initial_state(beam):
     assert run.velocities.shape == (6, 20, 3)
     np.testing.assert_array_equal(run.positions[0], beam.get("initial_positions"))
     np.testing.assert_allclose(run.times, np.arange(6) * beam.dt, rtol=1e-12)
-    assert run.stats["schema"] == "diffsoft.run/1"
+    assert run.stats["schema"] == "diffsoft.run/2"
     assert len(run.stats["steps"]) == 5 and run.stats["summary"]["steps"] == 5
     # The beam moves upwards (initial velocity 0.5 m/s) against gravity.
     assert run.positions[1, :, 1].mean() > run.positions[0, :, 1].mean()

@@ -30,52 +30,52 @@ use crate::report::Verdict;
 const EQ28_CONST: f64 = 41.569_219_381_653_05;
 
 /// One closed-form time-step bound compared with the exact critical step of (19).
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct BoundValue {
     /// The bound's formula.
     pub formula: &'static str,
     /// Units of the value the formula produces.
     pub units: &'static str,
-    /// The bound on `h` (seconds if the formula is dimensionally consistent).
+    /// The bound on `h` (s when the formula is dimensionally consistent; otherwise in `units`).
     pub dt: f64,
-    /// `dt / h*_19`: below 1 is safe; how far below says how conservative it is.
+    /// `dt / h*_19` (1): below 1 is safe; how far below says how conservative it is.
     pub ratio_to_exact: f64,
     /// `dt <= h*_19`: the bound guarantees convergence of (19) on this mesh.
     pub safe: bool,
-    /// Measured `d log(dt) / d log(length)` when the mesh is scaled by 2 (the exact critical
-    /// step has exponent +1; any bound in seconds must too).
+    /// Measured `d log(dt) / d log(length)` when the mesh is scaled by 2 (1; the exact critical
+    /// step has exponent +1, and any bound in seconds must too).
     pub length_scaling_exponent: f64,
 }
 
 /// The appendix's own numerical example (T ~ 1000, mu ~ 3e5, edge ~ 1e-2, rho ~ 1).
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct PaperArithmetic {
-    /// Number of tets `T`.
+    /// Number of tets `T` (as printed in the appendix).
     pub tets: f64,
-    /// Stiffness `mu`.
+    /// Stiffness `mu` (Pa).
     pub mu: f64,
-    /// Edge length `|q_k - q_0|`.
+    /// Edge length `|q_k - q_0|` (m).
     pub edge: f64,
-    /// Density `rho`.
+    /// Density `rho` (kg/m^3).
     pub rho: f64,
-    /// `1 / h` from Eq. 29 with these values; the appendix prints 1934.
+    /// `1 / h` from Eq. 29 with these values (1/s as printed); the appendix prints 1934.
     pub eq29_inverse_dt: f64,
     /// `|eq29_inverse_dt - 1934| < 1`.
     pub reproduced: bool,
-    /// Exact `h*_19` of a single regular tet with this edge, rho and mu.
+    /// Exact `h*_19` of a single regular tet with this edge, rho and mu (s).
     pub exact_dt_regular_tet: f64,
-    /// Exact `h*_19` of a structured (Kuhn) box with about T tets of mean edge ~ `edge`.
+    /// Exact `h*_19` of a structured (Kuhn) box with about T tets of mean edge ~ `edge` (s).
     pub exact_dt_box: f64,
     /// Tets in that box.
     pub box_tets: usize,
-    /// `(1/1934) / exact_dt_box`: how many times too large the printed step is.
+    /// `(1/1934) / exact_dt_box` (1): how many times too large the printed step is.
     pub printed_over_exact: f64,
 }
 
 /// Appendix A on one mesh.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct AppendixA {
-    /// Exact `h*_19` of the analysed system.
+    /// Exact `h*_19` of the analysed system (s).
     pub exact_critical_dt: f64,
     /// Whether attachment springs are in `L` (the closed-form bounds ignore them).
     pub includes_attachments: bool,
@@ -84,7 +84,7 @@ pub struct AppendixA {
     /// Tets for which Eq. 28 exceeds the exact step of that tet alone (one-tet body):
     /// the single-tet claim fails for them.
     pub eq28_unsafe_single_tets: usize,
-    /// Largest `eq28 / exact` over single tets.
+    /// Largest `eq28 / exact` over single tets (1).
     pub eq28_worst_single_tet_ratio: f64,
     /// Eq. 29, general form (sum over tets), as printed.
     pub eq29: BoundValue,
@@ -94,22 +94,22 @@ pub struct AppendixA {
     pub rederived_sigma_min: BoundValue,
     /// The CFL form with the smallest altitude.
     pub rederived_altitude: BoundValue,
-    /// The time step analysed.
+    /// The time step analysed (s).
     pub dt: f64,
     /// Claims and outcomes.
     pub verdicts: Vec<Verdict>,
 }
 
 /// Appendix B on one mesh.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct AppendixB {
     /// Whether "(21) converges for every h" holds on this mesh.
     pub holds: bool,
-    /// `lambda_max(D^-1 L)`; the claim holds iff it is at most 2.
+    /// `lambda_max(D^-1 L)` (1); the claim holds iff it is at most 2.
     pub lambda_max_dinv_l: f64,
-    /// `h*_21` (null when (21) converges for every h).
+    /// `h*_21` (s; null when (21) converges for every h).
     pub critical_dt_split: Option<f64>,
-    /// `lim_{h -> inf} rho(G21)`.
+    /// `lim_{h -> inf} rho(G21)` (1).
     pub rho_limit_h_inf: f64,
     /// Positive off-diagonal entries of `L` (both triangles).
     pub positive_offdiagonal_entries: usize,
@@ -119,7 +119,7 @@ pub struct AppendixB {
     pub tets_violating_step_31: usize,
     /// Rows `i` where `sum_{j != i} |L_ij| > L_ii`.
     pub rows_not_diagonally_dominant: usize,
-    /// Largest `h` for which `M + h^2 L` is strictly diagonally dominant (the appendix's
+    /// Largest `h` for which `M + h^2 L` is strictly diagonally dominant (s; the appendix's
     /// sufficient condition); null when it is for every `h`.
     pub diagonal_dominance_dt: Option<f64>,
     /// The mesh property that explains the verdict, in words.

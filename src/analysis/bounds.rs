@@ -35,7 +35,7 @@ pub struct BoundsParams {
 }
 
 /// Mesh section of the report.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct MeshSection {
     /// Vertices.
     pub vertices: usize,
@@ -50,15 +50,15 @@ pub struct MeshSection {
 }
 
 /// One iteration scheme at the analysed time step.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct SchemeSection {
     /// The iteration, with its equation number.
     pub iteration: &'static str,
     /// Its iteration matrix.
     pub iteration_matrix: &'static str,
-    /// Spectral radius at `dt`.
+    /// Spectral radius at `dt` (1).
     pub spectral_radius: f64,
-    /// Critical time step (null if it converges for every dt).
+    /// Critical time step (s; null if it converges for every dt).
     pub critical_dt: Option<f64>,
     /// `spectral_radius < 1`.
     pub converges: bool,
@@ -66,7 +66,7 @@ pub struct SchemeSection {
     pub critical_dt_formula: &'static str,
     /// The eigenvalue behind the critical step (1/s^2).
     pub critical_eigenvalue: f64,
-    /// `lim_{h -> inf}` of the spectral radius (only for (21)).
+    /// `lim_{h -> inf}` of the spectral radius (1; only for (21)).
     pub spectral_radius_limit_h_inf: Option<f64>,
     /// Rows with stiff attachments taken in their Dirichlet limit for the critical step (the
     /// neglected term is relatively `O(L_ii / w)`; see `Spectrum::compute`).
@@ -74,18 +74,18 @@ pub struct SchemeSection {
 }
 
 /// Wall-clock times of the analysis stages.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct Timing {
-    /// FEM operators, mass and `L`.
+    /// FEM operators, mass and `L` (ms).
     pub assembly_ms: f64,
-    /// Eigenvalue computations.
+    /// Eigenvalue computations (ms).
     pub eigen_ms: f64,
-    /// Everything.
+    /// Everything (ms).
     pub total_ms: f64,
 }
 
 /// The `bounds` report for one mesh.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct BoundsReport {
     /// Schema and crate version.
     #[serde(flatten)]
@@ -109,19 +109,19 @@ pub struct BoundsReport {
 }
 
 /// Inputs as recorded in the report.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct BoundsInputs {
     /// Mesh file.
     pub mesh_file: String,
-    /// Density.
+    /// Density (kg/m^3).
     pub rho: f64,
-    /// Stiffness coefficient.
+    /// Stiffness coefficient of `L = sum mu V A^T A` (Pa).
     pub mu: f64,
-    /// Time step.
+    /// Time step (s).
     pub dt: f64,
     /// Number of attached vertices.
     pub attached_vertices: usize,
-    /// Attachment stiffness.
+    /// Attachment stiffness (N/m; null without attachments).
     pub attachment_stiffness: Option<f64>,
     /// Eigensolver actually used.
     pub eigen_method: EigenMethod,

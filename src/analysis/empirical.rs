@@ -20,7 +20,7 @@ use serde::Serialize;
 use super::IterationSystem;
 
 /// Which iteration to run.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum Scheme {
     /// `M v' = f - h^2 L v` (Eq. 19).
@@ -30,7 +30,7 @@ pub enum Scheme {
 }
 
 /// How an empirical run ended.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum Outcome {
     /// The iterate reached the solution to round-off (`|d| < 1e-17 |v|`).
@@ -45,17 +45,17 @@ pub enum Outcome {
 }
 
 /// Observed vs predicted contraction of one scheme at one time step.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct EmpiricalCheck {
     /// The scheme.
     pub scheme: Scheme,
-    /// Time step.
+    /// Time step (s).
     pub dt: f64,
-    /// Spectral radius predicted by the eigen-analysis.
+    /// Spectral radius predicted by the eigen-analysis (1).
     pub predicted_spectral_radius: f64,
-    /// Last ratio `|d_{k+1}|_W / |d_k|_W`.
+    /// Last ratio `|d_{k+1}|_W / |d_k|_W` (1).
     pub observed_rate: f64,
-    /// `|observed - predicted| / predicted` (the absolute difference when the prediction is 0).
+    /// `|observed - predicted| / predicted` (1; the absolute difference when the prediction is 0).
     pub relative_difference: f64,
     /// Iterations run (including the propagation of the correction after convergence).
     pub iterations: usize,
@@ -65,7 +65,7 @@ pub struct EmpiricalCheck {
     pub rate_stable: bool,
     /// How the run ended.
     pub outcome: Outcome,
-    /// `|f - (M + h^2 L) v| / |f|` at the end (for converged runs: the fixed point is the
+    /// `|f - (M + h^2 L) v| / |f|` at the end (1; for converged runs: the fixed point is the
     /// implicit-Euler solution).
     pub final_relative_residual: f64,
 }

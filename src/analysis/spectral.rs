@@ -26,7 +26,7 @@ use serde::Serialize;
 use crate::fem::SymCsc;
 
 /// Which eigensolver to use.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, serde::Deserialize, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, serde::Deserialize, clap::ValueEnum, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum EigenMethod {
     /// Dense for `n <= DENSE_LIMIT`, Krylov above.

@@ -7,13 +7,13 @@ use super::spectral::EigenMethod;
 use super::{rho_split, AnalysisError, IterationSystem, Spectrum};
 
 /// One time step of a sweep.
-#[derive(Debug, Clone, Copy, Serialize)]
+#[derive(Debug, Clone, Copy, Serialize, schemars::JsonSchema)]
 pub struct SweepPoint {
-    /// Time step.
+    /// Time step (s).
     pub dt: f64,
-    /// `rho(G19)`.
+    /// `rho(G19)` (1).
     pub rho_plain: f64,
-    /// `rho(G21)`.
+    /// `rho(G21)` (1).
     pub rho_split: f64,
 }
 

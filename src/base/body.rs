@@ -8,7 +8,7 @@ use super::Material;
 
 /// One soft body of an assembled model: its name, its ranges in the global vertex and tet
 /// numbering, and its material and mass.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct Body {
     /// Name.
     pub name: String,
@@ -18,7 +18,7 @@ pub struct Body {
     pub tets: Range<usize>,
     /// Material.
     pub material: Material,
-    /// Total mass.
+    /// Total mass (kg).
     pub mass: f64,
     /// Density (kg/m^3; for a total-mass body, mass / volume).
     pub density: f64,

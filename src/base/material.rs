@@ -11,11 +11,11 @@ use super::InputError;
 /// `nu E/(1+nu) V`, both on the deformation gradient. For small strains this is linear
 /// elasticity with shear modulus `mu = E/(2(1+nu))` and an extra volumetric stiffness; with
 /// `nu = 0` it is exactly linear elasticity with Young's modulus `E` and `lambda = 0`.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, schemars::JsonSchema)]
 pub struct Material {
     /// Young's modulus (Pa).
     pub youngs_modulus: f64,
-    /// Poisson ratio, in `[0, 0.5)`.
+    /// Poisson ratio (1), in `[0, 0.5)`.
     pub poisson_ratio: f64,
 }
 

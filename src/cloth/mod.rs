@@ -72,7 +72,7 @@ impl ClothSpec {
 }
 
 /// Where a cloth body lives in the assembled system.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct ClothBody {
     /// Name.
     pub name: String,

@@ -34,12 +34,12 @@ use crate::base::{Body, InputError};
 use crate::cloth::Cloth;
 
 /// Settings of collisions between bodies.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, serde::Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, serde::Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct BodyCollision {
     /// Distance the surfaces are kept apart (m).
     pub thickness: f64,
-    /// Coulomb friction coefficient between bodies.
+    /// Coulomb friction coefficient between bodies (1).
     pub friction: f64,
 }
 

@@ -115,7 +115,7 @@ impl From<crate::base::InputError> for DiffError {
 }
 
 /// How steps are differentiated.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, serde::Deserialize, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, serde::Deserialize, clap::ValueEnum, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum Mode {
     /// Every local-global iteration the forward ran (exact for the truncated solver).
@@ -192,7 +192,7 @@ pub struct Controls {
 }
 
 /// Cost and accuracy figures of one gradient evaluation.
-#[derive(Debug, Clone, Copy, Default, Serialize)]
+#[derive(Debug, Clone, Copy, Default, Serialize, schemars::JsonSchema)]
 pub struct DiffStats {
     /// Forward pass wall time (ms).
     pub forward_ms: f64,
@@ -208,11 +208,11 @@ pub struct DiffStats {
     pub backward_iterations: usize,
     /// Forward steps that stopped at the iteration cap.
     pub unconverged_steps: usize,
-    /// Implicit mode: largest final relative change of an adjoint fixed point.
+    /// Implicit mode: largest final relative change of an adjoint fixed point (1).
     pub implicit_residual: f64,
     /// Gauss-Seidel sweeps of the linearized contact systems.
     pub contact_sweeps: usize,
-    /// Largest final relative residual of a linearized contact system.
+    /// Largest final relative residual of a linearized contact system (1).
     pub contact_residual: f64,
     /// Unrolled mode: largest distance between a replayed step and its checkpoint (m).
     pub replay_deviation: f64,

@@ -4,24 +4,25 @@
 use serde::Serialize;
 
 /// One iteration of the optimizer.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct Iterate {
     /// Iteration (0: the start).
     pub iteration: usize,
-    /// Parameters.
+    /// Parameters (their own units; system identification: `ln(E / Pa)`, 1).
     pub x: Vec<f64>,
-    /// Objective.
+    /// Objective (its own unit; system identification: 1, squared residuals over the target's
+    /// squared norm).
     pub f: f64,
-    /// Largest gradient component.
+    /// Largest gradient component (objective unit per parameter unit).
     pub gradient_norm: f64,
 }
 
 /// Result of [`lbfgs`].
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct Minimum {
-    /// Final parameters.
+    /// Final parameters (as `history[].x`).
     pub x: Vec<f64>,
-    /// Final objective.
+    /// Final objective (as `history[].f`).
     pub f: f64,
     /// Iterations taken.
     pub iterations: usize,

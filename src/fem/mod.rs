@@ -212,7 +212,7 @@ impl FemOperators {
 }
 
 /// Sign structure of a stiffness matrix: how far it is from an M-matrix.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, schemars::JsonSchema)]
 pub struct SignPattern {
     /// Positive off-diagonal entries `L_ij > 0`, `i != j`, counting both triangles.
     pub positive_offdiagonal_entries: usize,

@@ -35,7 +35,7 @@ pub struct TetMesh {
 }
 
 /// The file format a mesh came from.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum MeshFormat {
     /// Wavefront OBJ with `v` vertex lines and `t` tet lines (0-based).
@@ -51,7 +51,7 @@ pub enum MeshFormat {
 }
 
 /// What loading a mesh did besides parsing: dropped nodes, re-oriented tets, file ids.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, schemars::JsonSchema)]
 pub struct MeshInfo {
     /// The path the mesh was read from.
     pub path: String,

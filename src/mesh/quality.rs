@@ -36,31 +36,31 @@ pub fn dihedral_angles(grads: &[Vector3<f64>; 4]) -> [f64; 6] {
 }
 
 /// Geometric quality summary of a mesh.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct MeshQuality {
     /// Number of vertices.
     pub vertices: usize,
     /// Number of tets.
     pub tets: usize,
-    /// Sum of tet volumes.
+    /// Sum of tet volumes (m^3).
     pub total_volume: f64,
-    /// Smallest tet volume.
+    /// Smallest tet volume (m^3).
     pub min_volume: f64,
-    /// Largest tet volume.
+    /// Largest tet volume (m^3).
     pub max_volume: f64,
-    /// Shortest edge.
+    /// Shortest edge (m).
     pub min_edge: f64,
-    /// Longest edge.
+    /// Longest edge (m).
     pub max_edge: f64,
-    /// Mean edge length over tet edges (edges shared by several tets counted once per tet).
+    /// Mean edge length over tet edges (m; edges shared by several tets counted once per tet).
     pub mean_edge: f64,
-    /// Smallest altitude (vertex to opposite face) over all tets.
+    /// Smallest altitude (vertex to opposite face) over all tets (m).
     pub min_altitude: f64,
-    /// Smallest normalised volume `6 sqrt(2) V / l_rms^3` (1 = regular tet).
+    /// Smallest normalised volume `6 sqrt(2) V / l_rms^3` (1; 1 = regular tet).
     pub min_normalized_volume: f64,
-    /// Smallest dihedral angle, degrees.
+    /// Smallest dihedral angle (degrees).
     pub min_dihedral_deg: f64,
-    /// Largest dihedral angle, degrees.
+    /// Largest dihedral angle (degrees).
     pub max_dihedral_deg: f64,
     /// Tets with at least one dihedral angle above 90 degrees (+1e-9 rad).
     pub tets_with_obtuse_dihedral: usize,

@@ -1,13 +1,15 @@
 //! Simulation output: VTK XML frames that ParaView reads (written here, no VTK library) with a
-//! `.pvd` time collection, the JSON run log, the run's output directory, and atomic file
-//! writes (never a half-written file).
+//! `.pvd` time collection, the JSON run log, the JSON output of `diffsoft grad`, the run's output
+//! directory, and atomic file writes (never a half-written file).
 
 mod file;
+mod grad;
 mod run_dir;
 mod runlog;
 mod vtk;
 
 pub use file::{check_writable, refuse_input, write_atomic};
+pub use grad::{GradReport, GRAD_SCHEMA};
 pub use run_dir::{RunDir, RunStatus, COLLECTION, RUN_LOG};
 
 pub use runlog::{RunLog, RunSummary, RUN_SCHEMA};

@@ -116,7 +116,7 @@ impl RunDir {
 }
 
 /// How a run stands (or ended), as recorded in its log.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum RunStatus {
     /// Set up, no step taken yet.

@@ -1,18 +1,18 @@
-//! The JSON run log of `diffsoft simulate` (`diffsoft.run/1`): scene, notes, settings,
+//! The JSON run log of `diffsoft simulate` (`diffsoft.run/2`): scene, notes, settings,
 //! certificate, per-step statistics and a summary.
 
 use serde::Serialize;
 
 use crate::base::Body;
 use crate::cloth::ClothBody;
-use crate::report::Header;
+use crate::report::{Header, ModelSize};
 use crate::solver::{Certificate, Settings, StepStats};
 
 /// Schema of the run log.
-pub const RUN_SCHEMA: &str = "diffsoft.run/1";
+pub const RUN_SCHEMA: &str = "diffsoft.run/2";
 
 /// Summary over all steps.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct RunSummary {
     /// Steps taken.
     pub steps: usize,
@@ -32,12 +32,14 @@ pub struct RunSummary {
     pub max_contacts: usize,
     /// Largest number of contacts between bodies in a step.
     pub max_pair_contacts: usize,
-    /// Total energy after the first and last step (J).
-    pub energy_first_last: (f64, f64),
+    /// Total energy after the first step (J; 0 without steps).
+    pub energy_first_step: f64,
+    /// Total energy after the last step (J; 0 without steps).
+    pub energy_last_step: f64,
 }
 
 /// The run log.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct RunLog {
     /// Schema and crate version.
     #[serde(flatten)]
@@ -51,7 +53,7 @@ pub struct RunLog {
     /// Cloth bodies.
     pub cloth: Vec<ClothBody>,
     /// Vertices and tets in total.
-    pub size: (usize, usize),
+    pub size: ModelSize,
     /// Solver settings.
     pub settings: Settings,
     /// Certification outcome.
@@ -85,10 +87,8 @@ impl RunSummary {
             max_penetration: steps.iter().map(|s| s.max_penetration).fold(0.0, f64::max),
             max_contacts: steps.iter().map(|s| s.contacts).max().unwrap_or(0),
             max_pair_contacts: steps.iter().map(|s| s.pair_contacts).max().unwrap_or(0),
-            energy_first_last: (
-                steps.first().map_or(0.0, |s| s.total_energy()),
-                steps.last().map_or(0.0, |s| s.total_energy()),
-            ),
+            energy_first_step: steps.first().map_or(0.0, |s| s.total_energy()),
+            energy_last_step: steps.last().map_or(0.0, |s| s.total_energy()),
         }
     }
 }

@@ -28,7 +28,7 @@ use crate::solver::{CertifyPolicy, Settings, SolverKind};
 pub const SCENE_SCHEMA: &str = "diffsoft.scene/1";
 
 /// A scene file.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct SceneFile {
     /// Must be [`SCENE_SCHEMA`].
@@ -59,7 +59,7 @@ pub struct SceneFile {
 }
 
 /// Solver settings of a scene; every field is optional (defaults of [`Settings`]).
-#[derive(Debug, Clone, Default, Deserialize)]
+#[derive(Debug, Clone, Default, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct SolverFile {
     /// Global solver: `direct`, `plain`, `split`, `chebyshev`.
@@ -68,15 +68,15 @@ pub struct SolverFile {
     pub certify: Option<CertifyPolicy>,
     /// Local-global iteration cap.
     pub max_iterations: Option<usize>,
-    /// Relative RMS change tolerance.
+    /// Relative RMS change tolerance (1: relative to the length scale).
     pub tolerance: Option<f64>,
-    /// Inner iteration tolerance (relative to the length scale).
+    /// Inner iteration tolerance (1: relative to the length scale).
     pub inner_tolerance: Option<f64>,
     /// Inner iteration cap.
     pub inner_max_iterations: Option<usize>,
-    /// Velocity damping factor per step.
+    /// Velocity damping factor per step (1; 1 = none).
     pub damping: Option<f64>,
-    /// Contact margin (fraction of the length scale).
+    /// Contact margin (1: a fraction of the length scale).
     pub contact_margin: Option<f64>,
     /// Contact rounds per step.
     pub contact_rounds: Option<usize>,
@@ -106,20 +106,20 @@ impl SolverFile {
 }
 
 /// One soft body.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct BodyFile {
     /// Name.
     pub name: String,
     /// Tet mesh file, relative to the scene file.
     pub mesh: PathBuf,
-    /// Scale applied to the mesh about the origin.
+    /// Scale applied to the mesh about the origin (1).
     #[serde(default = "one")]
     pub scale: f64,
-    /// Translation applied after scaling.
+    /// Translation applied after scaling (m).
     #[serde(default)]
     pub translate: [f64; 3],
-    /// Rotation applied after scaling, before translating: axis-angle vector (radians).
+    /// Rotation applied after scaling, before translating: axis-angle vector (rad).
     #[serde(default)]
     pub rotate: [f64; 3],
     /// Material.
@@ -160,20 +160,20 @@ pub struct BodyFile {
 /// { "name": "sheet", "mesh": "sheet.obj", "stretching": 200, "bending": 5e-4,
 ///   "area_density": 3, "attachments": [{ "vertices": { "indices": [0, 8] }, "stiffness": 1e5 }] }
 /// ```
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct ClothFile {
     /// Name.
     pub name: String,
     /// Triangle mesh (OBJ), relative to the scene file.
     pub mesh: PathBuf,
-    /// Scale applied to the mesh about the origin.
+    /// Scale applied to the mesh about the origin (1).
     #[serde(default = "one")]
     pub scale: f64,
-    /// Translation applied after scaling.
+    /// Translation applied after scaling (m).
     #[serde(default)]
     pub translate: [f64; 3],
-    /// Rotation applied after scaling, before translating: axis-angle vector (radians).
+    /// Rotation applied after scaling, before translating: axis-angle vector (rad).
     #[serde(default)]
     pub rotate: [f64; 3],
     /// In-plane stretching stiffness (N/m).
@@ -205,7 +205,7 @@ pub struct ClothFile {
 /// { "name": "arm", "muscle": { "polyline": [[0, 0, 0], [0, -1, 0]], "radius": 0.1 },
 ///   "stiffness": 5e5, "activation": 0.3 }
 /// ```
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct ActuatorFile {
     /// Name (activations are set by name).
@@ -223,7 +223,7 @@ pub struct ActuatorFile {
 }
 
 /// Tets of a pneumatic group.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct PneumaticFile {
     /// Which tets.
@@ -232,13 +232,13 @@ pub struct PneumaticFile {
 
 /// Fibres of a muscle group: `tets` with a uniform `direction`, or a `polyline` with a
 /// `radius` (tets whose centroid is within `radius` of it, each along its nearest segment).
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct MuscleFile {
     /// Which tets (with `direction`).
     #[serde(default)]
     pub tets: Option<TetSelector>,
-    /// Uniform fibre direction (scene coordinates).
+    /// Uniform fibre direction (scene coordinates; 1, normalised by the reader).
     #[serde(default)]
     pub direction: Option<[f64; 3]>,
     /// Fibre polyline (scene coordinates).
@@ -250,7 +250,7 @@ pub struct MuscleFile {
 }
 
 /// Selects tets of a body's mesh.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case", deny_unknown_fields)]
 pub enum TetSelector {
     /// Every tet.
@@ -274,7 +274,7 @@ pub enum TetSelector {
 }
 
 /// An activation: a constant or `{ "times": [...], "values": [...] }`.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(untagged)]
 pub enum ActivationFile {
     /// The same value at all times.
@@ -284,7 +284,7 @@ pub enum ActivationFile {
 }
 
 /// Bones embedded in a body.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct SkeletonFile {
     /// Bones (parents may come in any order; names must be unique).
@@ -292,7 +292,7 @@ pub struct SkeletonFile {
 }
 
 /// One bone.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct BoneFile {
     /// Name (referred to by children).
@@ -312,7 +312,7 @@ pub struct BoneFile {
 
 /// Joint types; positions and axes in scene coordinates (after the body's scale, rotation and
 /// translation).
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields, rename_all = "snake_case")]
 pub enum JointFile {
     /// 6-DoF free joint (a root).
@@ -346,7 +346,7 @@ pub enum JointFile {
 }
 
 /// A piecewise-linear time series.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct TorqueFile {
     /// Sample times (s), increasing.
@@ -356,17 +356,17 @@ pub struct TorqueFile {
 }
 
 /// Material parameters.
-#[derive(Debug, Clone, Copy, Deserialize)]
+#[derive(Debug, Clone, Copy, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct MaterialFile {
     /// Young's modulus (Pa).
     pub youngs_modulus: f64,
-    /// Poisson ratio.
+    /// Poisson ratio (1).
     pub poisson_ratio: f64,
 }
 
 /// Which constraints a body uses (the corotated one always).
-#[derive(Debug, Clone, Copy, Deserialize)]
+#[derive(Debug, Clone, Copy, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct ConstraintsFile {
     /// The volume constraint with weight `nu E/(1+nu) V`.
@@ -382,7 +382,7 @@ impl Default for ConstraintsFile {
 
 /// A set of vertices: explicit indices (the mesh file's numbering) or those inside a box (in
 /// scene coordinates, after scale/rotate/translate).
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields, rename_all = "snake_case")]
 pub enum VertexSelector {
     /// Vertex ids as in the mesh file.
@@ -397,7 +397,7 @@ pub enum VertexSelector {
 }
 
 /// Penalty attachments.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct AttachmentFile {
     /// Attached vertices.
@@ -407,7 +407,7 @@ pub struct AttachmentFile {
 }
 
 /// A static obstacle.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct ObstacleFile {
     /// Name.
@@ -419,7 +419,7 @@ pub struct ObstacleFile {
     /// A triangle mesh (OBJ `v`/`f`).
     #[serde(default)]
     pub mesh: Option<ObstacleMeshFile>,
-    /// Coulomb friction coefficient.
+    /// Coulomb friction coefficient (1).
     pub friction: f64,
     /// Collision thickness (m).
     #[serde(default)]
@@ -427,22 +427,22 @@ pub struct ObstacleFile {
 }
 
 /// A plane through `point` with outward `normal`.
-#[derive(Debug, Clone, Copy, Deserialize)]
+#[derive(Debug, Clone, Copy, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct PlaneFile {
-    /// A point on the plane.
+    /// A point on the plane (m).
     pub point: [f64; 3],
-    /// Normal pointing to the free side.
+    /// Normal pointing to the free side (1, normalised by the reader).
     pub normal: [f64; 3],
 }
 
 /// A triangle-mesh obstacle.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct ObstacleMeshFile {
     /// OBJ file, relative to the scene file.
     pub file: PathBuf,
-    /// Scale about the origin.
+    /// Scale about the origin (1).
     #[serde(default = "one")]
     pub scale: f64,
 }

@@ -21,7 +21,7 @@ use crate::analysis::spectral::{largest_eigenvalue, EigenMethod};
 use crate::analysis::{rho_split, split_extremes, IterationSystem};
 
 /// What to do when the chosen iteration would diverge.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, serde::Deserialize, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, serde::Deserialize, clap::ValueEnum, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum CertifyPolicy {
     /// Do not check (the run detects divergence when it happens).
@@ -32,8 +32,17 @@ pub enum CertifyPolicy {
     Fallback,
 }
 
+/// The smallest and largest eigenvalue of an iteration matrix.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, schemars::JsonSchema)]
+pub struct EigenvalueRange {
+    /// Smallest eigenvalue (1).
+    pub smallest: f64,
+    /// Largest eigenvalue (1).
+    pub largest: f64,
+}
+
 /// The outcome of certification.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct Certificate {
     /// Solver asked for.
     pub requested: SolverKind,
@@ -41,22 +50,22 @@ pub struct Certificate {
     pub used: SolverKind,
     /// Policy.
     pub policy: CertifyPolicy,
-    /// Time step certified.
+    /// Time step certified (s).
     pub dt: f64,
-    /// Spectral radius of the requested iteration (null for direct or when not checked).
+    /// Spectral radius of the requested iteration (1; null for direct or when not checked).
     pub spectral_radius: Option<f64>,
-    /// Extremes of `G21` (Chebyshev only).
-    pub split_extremes: Option<(f64, f64)>,
-    /// Relaxation of the iteration without contacts.
+    /// Extreme eigenvalues of `G21` (Chebyshev only).
+    pub split_extremes: Option<EigenvalueRange>,
+    /// Relaxation of the iteration without contacts (1).
     pub relaxation: f64,
-    /// Relaxation of the projected contact iteration.
+    /// Relaxation of the projected contact iteration (1).
     pub contact_relaxation: f64,
-    /// Chebyshev's spectral radius parameter.
+    /// Chebyshev's spectral radius parameter (1).
     pub chebyshev_rho: Option<f64>,
     /// Whether the requested iteration converges at this time step.
     pub converges: Option<bool>,
-    /// Asymptotic error reduction per inner iteration (`rho`; Chebyshev:
-    /// `r / (1 + sqrt(1 - r^2))`).
+    /// Asymptotic error reduction per inner iteration (1; `rho`; Chebyshev: `r / (1 + sqrt(1 -
+    /// r^2))`).
     pub asymptotic_rate: Option<f64>,
     /// Inner iterations predicted for a `1e-10` error reduction, `ln(1e-10) / ln(rate)`.
     pub predicted_iterations: Option<f64>,
@@ -122,7 +131,10 @@ pub(crate) fn certify(
             let (lo, hi) = split_extremes(&it, h, method).map_err(spectral)?;
             let gamma = 2.0 / (2.0 - lo - hi);
             let r = (hi - lo) / (2.0 - lo - hi);
-            cert.split_extremes = Some((lo, hi));
+            cert.split_extremes = Some(EigenvalueRange {
+                smallest: lo,
+                largest: hi,
+            });
             cert.relaxation = gamma;
             cert.contact_relaxation = gamma.min(1.0);
             cert.chebyshev_rho = Some(r);

@@ -16,7 +16,7 @@ use super::system::GlobalSystem;
 use super::SolverError;
 
 /// Which global solver.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, serde::Deserialize, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, serde::Deserialize, clap::ValueEnum, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum SolverKind {
     /// Sparse Cholesky of `M/h^2 + L`, factored once.

@@ -44,7 +44,7 @@ mod warm;
 
 use nalgebra::Vector3;
 
-pub use certify::{Certificate, CertifyPolicy};
+pub use certify::{Certificate, CertifyPolicy, EigenvalueRange};
 pub use contacts::{PAIR_OBSTACLE, PAIR_TOLERANCE};
 pub use error::SolverError;
 pub use global::{GlobalStats, SolverKind};

@@ -9,7 +9,7 @@ use super::SolverError;
 use crate::analysis::spectral::EigenMethod;
 
 /// Solver settings.
-#[derive(Debug, Clone, Serialize, serde::Deserialize)]
+#[derive(Debug, Clone, Serialize, serde::Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields, default)]
 pub struct Settings {
     /// Time step (s).
@@ -20,15 +20,15 @@ pub struct Settings {
     pub certify: CertifyPolicy,
     /// Local-global iteration cap per step.
     pub max_iterations: usize,
-    /// Stop when the RMS change of the positions is below `tolerance x length scale`.
+    /// Stop when the RMS change of the positions is below `tolerance x length scale` (1).
     pub tolerance: f64,
-    /// Inner iterations stop when no coordinate moves more than this `x length scale`.
+    /// Inner iterations stop when no coordinate moves more than this `x length scale` (1).
     pub inner_tolerance: f64,
     /// Inner iteration cap (iterative global solvers, contact sweeps).
     pub inner_max_iterations: usize,
-    /// Velocity damping factor per step (1 = none; the paper uses 0.9999).
+    /// Velocity damping factor per step (1; 1 = none; the paper uses 0.9999).
     pub damping: f64,
-    /// Contact detection margin, as a fraction of the length scale.
+    /// Contact detection margin, as a fraction of the length scale (1).
     pub contact_margin: f64,
     /// Largest number of detect-and-resolve rounds per step.
     pub contact_rounds: usize,

@@ -3,17 +3,17 @@
 use serde::Serialize;
 
 /// What one step did.
-#[derive(Debug, Clone, Copy, Serialize)]
+#[derive(Debug, Clone, Copy, Serialize, schemars::JsonSchema)]
 pub struct StepStats {
     /// Step number (1-based).
     pub step: usize,
-    /// Time after the step.
+    /// Time after the step (s).
     pub time: f64,
     /// Local-global iterations.
     pub iterations: usize,
     /// Whether the tolerance was met before the cap.
     pub converged: bool,
-    /// Last RMS position change relative to the length scale.
+    /// Last RMS position change relative to the length scale (1).
     pub relative_change: f64,
     /// Inner iterations of the global solver, summed over the step.
     pub global_iterations: usize,

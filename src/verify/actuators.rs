@@ -28,12 +28,12 @@ use crate::kernel::volume::nearest_product;
 use crate::mesh::generate::BoxSpec;
 use crate::model::{BodySpec, MassSpec, ModelBuilder};
 use crate::output::FrameWriter;
-use crate::report::{Header, Verdict};
+use crate::report::{Header, ModelSize, Verdict};
 use crate::scene::{self, LoadOptions};
 use crate::solver::{Settings, Simulator, SolverKind};
 
 /// Schema of `reports/actuators.json`.
-pub const SCHEMA: &str = "diffsoft.verify.actuators/1";
+pub const SCHEMA: &str = "diffsoft.actuators/2";
 
 /// Material of the static checks.
 const MATERIAL: Material = Material {
@@ -42,60 +42,87 @@ const MATERIAL: Material = Material {
 };
 
 /// One static check against a closed form.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct StaticCheck {
     /// What is measured.
     pub name: String,
-    /// Activation.
+    /// Activation (1: the pneumatic target volume ratio, or the muscle contraction).
     pub activation: f64,
     /// Actuator stiffness (Pa).
     pub stiffness: f64,
-    /// Measured value.
+    /// Measured value (1: a volume ratio or a stretch, as `name` says).
     pub measured: f64,
-    /// Closed-form value.
+    /// Closed-form value (1).
     pub expected: f64,
-    /// `|measured - expected| / |expected|`.
+    /// `|measured - expected| / |expected|` (1).
     pub relative_error: f64,
     /// Local-global iterations of the static solve.
     pub iterations: usize,
 }
 
 /// One run of the pneumatic beam.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct BeamRun {
-    /// Activation of the top-half cells.
+    /// Activation of the top-half cells (1: target volume ratio).
     pub activation: f64,
-    /// Free linear expansion of the cells' material `s* - 1`.
+    /// Free linear expansion of the cells' material `s* - 1` (1).
     pub free_strain: f64,
     /// Tip deflection along `+y` (the cells are on the `+y` side), m.
     pub tip_deflection: f64,
-    /// Measured curvature `2 w / L^2` (positive: bends toward the cells).
+    /// Measured curvature `2 w / L^2` (1/m; positive: bends toward the cells).
     pub curvature: f64,
-    /// Equal-layer bimorph estimate `-3 eps / (2 h)` (same sign convention).
+    /// Equal-layer bimorph estimate `-3 eps / (2 h)` (1/m; same sign convention).
     pub bimorph_estimate: f64,
     /// Local-global iterations of the static solve.
     pub iterations: usize,
 }
 
+/// An actuator group held at an activation.
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
+pub struct GroupActivation {
+    /// The group's name.
+    pub group: String,
+    /// Its activation (1: pneumatic volume ratio, muscle contraction).
+    pub activation: f64,
+}
+
+/// The number of actuated tets of a group.
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
+pub struct GroupCells {
+    /// The group's name.
+    pub group: String,
+    /// Its actuated tets.
+    pub cells: usize,
+}
+
+/// A measure at one time.
+#[derive(Debug, Clone, Copy, Serialize, schemars::JsonSchema)]
+pub struct TimeValue {
+    /// Simulated time (s).
+    pub time: f64,
+    /// The measure (its unit is in the run's `measure`: m for both scenes of the study).
+    pub value: f64,
+}
+
 /// A paper scene driven by its actuators.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct SceneRun {
     /// Scene file.
     pub scene: String,
-    /// Vertices, tets.
-    pub size: (usize, usize),
+    /// Vertices and tets.
+    pub size: ModelSize,
     /// Groups driven and their activation.
-    pub driven: Vec<(String, f64)>,
+    pub driven: Vec<GroupActivation>,
     /// Actuated tets per group.
-    pub cells_per_group: Vec<(String, usize)>,
+    pub cells_per_group: Vec<GroupCells>,
     /// Steps.
     pub steps: usize,
     /// The measure, in words.
     pub measure: String,
-    /// Measure after every step `(t, value)`.
-    pub series: Vec<(f64, f64)>,
+    /// The measure at the start and after every step.
+    pub series: Vec<TimeValue>,
     /// A control measure (what should not move), over time.
-    pub control: Vec<(f64, f64)>,
+    pub control: Vec<TimeValue>,
     /// Median wall time per step (ms).
     pub median_ms_per_step: f64,
     /// Mean local-global iterations per step.
@@ -105,7 +132,7 @@ pub struct SceneRun {
 }
 
 /// `reports/actuators.json`.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct ActuatorsReport {
     /// Schema and crate version.
     #[serde(flatten)]
@@ -306,12 +333,20 @@ fn drive(
     measure: &Measure,
 ) -> Result<SceneRun> {
     let sc = scene::load(path, LoadOptions::default())?;
-    let size = (sc.model.n(), sc.model.tets.len());
+    let size = ModelSize::of(&sc.model);
     let cells_per_group = sc
         .model
         .actuators
         .as_ref()
-        .map(|a| a.groups.iter().map(|g| (g.name.clone(), g.cells.len())).collect())
+        .map(|a| {
+            a.groups
+                .iter()
+                .map(|g| GroupCells {
+                    group: g.name.clone(),
+                    cells: g.cells.len(),
+                })
+                .collect()
+        })
         .unwrap_or_default();
     let mut sim = Simulator::new(sc.model, sc.settings)?;
     for (name, a) in driven {
@@ -323,14 +358,15 @@ fn drive(
     let mut writer = FrameWriter::new(frames, sim.model())?;
     writer.write(0.0, &sim.state().q, &sim.state().v)?;
     let (m0, c0) = measure(&sim.state().q);
-    let (mut series, mut control) = (vec![(0.0, m0)], vec![(0.0, c0)]);
+    let at = |time, value| TimeValue { time, value };
+    let (mut series, mut control) = (vec![at(0.0, m0)], vec![at(0.0, c0)]);
     let mut stats = Vec::new();
     for k in 1..=steps {
         stats.push(sim.step()?);
         let t = sim.state().time;
         let (m, c) = measure(&sim.state().q);
-        series.push((t, m));
-        control.push((t, c));
+        series.push(at(t, m));
+        control.push(at(t, c));
         if k % every == 0 || k == steps {
             writer.write(t, &sim.state().q, &sim.state().v)?;
         }
@@ -339,7 +375,13 @@ fn drive(
     Ok(SceneRun {
         scene: path.display().to_string(),
         size,
-        driven: driven.to_vec(),
+        driven: driven
+            .iter()
+            .map(|(group, activation)| GroupActivation {
+                group: group.clone(),
+                activation: *activation,
+            })
+            .collect(),
         cells_per_group,
         steps,
         measure: measure_name.into(),
@@ -508,10 +550,10 @@ pub fn study(inputs: &StudyInputs<'_>, out: &Path) -> Result<ActuatorsReport> {
         .iter()
         .map(|b| b.curvature / b.bimorph_estimate)
         .fold(f64::NAN, |m: f64, r| if m.is_nan() { r } else { m.min(r) });
-    let tip = octopus.series.iter().map(|c| c.1).fold(0.0, f64::max);
-    let others = octopus.control.iter().map(|c| c.1).fold(0.0, f64::max);
-    let mean = |s: &[(f64, f64)]| s.iter().map(|p| p.1).sum::<f64>() / s.len().max(1) as f64;
-    let closed = (drone.series[0].1 - mean(&drone.series)) / drone.series[0].1;
+    let tip = octopus.series.iter().map(|c| c.value).fold(0.0, f64::max);
+    let others = octopus.control.iter().map(|c| c.value).fold(0.0, f64::max);
+    let mean = |s: &[TimeValue]| s.iter().map(|p| p.value).sum::<f64>() / s.len().max(1) as f64;
+    let closed = (drone.series[0].value - mean(&drone.series)) / drone.series[0].value;
     let verdicts = vec![
         Verdict::at_most(
             "Static pneumatic cube and muscle bar reach the closed-form homogeneous deformation (volume ratio; fibre and cross-section stretch)",
@@ -584,10 +626,10 @@ pub fn table(r: &ActuatorsReport) -> String {
         );
     }
     for run in [&r.drone, &r.octopus] {
-        let first = run.series.first().map_or(f64::NAN, |p| p.1);
-        let mean = run.series.iter().map(|p| p.1).sum::<f64>() / run.series.len().max(1) as f64;
-        let max = run.series.iter().map(|p| p.1).fold(f64::NAN, f64::max);
-        let control = run.control.iter().map(|p| p.1).fold(f64::NAN, f64::max);
+        let first = run.series.first().map_or(f64::NAN, |p| p.value);
+        let mean = run.series.iter().map(|p| p.value).sum::<f64>() / run.series.len().max(1) as f64;
+        let max = run.series.iter().map(|p| p.value).fold(f64::NAN, f64::max);
+        let control = run.control.iter().map(|p| p.value).fold(f64::NAN, f64::max);
         let _ = writeln!(
             s,
             "  {}: {} steps, {:.3} ms/step, {:.2} it/step; measure start {:.4}, mean {:.4}, max {:.4}; control max {:.4}",

@@ -27,10 +27,10 @@ use crate::scene::{self, LoadOptions};
 use crate::solver::Simulator;
 
 /// Schema of `cloth.json`.
-pub const CLOTH_SCHEMA: &str = "diffsoft.cloth/1";
+pub const CLOTH_SCHEMA: &str = "diffsoft.cloth/2";
 
 /// One step's probe.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct ClothStep {
     /// Step (1-based).
     pub step: usize,
@@ -45,11 +45,11 @@ pub struct ClothStep {
     pub penetration: f64,
     /// Contacts between the bodies in the step's last round.
     pub pair_contacts: usize,
-    /// Largest principal stretch of a cloth triangle.
+    /// Largest principal stretch of a cloth triangle (1).
     pub cloth_max_stretch: f64,
-    /// Smallest principal stretch of a cloth triangle.
+    /// Smallest principal stretch of a cloth triangle (1).
     pub cloth_min_stretch: f64,
-    /// Largest `|sigma - 1|` of a tet of the soft bodies.
+    /// Largest `|sigma - 1|` of a tet of the soft bodies (1).
     pub body_max_strain: f64,
     /// Lowest cloth vertex (m).
     pub cloth_lowest: f64,
@@ -63,15 +63,53 @@ pub struct ClothStep {
     pub wall_ms: f64,
 }
 
+/// Size of a model with cloth.
+#[derive(Debug, Clone, Copy, Serialize, schemars::JsonSchema)]
+pub struct ClothSize {
+    /// Vertices (every body and cloth).
+    pub vertices: usize,
+    /// Tets (every soft body).
+    pub tets: usize,
+    /// Cloth triangles.
+    pub cloth_triangles: usize,
+}
+
+/// The range of the cloth's principal stretches over a run.
+#[derive(Debug, Clone, Copy, Serialize, schemars::JsonSchema)]
+pub struct StretchRange {
+    /// Largest principal stretch of a cloth triangle (1).
+    pub largest: f64,
+    /// Smallest principal stretch of a cloth triangle (1).
+    pub smallest: f64,
+}
+
+/// Wall time per step over a set of steps.
+#[derive(Debug, Clone, Copy, Serialize, schemars::JsonSchema)]
+pub struct StepTimes {
+    /// Median wall time per step (ms).
+    pub median_ms: f64,
+    /// Mean wall time per step (ms).
+    pub mean_ms: f64,
+}
+
+impl StepTimes {
+    fn of(ms: &[f64]) -> Self {
+        Self {
+            median_ms: median(ms.to_vec()),
+            mean_ms: mean(ms),
+        }
+    }
+}
+
 /// The run of one scene.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct ClothRun {
     /// Scene file.
     pub scene: String,
     /// Importer notes.
     pub notes: Vec<String>,
-    /// Vertices, tets, cloth triangles.
-    pub size: (usize, usize, usize),
+    /// Vertices, tets and cloth triangles.
+    pub size: ClothSize,
     /// Collision thickness (m).
     pub thickness: f64,
     /// Time step (s).
@@ -92,13 +130,13 @@ pub struct ClothRun {
     /// crossed).
     pub intersections: usize,
     /// Largest and smallest principal stretch of the cloth over the run.
-    pub cloth_stretch_range: (f64, f64),
-    /// Largest `|sigma - 1|` of the soft body over the run.
+    pub cloth_stretch_range: StretchRange,
+    /// Largest `|sigma - 1|` of the soft body over the run (1).
     pub body_max_strain: f64,
-    /// Median and mean wall time per step (ms).
-    pub ms_per_step: (f64, f64),
-    /// Median and mean wall time per step while the bodies touch (ms).
-    pub ms_per_contact_step: (f64, f64),
+    /// Median and mean wall time per step.
+    pub ms_per_step: StepTimes,
+    /// Median and mean wall time per step while the bodies touch.
+    pub ms_per_contact_step: StepTimes,
     /// Largest number of contacts between the bodies.
     pub max_pair_contacts: usize,
     /// Per step.
@@ -111,7 +149,7 @@ pub struct ClothRun {
 }
 
 /// Collision-detection cost at one mesh size.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct DetectionCost {
     /// Cloth grid cells per side.
     pub cloth_cells: usize,
@@ -131,7 +169,7 @@ pub struct DetectionCost {
 }
 
 /// `cloth.json`.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct ClothReport {
     /// Schema and crate version.
     #[serde(flatten)]
@@ -140,7 +178,7 @@ pub struct ClothReport {
     pub runs: Vec<ClothRun>,
     /// Collision-detection cost against size.
     pub detection: Vec<DetectionCost>,
-    /// Fitted exponent of detection time against surface size.
+    /// Fitted exponent of detection time against surface size (1).
     pub detection_exponent: f64,
     /// Claims.
     pub verdicts: Vec<Verdict>,
@@ -258,7 +296,11 @@ pub fn run(scene_path: &Path, steps: usize, frames: Option<(&Path, usize)>) -> R
     Ok(ClothRun {
         scene: scene_path.display().to_string(),
         notes: sc.notes,
-        size: (model.n(), model.tets.len(), cloth.num_triangles()),
+        size: ClothSize {
+            vertices: model.n(),
+            tets: model.tets.len(),
+            cloth_triangles: cloth.num_triangles(),
+        },
         thickness,
         dt: sc.settings.dt,
         steps: series.len(),
@@ -267,13 +309,13 @@ pub fn run(scene_path: &Path, steps: usize, frames: Option<(&Path, usize)>) -> R
         min_separation,
         thickness_intrusion,
         intersections: series.iter().map(|s| s.intersections).sum(),
-        cloth_stretch_range: (
-            series.iter().map(|s| s.cloth_max_stretch).fold(0.0, f64::max),
-            series.iter().map(|s| s.cloth_min_stretch).fold(f64::INFINITY, f64::min),
-        ),
+        cloth_stretch_range: StretchRange {
+            largest: series.iter().map(|s| s.cloth_max_stretch).fold(0.0, f64::max),
+            smallest: series.iter().map(|s| s.cloth_min_stretch).fold(f64::INFINITY, f64::min),
+        },
         body_max_strain: series.iter().map(|s| s.body_max_strain).fold(0.0, f64::max),
-        ms_per_step: (median(all_ms.clone()), mean(&all_ms)),
-        ms_per_contact_step: (median(contact_ms.clone()), mean(&contact_ms)),
+        ms_per_step: StepTimes::of(&all_ms),
+        ms_per_contact_step: StepTimes::of(&contact_ms),
         max_pair_contacts: series.iter().map(|s| s.pair_contacts).max().unwrap_or(0),
         series,
         error,
@@ -429,6 +471,7 @@ pub fn study(scenes: &[(std::path::PathBuf, usize)], sizes: &[usize], out: &Path
 
 /// The claims on one run.
 pub fn run_verdicts(name: &str, r: &ClothRun, steps: usize) -> Vec<Verdict> {
+    let stretch = &r.cloth_stretch_range;
     vec![
         Verdict::new(
             format!("{name}: the run completes without a solver error"),
@@ -456,8 +499,8 @@ pub fn run_verdicts(name: &str, r: &ClothRun, steps: usize) -> Vec<Verdict> {
         ),
         Verdict::new(
             format!("{name}: both bodies deform: the cloth's principal stretches and the ball's leave [0.99, 1.01]"),
-            r.body_max_strain > 0.01 && (r.cloth_stretch_range.0 > 1.01 || r.cloth_stretch_range.1 < 0.99),
-            Some(r.body_max_strain.min((r.cloth_stretch_range.0 - 1.0).max(1.0 - r.cloth_stretch_range.1))),
+            r.body_max_strain > 0.01 && (stretch.largest > 1.01 || stretch.smallest < 0.99),
+            Some(r.body_max_strain.min((stretch.largest - 1.0).max(1.0 - stretch.smallest))),
             Some(0.01),
             "min(ball's largest |sigma - 1|, cloth's largest |stretch - 1|) > threshold",
         ),
@@ -535,9 +578,9 @@ pub fn table(r: &ClothReport) -> String {
             s,
             "  {}: {} vertices, {} tets, {} cloth triangles, {} steps of {} s; first contact at step {}",
             p.scene,
-            p.size.0,
-            p.size.1,
-            p.size.2,
+            p.size.vertices,
+            p.size.tets,
+            p.size.cloth_triangles,
             p.steps,
             p.dt,
             p.first_contact_step.map_or("-".into(), |k| k.to_string())
@@ -549,14 +592,18 @@ pub fn table(r: &ClothReport) -> String {
             p.intersections,
             p.min_separation.unwrap_or(f64::NAN),
             p.thickness,
-            p.cloth_stretch_range.1,
-            p.cloth_stretch_range.0,
+            p.cloth_stretch_range.smallest,
+            p.cloth_stretch_range.largest,
             p.body_max_strain
         );
         let _ = writeln!(
             s,
             "    {:.2} ms per step median ({:.2} mean); in contact {:.2} median ({:.2} mean), up to {} contacts between the bodies",
-            p.ms_per_step.0, p.ms_per_step.1, p.ms_per_contact_step.0, p.ms_per_contact_step.1, p.max_pair_contacts
+            p.ms_per_step.median_ms,
+            p.ms_per_step.mean_ms,
+            p.ms_per_contact_step.median_ms,
+            p.ms_per_contact_step.mean_ms,
+            p.max_pair_contacts
         );
     }
     for d in &r.detection {

@@ -6,21 +6,21 @@
 use serde::Serialize;
 
 /// An analytic derivative compared with a reference.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct Comparison {
-    /// Absolute tolerance.
+    /// Absolute tolerance (the unit of the compared entries).
     pub atol: f64,
-    /// Relative tolerance.
+    /// Relative tolerance (1).
     pub rtol: f64,
-    /// `max |a - r|`.
+    /// `max |a - r|` (the unit of the compared entries).
     pub max_abs_error: f64,
-    /// `max |a - r| / max(|r|, tiny)`.
+    /// `max |a - r| / max(|r|, tiny)` (1).
     pub max_rel_error: f64,
     /// Entry with the largest `|a - r| - (atol + rtol |r|)`.
     pub worst_index: usize,
-    /// Analytic value there.
+    /// Analytic value there (the unit of the compared entries).
     pub analytic_at_worst: f64,
-    /// Reference value there.
+    /// Reference value there (the unit of the compared entries).
     pub reference_at_worst: f64,
     /// Every entry within `atol + rtol |r|`.
     pub pass: bool,
@@ -58,23 +58,24 @@ pub fn compare(analytic: &[f64], reference: &[f64], atol: f64, rtol: f64) -> Com
 }
 
 /// Central differences over a sweep of step sizes.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct StepSweep {
-    /// Steps (absolute: `scale x 10^-k`).
+    /// Steps (absolute, in the unit of the varied coordinate: `scale x 10^-k`).
     pub steps: Vec<f64>,
-    /// Largest absolute error against the analytic derivative at each step.
+    /// Largest absolute error against the analytic derivative at each step (the derivative's unit).
     pub errors: Vec<f64>,
-    /// Step with the smallest error.
+    /// Step with the smallest error (the unit of `steps`).
     pub best_step: f64,
-    /// That error.
+    /// That error (the derivative's unit).
     pub best_error: f64,
-    /// Log-log slope of the error on the large-step side (2 for central differences; `null`
-    /// in JSON when the function is linear in the increment, so every step is exact to
-    /// round-off).
+    /// Log-log slope of the error on the large-step side (1; 2 for central differences; `null` in
+    /// JSON when the function is linear in the increment, so every step is exact to round-off).
     pub truncation_slope: f64,
-    /// Error of the Richardson extrapolation `(4 D(h/2) - D(h)) / 3` at the best step.
+    /// Error of the Richardson extrapolation `(4 D(h/2) - D(h)) / 3` at the best step (the
+    /// derivative's unit).
     pub richardson_error: f64,
-    /// `max |D|` of the central difference at the best step (the scale of the errors).
+    /// `max |D|` of the central difference at the best step (the derivative's unit; the scale of
+    /// the errors).
     pub max_abs_difference: f64,
     /// The central difference at the best step (not written to reports).
     #[serde(skip)]

@@ -47,14 +47,35 @@ use crate::skeleton::rotational::Rotational;
 use crate::skeleton::{BoneSpec, Joint, Skeleton};
 
 /// Schema of the report.
-pub const SCHEMA: &str = "diffsoft.jacobians/2";
+pub const SCHEMA: &str = "diffsoft.jacobians/3";
 /// Tolerances against dual numbers (both exact up to round-off).
-pub const DUAL_TOL: (f64, f64) = (1e-12, 1e-10);
+pub const DUAL_TOL: Tolerance = Tolerance {
+    atol: 1e-12,
+    rtol: 1e-10,
+};
 /// Tolerances against central differences at the best step.
-pub const FD_TOL: (f64, f64) = (1e-7, 1e-6);
+pub const FD_TOL: Tolerance = Tolerance { atol: 1e-7, rtol: 1e-6 };
+
+/// A comparison passes where `|analytic - reference| <= atol + rtol |reference|` entrywise.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, schemars::JsonSchema)]
+pub struct Tolerance {
+    /// Absolute tolerance (the unit of the compared derivative's entries).
+    pub atol: f64,
+    /// Relative tolerance (1).
+    pub rtol: f64,
+}
+
+/// The fixed tolerances of the skeleton checks.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, schemars::JsonSchema)]
+pub struct Tolerances {
+    /// Against dual numbers ([`DUAL_TOL`]).
+    pub versus_dual: Tolerance,
+    /// Against central differences at the best step ([`FD_TOL`]).
+    pub versus_fd: Tolerance,
+}
 
 /// One derivative check.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct JacobianCheck {
     /// What is checked.
     pub name: String,
@@ -68,7 +89,7 @@ pub struct JacobianCheck {
     pub versus_fd: Comparison,
     /// The step sweep.
     pub sweep: StepSweep,
-    /// Actuator checks: the condition number the tolerances are derived from (`M / L`, see the
+    /// Actuator checks: the condition number the tolerances are derived from (1; `M / L`, see the
     /// module doc); absent for the skeleton checks.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub condition: Option<f64>,
@@ -82,59 +103,59 @@ impl JacobianCheck {
 }
 
 /// The rotational update across the branch cut.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct AngleWrapCheck {
-    /// Start angle.
+    /// Start angle (rad).
     pub from: f64,
-    /// Increment.
+    /// Increment (1: the update adds `atan(increment)` to the angle).
     pub increment: f64,
-    /// Angle after the update (in `(-pi, pi]`).
+    /// Angle after the update (rad, in `(-pi, pi]`).
     pub to: f64,
-    /// `|A(to) - A(from + atan(increment))|_max`: the transform is continuous across the cut.
+    /// `|A(to) - A(from + atan(increment))|_max` (1): the transform is continuous across the cut.
     pub transform_jump: f64,
     /// In range and continuous.
     pub pass: bool,
 }
 
 /// The root update stays a rotation.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct RootUpdateCheck {
     /// Updates applied (random rotations up to 1 rad, translations up to 1e3).
     pub updates: usize,
-    /// Largest `|R^T R - I|_max` after an update.
+    /// Largest `|R^T R - I|_max` after an update (1).
     pub max_orthogonality_error: f64,
-    /// Largest `|det R - 1|`.
+    /// Largest `|det R - 1|` (1).
     pub max_det_error: f64,
     /// Both below 1e-12.
     pub pass: bool,
 }
 
 /// The actuator constraints are met: `prod sigma(R) = a` and `|p| = 1 - a`.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct ActuatorConstraintCheck {
     /// Pneumatic projections evaluated (random `F`, half inverted, singular values log-uniform
     /// in `[1e-4, 1e4]`, `a in {1e-6, 0.5, 1, 2}`).
     pub pneumatic_cases: usize,
-    /// `max |x_1 x_2 x_3 - a| / a` over them (`x` the singular values `R` is composed from).
+    /// `max |x_1 x_2 x_3 - a| / a` over them (1; `x` the singular values `R` is composed from).
     pub max_product_rel_error: f64,
     /// Muscle targets evaluated (the same `F`, random unit `m`, `a in {0, 1e-6, 0.5, 1}`).
     pub muscle_cases: usize,
-    /// `max ||p| - (1 - a)|` over them.
+    /// `max ||p| - (1 - a)|` over them (1: `p` is a stretch).
     pub max_fibre_length_error: f64,
     /// Both below 1e-12 and no projection failed.
     pub pass: bool,
 }
 
 /// `reports/jacobians.json`.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct JacobiansReport {
     /// Schema and crate version.
     #[serde(flatten)]
     pub header: Header,
     /// Seed of the random configurations.
     pub seed: u64,
-    /// Tolerances `(atol, rtol)` against dual numbers and against finite differences.
-    pub tolerances: ((f64, f64), (f64, f64)),
+    /// Tolerances of the skeleton checks against dual numbers and against finite differences.
+    pub tolerances: Tolerances,
     /// Derivative checks.
     pub checks: Vec<JacobianCheck>,
     /// Angle updates across `+-pi`.
@@ -169,8 +190,8 @@ pub fn check_joint(joint: &dyn Joint, name: &str, configuration: &str, scale: f6
                 name: format!("{name}: dA/dz_{k}"),
                 configuration: configuration.to_string(),
                 entries: analytic.len(),
-                versus_dual: compare(&analytic, &dual, DUAL_TOL.0, DUAL_TOL.1),
-                versus_fd: compare(&analytic, &s.best_difference, FD_TOL.0, FD_TOL.1),
+                versus_dual: compare(&analytic, &dual, DUAL_TOL.atol, DUAL_TOL.rtol),
+                versus_fd: compare(&analytic, &s.best_difference, FD_TOL.atol, FD_TOL.rtol),
                 sweep: s,
                 condition: None,
             }
@@ -202,8 +223,8 @@ pub fn check_jacobian(sk: &Skeleton, name: &str, configuration: &str) -> Vec<Jac
                 name: format!("{name}: column {c} of B"),
                 configuration: configuration.to_string(),
                 entries: analytic.len(),
-                versus_dual: compare(&analytic, &dual, DUAL_TOL.0, DUAL_TOL.1),
-                versus_fd: compare(&analytic, &s.best_difference, FD_TOL.0, FD_TOL.1),
+                versus_dual: compare(&analytic, &dual, DUAL_TOL.atol, DUAL_TOL.rtol),
+                versus_fd: compare(&analytic, &s.best_difference, FD_TOL.atol, FD_TOL.rtol),
                 sweep: s,
                 condition: None,
             }
@@ -845,7 +866,7 @@ pub fn run(seed: u64) -> JacobiansReport {
             "dA/dz of rotational, prismatic and free joints matches dual numbers and central differences",
             joint_checks.iter().all(|c| c.pass()),
             Some(joint_checks.iter().map(|c| c.versus_fd.max_rel_error.min(c.versus_fd.max_abs_error)).fold(0.0, f64::max)),
-            Some(FD_TOL.1),
+            Some(FD_TOL.rtol),
             "per check: |a - r| <= atol + rtol |r| against both references",
         ),
         Verdict::new(
@@ -889,7 +910,10 @@ pub fn run(seed: u64) -> JacobiansReport {
     JacobiansReport {
         header: Header::new(SCHEMA),
         seed,
-        tolerances: (DUAL_TOL, FD_TOL),
+        tolerances: Tolerances {
+            versus_dual: DUAL_TOL,
+            versus_fd: FD_TOL,
+        },
         checks,
         angle_wrap,
         root_update,

@@ -12,12 +12,14 @@ pub mod jacobians;
 pub mod merge;
 pub mod physics;
 pub mod pool;
+pub mod schemas;
 pub mod shard;
 pub mod skeleton;
 pub mod suite;
 mod summary;
 pub mod tradeoff;
 
+pub use schemas::schemas;
 pub use summary::{
     bounds_summary, jacobians_table, physics_table, quality_summary, skeleton_table, sweep_summary, table,
 };
@@ -47,21 +49,21 @@ pub const SWEEP_SCHEMA: &str = "diffsoft.sweep/1";
 /// Schema of `diffsoft quality` output.
 pub const QUALITY_SCHEMA: &str = "diffsoft.quality/1";
 /// Schema of `reports/bounds.json`.
-pub const SUITE_BOUNDS_SCHEMA: &str = "diffsoft.verify.bounds/1";
+pub const SUITE_BOUNDS_SCHEMA: &str = "diffsoft.bounds_suite/1";
 
 /// `rho(dt)` curves of both schemes for one mesh.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct SweepReport {
     /// Schema and crate version.
     #[serde(flatten)]
     pub header: Header,
     /// Inputs.
     pub inputs: SweepInputs,
-    /// `h*_19`.
+    /// `h*_19` (s).
     pub critical_dt_plain: f64,
-    /// `h*_21` (null: converges for every dt).
+    /// `h*_21` (s; null: converges for every dt).
     pub critical_dt_split: Option<f64>,
-    /// `lim_{h -> inf} rho(G21)`.
+    /// `lim_{h -> inf} rho(G21)` (1).
     pub rho_split_limit_h_inf: f64,
     /// Eigensolver used.
     pub method: EigenMethod,
@@ -70,15 +72,15 @@ pub struct SweepReport {
 }
 
 /// Inputs of a sweep.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct SweepInputs {
     /// Mesh file.
     pub mesh_file: String,
-    /// Density.
+    /// Density (kg/m^3).
     pub rho: f64,
-    /// Stiffness coefficient.
+    /// Stiffness coefficient of `L` (Pa).
     pub mu: f64,
-    /// Time step marked on the plot (the scene's).
+    /// Time step marked on the plot (s; the scene's).
     pub mark_dt: Option<f64>,
 }
 
@@ -150,7 +152,7 @@ impl SweepReport {
 }
 
 /// `diffsoft quality` output.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct QualityReport {
     /// Schema and crate version.
     #[serde(flatten)]
@@ -177,38 +179,39 @@ impl QualityReport {
 }
 
 /// The paper material of a suite mesh and how `rho`, `mu` follow from it.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct SuiteMaterial {
     /// Paper scene file.
     pub source_scene: Option<String>,
-    /// Vertex scale applied.
+    /// Vertex scale applied (1).
     pub scale: f64,
-    /// Total mass.
+    /// Total mass (kg).
     pub total_mass: f64,
-    /// Young's modulus.
+    /// Young's modulus (Pa).
     pub youngs_modulus: f64,
-    /// Poisson ratio.
+    /// Poisson ratio (1).
     pub poisson_ratio: f64,
-    /// Volume after scaling.
+    /// Volume after scaling (m^3).
     pub volume: f64,
-    /// `rho = total_mass / volume`.
+    /// `rho = total_mass / volume` (kg/m^3).
     pub rho: f64,
-    /// `mu` used in `L`.
+    /// `mu` used in `L` (Pa).
     pub mu: f64,
     /// Why.
     pub derivation: &'static str,
 }
 
 /// Krylov vs dense agreement on one mesh (relative differences).
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct CrossCheck {
-    /// `h*_19`.
+    /// Relative difference of `h*_19` (1).
     pub rel_diff_critical_dt_plain: f64,
-    /// `h*_21` (null when neither solver finds one; 1 when only one does).
+    /// Relative difference of `h*_21` (1; null when neither solver finds one; 1 when only one
+    /// does).
     pub rel_diff_critical_dt_split: Option<f64>,
-    /// `rho(G21)` at the scene's dt.
+    /// Relative difference of `rho(G21)` at the scene's dt (1).
     pub rel_diff_rho_split_at_dt: f64,
-    /// `lambda_max(D^-1 L)`.
+    /// Relative difference of `lambda_max(D^-1 L)` (1).
     pub rel_diff_lambda_dinv_l: f64,
     /// Dense time (ms).
     pub dense_ms: f64,
@@ -217,7 +220,7 @@ pub struct CrossCheck {
 }
 
 /// Results for one suite mesh.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct SuiteMeshResult {
     /// Name.
     pub name: String,
@@ -234,7 +237,7 @@ pub struct SuiteMeshResult {
 }
 
 /// One row of the summary table.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct TableRow {
     /// Mesh name.
     pub mesh: String,
@@ -242,17 +245,17 @@ pub struct TableRow {
     pub vertices: usize,
     /// Tets.
     pub tets: usize,
-    /// Scene time step.
+    /// Scene time step (s).
     pub dt: f64,
-    /// `h*_19`.
+    /// `h*_19` (s).
     pub critical_dt_plain: f64,
-    /// `rho(G19)` at dt.
+    /// `rho(G19)` at dt (1).
     pub rho_plain: f64,
-    /// `h*_21` (null: every dt).
+    /// `h*_21` (s; null: every dt).
     pub critical_dt_split: Option<f64>,
-    /// `rho(G21)` at dt.
+    /// `rho(G21)` at dt (1).
     pub rho_split: f64,
-    /// Eq. 29 bound.
+    /// Eq. 29 bound (s/m^2: the formula as printed is not dimensionally consistent).
     pub eq29: f64,
     /// (19) converges at dt.
     pub plain_converges: bool,
@@ -265,41 +268,41 @@ pub struct TableRow {
 }
 
 /// Appendix A's `T` dependence measured on boxes of fixed cell size.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct TScaling {
-    /// Cell edge.
+    /// Cell edge (m).
     pub cell_size: f64,
-    /// Density.
+    /// Density (kg/m^3).
     pub rho: f64,
-    /// Stiffness.
+    /// Stiffness coefficient of `L` (Pa).
     pub mu: f64,
     /// One row per box.
     pub rows: Vec<TScalingRow>,
-    /// Fitted exponent of `h*_19` against `T` (log-log slope over the largest boxes).
+    /// Fitted exponent of `h*_19` against `T` (1; log-log slope over the largest boxes).
     pub exact_exponent: f64,
-    /// Fitted exponent of Eq. 29 against `T`.
+    /// Fitted exponent of Eq. 29 against `T` (1).
     pub eq29_exponent: f64,
     /// Claims.
     pub verdicts: Vec<Verdict>,
 }
 
 /// One box of the `T` study.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct TScalingRow {
     /// Cells per axis.
     pub cells_per_axis: usize,
     /// Tets `T`.
     pub tets: usize,
-    /// Exact `h*_19`.
+    /// Exact `h*_19` (s).
     pub exact_dt: f64,
-    /// Eq. 29.
+    /// Eq. 29 (s/m^2: the formula as printed is not dimensionally consistent).
     pub eq29_dt: f64,
-    /// Eq. 24 (Gershgorin).
+    /// Eq. 24, Gershgorin (s).
     pub gershgorin_dt: f64,
 }
 
 /// `reports/bounds.json`.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct SuiteBoundsReport {
     /// Schema and crate version.
     #[serde(flatten)]
@@ -524,17 +527,17 @@ pub fn t_scaling_chart(ts: &TScaling) -> LogLogChart {
 }
 
 /// `reports/physics.json`: the forward solver against closed forms.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct PhysicsReport {
     /// Schema and crate version.
     #[serde(flatten)]
     pub header: Header,
     /// Free fall: largest relative position error after 50 steps, per solver.
-    pub free_fall: Vec<(crate::solver::SolverKind, f64)>,
+    pub free_fall: Vec<physics::FreeFallResult>,
     /// Blocks on inclines.
     pub incline: Vec<physics::InclineResult>,
-    /// Ball drop: (solver, deepest penetration, lowest vertex height, most contacts).
-    pub ball_drop: Vec<(crate::solver::SolverKind, f64, f64, usize)>,
+    /// Ball drop, per solver.
+    pub ball_drop: Vec<physics::BallDropResult>,
     /// Cantilever refinement study.
     pub cantilever: Vec<physics::CantileverRow>,
     /// Solvers against the direct one.
@@ -546,13 +549,16 @@ pub struct PhysicsReport {
 }
 
 /// Schema of `reports/physics.json`.
-pub const PHYSICS_SCHEMA: &str = "diffsoft.verify.physics/1";
+pub const PHYSICS_SCHEMA: &str = "diffsoft.physics/2";
 
 fn run_physics(base: &Path, out: &Path, suite: &suite::PhysicsSuite) -> Result<PhysicsReport> {
     use crate::solver::SolverKind;
     let mut free_fall = Vec::new();
     for s in [SolverKind::Direct, SolverKind::Split, SolverKind::Chebyshev] {
-        free_fall.push((s, physics::free_fall(s, 50)?));
+        free_fall.push(physics::FreeFallResult {
+            solver: s,
+            max_relative_error: physics::free_fall(s, 50)?,
+        });
     }
     let mut incline = Vec::new();
     for (angle, mu) in [
@@ -568,8 +574,13 @@ fn run_physics(base: &Path, out: &Path, suite: &suite::PhysicsSuite) -> Result<P
     let ball = mesh::load(base.join("paper/droneman/ball_tet.obj"))?.mesh;
     let mut ball_drop = Vec::new();
     for s in [SolverKind::Direct, SolverKind::Chebyshev] {
-        let (pen, low, contacts) = physics::ball_drop(ball.clone(), s)?;
-        ball_drop.push((s, pen, low, contacts));
+        let (max_penetration, lowest_height, max_contacts) = physics::ball_drop(ball.clone(), s)?;
+        ball_drop.push(physics::BallDropResult {
+            solver: s,
+            max_penetration,
+            lowest_height,
+            max_contacts,
+        });
     }
     println!("  cantilever levels {:?} ...", suite.cantilever_levels);
     let cantilever = physics::cantilever(&suite.cantilever_levels)?;
@@ -588,7 +599,7 @@ fn run_physics(base: &Path, out: &Path, suite: &suite::PhysicsSuite) -> Result<P
     let mut verdicts = vec![
         Verdict::at_most(
             "Free fall matches implicit Euler's exact trajectory (every solver)",
-            free_fall.iter().map(|f| f.1).fold(0.0, f64::max),
+            free_fall.iter().map(|f| f.max_relative_error).fold(0.0, f64::max),
             1e-10,
         ),
         Verdict::new(
@@ -606,7 +617,11 @@ fn run_physics(base: &Path, out: &Path, suite: &suite::PhysicsSuite) -> Result<P
         ),
         Verdict::at_most(
             "No penetration: deepest over the ball drops and inclines (m)",
-            ball_drop.iter().map(|b| b.1).chain(incline.iter().map(|r| r.max_penetration)).fold(0.0, f64::max),
+            ball_drop
+                .iter()
+                .map(|b| b.max_penetration)
+                .chain(incline.iter().map(|r| r.max_penetration))
+                .fold(0.0, f64::max),
             1e-9,
         ),
         Verdict::at_most(

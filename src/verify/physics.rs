@@ -12,7 +12,7 @@ use crate::contact::Obstacle;
 use crate::mesh::generate::BoxSpec;
 use crate::mesh::TetMesh;
 use crate::model::{BodySpec, MassSpec, ModelBuilder};
-use crate::report::Verdict;
+use crate::report::{ModelSize, Verdict};
 use crate::scene::{self, LoadOptions};
 use crate::solver::{CertifyPolicy, Settings, Simulator, SolverError, SolverKind};
 
@@ -69,11 +69,11 @@ pub fn free_fall(solver: SolverKind, steps: usize) -> Result<f64, SolverError> {
 }
 
 /// A block on an inclined plane.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct InclineResult {
     /// Incline angle (degrees).
     pub angle_deg: f64,
-    /// Friction coefficient.
+    /// Friction coefficient (1).
     pub friction: f64,
     /// Coulomb's verdict: sticks iff `tan(angle) < mu`.
     pub should_stick: bool,
@@ -185,8 +185,30 @@ pub fn ball_drop(ball: TetMesh, solver: SolverKind) -> Result<(f64, f64, usize),
     Ok((pen, lowest, contacts))
 }
 
+/// Free fall with one solver.
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
+pub struct FreeFallResult {
+    /// The global solver.
+    pub solver: SolverKind,
+    /// Largest position error relative to implicit Euler's exact trajectory after 50 steps (1).
+    pub max_relative_error: f64,
+}
+
+/// The ball drop ([`ball_drop`]) with one solver.
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
+pub struct BallDropResult {
+    /// The global solver.
+    pub solver: SolverKind,
+    /// Deepest penetration into the ground over the run (m).
+    pub max_penetration: f64,
+    /// Lowest vertex height seen (m; the ground is at 0).
+    pub lowest_height: f64,
+    /// Most contacts in a step.
+    pub max_contacts: usize,
+}
+
 /// One refinement level of the cantilever study.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct CantileverRow {
     /// Cells across the section (`10 k` along the beam).
     pub cells_across: usize,
@@ -194,9 +216,9 @@ pub struct CantileverRow {
     pub tets: usize,
     /// Computed static tip deflection (m, mean over the tip face).
     pub tip_deflection: f64,
-    /// Euler-Bernoulli `q L^4 / (8 E I)`.
+    /// Euler-Bernoulli tip deflection `q L^4 / (8 E I)` (m).
     pub euler_bernoulli: f64,
-    /// `|w - w_EB| / w_EB`.
+    /// `|w - w_EB| / w_EB` (1).
     pub relative_error: f64,
     /// Local-global iterations of the static solve.
     pub iterations: usize,
@@ -264,12 +286,12 @@ pub fn cantilever(levels: &[usize]) -> Result<Vec<CantileverRow>, SolverError> {
 }
 
 /// One paper scene run.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct SceneRun {
     /// Scene file.
     pub scene: String,
-    /// Vertices, tets.
-    pub size: (usize, usize),
+    /// Vertices and tets.
+    pub size: ModelSize,
     /// Steps run.
     pub steps: usize,
     /// Solver used and why.
@@ -289,7 +311,7 @@ pub struct SceneRun {
 /// Run a scene file for `steps` steps.
 pub fn run_scene(path: &Path, steps: usize) -> Result<SceneRun, Box<dyn std::error::Error>> {
     let sc = scene::load(path, LoadOptions::default())?;
-    let size = (sc.model.n(), sc.model.tets.len());
+    let size = ModelSize::of(&sc.model);
     let mut sim = Simulator::new(sc.model, sc.settings)?;
     let mut stats = Vec::new();
     for _ in 0..steps {
@@ -333,7 +355,7 @@ pub fn cantilever_verdicts(rows: &[CantileverRow]) -> Vec<Verdict> {
 }
 
 /// One solver compared with the direct solver.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct AgreementRow {
     /// With a ground the beam's tip touches.
     pub ground: bool,

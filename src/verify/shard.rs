@@ -9,7 +9,7 @@ use std::str::FromStr;
 use serde::{Deserialize, Serialize};
 
 /// One shard of a sweep: items `i` with `i mod count == index`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct Shard {
     /// Shard number, `0 <= index < count`.
     pub index: usize,
@@ -115,7 +115,7 @@ pub fn check_same<T: PartialEq + fmt::Debug>(what: &str, values: &[T], paths: &[
 pub trait Partial {
     /// The shard this report holds.
     fn shard(&self) -> Shard;
-    /// Its schema (a partial schema such as `diffsoft.tradeoff.partial/1`).
+    /// Its schema (a partial schema such as `diffsoft.tradeoff_partial/1`).
     fn schema(&self) -> &str;
     /// The crate version that wrote it.
     fn crate_version(&self) -> &str;

@@ -16,15 +16,15 @@ use nalgebra::Vector3;
 use serde::Serialize;
 
 use crate::plot::{self, LinearChart, Panel, Series, Snapshots};
-use crate::report::{Header, Verdict};
+use crate::report::{Header, ModelSize, Verdict};
 use crate::scene::{self, LoadOptions, Scene};
 use crate::solver::{Simulator, StepStats};
 
 /// Schema of `reports/skeleton.json`.
-pub const SCHEMA: &str = "diffsoft.verify.skeleton/1";
+pub const SCHEMA: &str = "diffsoft.skeleton/2";
 
 /// One arm's reference points (vertex indices, global numbering).
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct Arm {
     /// The arm bone's name.
     pub bone: String,
@@ -34,37 +34,55 @@ pub struct Arm {
     pub tip: usize,
     /// Elevation at rest (degrees).
     pub rest_elevation_deg: f64,
-    /// Shoulder-to-tip distance at rest.
+    /// Shoulder-to-tip distance at rest (m).
     pub rest_length: f64,
 }
 
+/// The coordinate of a one-DoF joint.
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
+pub struct JointCoordinate {
+    /// The bone whose joint it is.
+    pub bone: String,
+    /// Angle of a rotational joint (rad) or extension of a prismatic one (m).
+    pub value: f64,
+}
+
+/// A bone and the kind of its joint.
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
+pub struct BoneJoint {
+    /// The bone's name.
+    pub bone: String,
+    /// Its joint's kind (`free`, `fixed`, `rotational`, `prismatic`).
+    pub joint: String,
+}
+
 /// The state of the body at one sampled step.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct Sample {
     /// Simulated time (s).
     pub time: f64,
-    /// One-DoF joint coordinates `(bone, angle or extension)`; empty without bones.
-    pub joints: Vec<(String, f64)>,
+    /// One-DoF joint coordinates; empty without bones.
+    pub joints: Vec<JointCoordinate>,
     /// Elevation of each arm (degrees, suite order).
     pub arm_elevation_deg: Vec<f64>,
-    /// Length ratio of each arm.
+    /// Length ratio of each arm (1).
     pub arm_length_ratio: Vec<f64>,
-    /// Vertical extent over the rest one.
+    /// Vertical extent over the rest one (1).
     pub height_ratio: f64,
-    /// Horizontal extent along the arms (tip to tip) over the rest one.
+    /// Horizontal extent along the arms (tip to tip) over the rest one (1).
     pub span_ratio: f64,
     /// Local-global iterations of the step.
     pub iterations: usize,
     /// Wall time of the step (ms).
     pub wall_ms: f64,
-    /// Largest change of a distance within a bone after the step.
+    /// Largest change of a distance within a bone after the step (m).
     pub bone_length_error: f64,
     /// Contacts of the step.
     pub contacts: usize,
 }
 
 /// One run of the scene.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct Run {
     /// With the scene's bones (and torques) or with the bones removed.
     pub with_bones: bool,
@@ -85,7 +103,7 @@ pub struct Run {
 }
 
 /// Cost per local-global iteration with and without the skeleton (exactly `iterations` per step).
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct Cost {
     /// Iterations per step (tolerance 0, no acceleration).
     pub iterations: usize,
@@ -93,16 +111,16 @@ pub struct Cost {
     pub steps: usize,
     /// Worker threads.
     pub threads: usize,
-    /// Median ms per step with bones.
+    /// Median wall time per step with bones (ms).
     pub with_bones_ms: f64,
-    /// Median ms per step without bones.
+    /// Median wall time per step without bones (ms).
     pub without_bones_ms: f64,
-    /// `with / without`.
+    /// `with / without` (1).
     pub ratio: f64,
 }
 
 /// `reports/skeleton.json`.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct SkeletonReport {
     /// Schema and crate version.
     #[serde(flatten)]
@@ -110,9 +128,9 @@ pub struct SkeletonReport {
     /// Scene file.
     pub scene: String,
     /// Vertices and tets.
-    pub size: (usize, usize),
-    /// Bones and their joints `(name, kind)`.
-    pub bones: Vec<(String, String)>,
+    pub size: ModelSize,
+    /// Bones and the kinds of their joints.
+    pub bones: Vec<BoneJoint>,
     /// Arm reference points.
     pub arms: Vec<Arm>,
     /// The run with bones.
@@ -193,7 +211,12 @@ fn sample(sim: &Simulator, s: &StepStats, arms: &[Arm], rest_height: f64, rest_s
     let joints = sim.skeleton().map_or(Vec::new(), |sk| {
         sk.bones
             .iter()
-            .filter_map(|b| b.joint.scalar().map(|c| (b.name.clone(), c)))
+            .filter_map(|b| {
+                b.joint.scalar().map(|value| JointCoordinate {
+                    bone: b.name.clone(),
+                    value,
+                })
+            })
             .collect()
     });
     let mut elev = Vec::new();
@@ -302,7 +325,10 @@ pub fn study(scene_path: &Path, steps: usize, arm_bones: &[String], out: &Path) 
     let bones = sk
         .bones
         .iter()
-        .map(|b| (b.name.clone(), b.joint.kind().to_string()))
+        .map(|b| BoneJoint {
+            bone: b.name.clone(),
+            joint: b.joint.kind().to_string(),
+        })
         .collect();
     let (with, views_with) = run(&sc, true, steps, &arms)?;
     let (without, views_without) = run(&sc, false, steps, &arms)?;
@@ -399,9 +425,9 @@ pub fn study(scene_path: &Path, steps: usize, arm_bones: &[String], out: &Path) 
             .joints
             .iter()
             .enumerate()
-            .map(|(j, (name, _))| Series {
-                label: name.clone(),
-                points: with.samples.iter().map(|s| (s.time, s.joints[j].1)).collect(),
+            .map(|(j, joint)| Series {
+                label: joint.bone.clone(),
+                points: with.samples.iter().map(|s| (s.time, s.joints[j].value)).collect(),
             })
             .collect(),
     };
@@ -409,7 +435,7 @@ pub fn study(scene_path: &Path, steps: usize, arm_bones: &[String], out: &Path) 
     Ok(SkeletonReport {
         header: Header::new(SCHEMA),
         scene: scene_path.display().to_string(),
-        size: (sc.model.n(), sc.model.tets.len()),
+        size: ModelSize::of(&sc.model),
         bones,
         arms,
         with_bones: with,

@@ -8,7 +8,7 @@ use serde::Deserialize;
 pub const SUITE_SCHEMA: &str = "diffsoft.suite/1";
 
 /// The whole suite.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Suite {
     /// Must be [`SUITE_SCHEMA`].
@@ -38,7 +38,7 @@ pub struct Suite {
 }
 
 /// The cloth study.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct ClothSuite {
     /// The scenes (relative to the suite file) and their steps; the first is the paper's.
@@ -48,7 +48,7 @@ pub struct ClothSuite {
 }
 
 /// The trade-off study: one sweep per scene.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct TradeoffSuite {
     /// The sweeps (scene files relative to the suite file).
@@ -56,7 +56,7 @@ pub struct TradeoffSuite {
 }
 
 /// The extremes suite.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct ExtremesSuite {
     /// Which cases.
@@ -64,7 +64,7 @@ pub struct ExtremesSuite {
 }
 
 /// The gradient study.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct GradientSuite {
     /// The bridgesus scene (paper format), relative to the suite file.
@@ -84,12 +84,12 @@ pub struct GradientSuite {
 }
 
 /// The actuator study: static checks plus the paper's drone and octopus scenes.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct ActuatorSuite {
     /// The drone scene (paper format), relative to the suite file.
     pub drone: PathBuf,
-    /// Activation of every pneumatic group of the drone.
+    /// Activation of every pneumatic group of the drone (1: target volume ratio).
     pub drone_activation: f64,
     /// Steps of the drone run.
     pub drone_steps: usize,
@@ -97,14 +97,14 @@ pub struct ActuatorSuite {
     pub octopus: PathBuf,
     /// The muscle group driven.
     pub octopus_muscle: String,
-    /// Its activation.
+    /// Its activation (1: muscle contraction).
     pub octopus_activation: f64,
     /// Steps of the octopus run.
     pub octopus_steps: usize,
 }
 
 /// The embedded-skeleton study.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct SkeletonSuite {
     /// Scene with bones and joint torques, relative to the suite file.
@@ -116,7 +116,7 @@ pub struct SkeletonSuite {
 }
 
 /// Physics checks of the forward solver.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct PhysicsSuite {
     /// Refinement levels of the cantilever study (cells across the section).
@@ -126,7 +126,7 @@ pub struct PhysicsSuite {
 }
 
 /// A scene run by the suite.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct SuiteScene {
     /// Scene file, relative to the suite file.
@@ -136,7 +136,7 @@ pub struct SuiteScene {
 }
 
 /// Bounds analysis settings and meshes.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct BoundsSuite {
     /// Run the empirical contraction check.
@@ -148,7 +148,7 @@ pub struct BoundsSuite {
 }
 
 /// One mesh of the suite, with the paper scene's material and time step.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct SuiteMesh {
     /// Short name (file names of the sweep outputs).
@@ -157,15 +157,15 @@ pub struct SuiteMesh {
     pub mesh: PathBuf,
     /// The paper scene file these parameters come from (relative to the suite file).
     pub source_scene: Option<PathBuf>,
-    /// Vertex scale ("Scale"; the reference implementation's default is 0.05).
+    /// Vertex scale (1; "Scale"; the reference implementation's default is 0.05).
     pub scale: f64,
-    /// Total mass ("Mass", default 10): lumped by volume, i.e. density = mass / volume.
+    /// Total mass (kg; "Mass", default 10): lumped by volume, i.e. density = mass / volume.
     pub total_mass: f64,
-    /// Young's modulus.
+    /// Young's modulus (Pa).
     pub youngs_modulus: f64,
-    /// Poisson ratio.
+    /// Poisson ratio (1).
     pub poisson_ratio: f64,
-    /// Time step (1 / "Simulation HZ").
+    /// Time step (s; 1 / "Simulation HZ").
     pub dt: f64,
     /// Penalty attachments ("Attach Verts", "Attach Stiffness").
     #[serde(default)]
@@ -173,24 +173,24 @@ pub struct SuiteMesh {
 }
 
 /// Attachments of a suite mesh.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct SuiteAttach {
     /// Attached vertices (0-based file indices).
     pub vertices: Vec<usize>,
-    /// Spring weight.
+    /// Spring weight (N/m).
     pub stiffness: f64,
 }
 
 /// Structured boxes with a fixed cell size and a growing number of cells.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct TScalingSuite {
-    /// Cell edge length.
+    /// Cell edge length (m).
     pub cell_size: f64,
-    /// Density.
+    /// Density (kg/m^3).
     pub rho: f64,
-    /// Stiffness coefficient.
+    /// Stiffness coefficient of `L` (Pa).
     pub mu: f64,
     /// Cells per axis of each cubic box.
     pub cells_per_axis: Vec<usize>,

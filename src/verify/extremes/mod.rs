@@ -32,12 +32,12 @@ pub use cases::{all, Case};
 pub use probe::{Check, GradientCheck, GradientStatus, Trial};
 
 /// Schema of a shard's partial report.
-pub const PARTIAL_SCHEMA: &str = "diffsoft.extremes.partial/1";
+pub const PARTIAL_SCHEMA: &str = "diffsoft.extremes_partial/1";
 /// Schema of `reports/extremes.json`.
 pub const SCHEMA: &str = "diffsoft.extremes/1";
 
 /// How a case ended.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum Outcome {
     /// Every step ran and every value is finite.
@@ -52,7 +52,7 @@ pub enum Outcome {
 }
 
 /// Which cases to run.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum Subset {
     /// The cases that take well under a second each (the test suite's subset).
@@ -62,7 +62,7 @@ pub enum Subset {
 }
 
 /// The result of one case.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct CaseResult {
     /// Position in the full case list.
     pub index: usize,
@@ -95,7 +95,7 @@ pub struct CaseResult {
 }
 
 /// A shard's part of the suite (`diffsoft extremes --shard K/N`).
-#[derive(Debug, Clone, Serialize, Deserialize)]
+#[derive(Debug, Clone, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct ExtremesPartial {
     /// [`PARTIAL_SCHEMA`].
     pub schema: String,
@@ -126,7 +126,7 @@ impl Partial for ExtremesPartial {
 }
 
 /// Counts of outcomes.
-#[derive(Debug, Clone, Copy, Default, Serialize)]
+#[derive(Debug, Clone, Copy, Default, Serialize, schemars::JsonSchema)]
 pub struct Counts {
     /// Stable.
     pub stable: usize,
@@ -145,7 +145,7 @@ pub struct Counts {
 }
 
 /// `reports/extremes.json`.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct ExtremesReport {
     /// [`SCHEMA`].
     pub schema: String,

@@ -10,13 +10,14 @@ use crate::model::Model;
 use crate::solver::{CertifyPolicy, Settings, Simulator, SolverError, SolverKind, StepStats};
 
 /// A measured quantity and whether it is within its bound.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct Check {
     /// What is measured.
     pub quantity: String,
-    /// The measurement (`null` when it does not exist, e.g. after a failed run).
+    /// The measurement, in the unit `quantity` names (`null` when it does not exist, e.g. after a
+    /// failed run).
     pub measured: Option<f64>,
-    /// The bound.
+    /// The bound, in the unit of `measured`.
     pub threshold: Option<f64>,
     /// Whether it holds.
     pub holds: bool,
@@ -49,7 +50,7 @@ impl Check {
 }
 
 /// What happened to a case's gradient.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum GradientStatus {
     /// Every derivative is finite.
@@ -63,7 +64,7 @@ pub enum GradientStatus {
 }
 
 /// A case's gradient.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct GradientCheck {
     /// Outcome.
     pub status: GradientStatus,
@@ -71,7 +72,7 @@ pub struct GradientCheck {
     pub message: Option<String>,
     /// Parameters.
     pub parameters: Vec<String>,
-    /// `dL/dp` (finite values only).
+    /// `dL/dp` (loss unit per parameter unit; finite values only).
     pub values: Option<Vec<f64>>,
 }
 

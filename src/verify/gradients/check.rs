@@ -18,40 +18,42 @@ use crate::kernel::svd::svd3;
 use crate::model::Model;
 
 /// One point of a V-curve.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct VPoint {
-    /// Relative step `e` (the perturbation is `e x scale`).
+    /// Relative step `e` (1; the perturbation is `e x scale`).
     pub step: f64,
-    /// Central difference.
+    /// Central difference (the unit of `analytic`).
     pub fd: f64,
-    /// `|analytic - fd|`.
+    /// `|analytic - fd|` (the unit of `analytic`).
     pub abs_error: f64,
-    /// `|analytic - fd| / |fd|`.
+    /// `|analytic - fd| / |fd|` (1).
     pub rel_error: f64,
 }
 
 /// The check of one parameter group.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct GroupCheck {
     /// Group.
     pub group: String,
     /// `scalar` or `random_direction` (`v^T J u` with a seeded random `u`).
     pub kind: &'static str,
-    /// Perturbation scale (the step is `e x scale`).
+    /// Perturbation scale (the parameter's unit; the step is `e x scale`).
     pub scale: f64,
-    /// Analytic derivative (along `scale u`).
+    /// Analytic derivative along `scale u` (the loss unit: m for centre-of-mass losses, rad for
+    /// joint angles).
     pub analytic: f64,
-    /// The central difference at the V-curve minimum.
+    /// The central difference at the V-curve minimum (the unit of `analytic`).
     pub fd_best: f64,
-    /// Its step.
+    /// Its step (1, relative).
     pub step_best: f64,
-    /// Relative error at the best step.
+    /// Relative error at the best step (1).
     pub rel_error_best: f64,
-    /// Richardson extrapolation `(100 D(e/10) - D(e))/99` at the best step.
+    /// Richardson extrapolation `(100 D(e/10) - D(e))/99` at the best step (the unit of
+    /// `analytic`).
     pub richardson: Option<f64>,
-    /// Its relative error against the analytic value.
+    /// Its relative error against the analytic value (1).
     pub richardson_rel_error: Option<f64>,
-    /// Slope of `log |error|` against `log e` over the three largest steps (2 for central
+    /// Slope of `log |error|` against `log e` over the three largest steps (1; 2 for central
     /// differences; `null` when those errors are already at the round-off floor).
     pub truncation_slope: Option<f64>,
     /// The sweep.
@@ -127,7 +129,7 @@ fn check_group(case: &Case, group: &Group, g: &Gradient, seed: u64) -> Result<Gr
 }
 
 /// Dual-number check of the local step's linearization at the final state of a run.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct DualCheck {
     /// Tets checked.
     pub tets: usize,
@@ -135,7 +137,8 @@ pub struct DualCheck {
     /// dual-number Jacobi SVD reference is not differentiable there (its rotations are not
     /// unique), although the projection and its analytic linearization are.
     pub skipped_repeated_singular_values: usize,
-    /// Largest `|dp_analytic - dp_dual| / (|dp_dual| + w |dF|)` over tets and random directions.
+    /// Largest `|dp_analytic - dp_dual| / (|dp_dual| + w |dF|)` over tets and random directions
+    /// (1).
     pub max_rel_error: f64,
 }
 
@@ -177,11 +180,11 @@ fn dual_check(model: &Model, q: &[Vector3<f64>], seed: u64) -> Result<DualCheck,
 }
 
 /// One mode's results on a case.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct ModeCheck {
     /// Mode.
     pub mode: Mode,
-    /// Loss value.
+    /// Loss value (m for centre-of-mass losses, rad for joint angles).
     pub loss: f64,
     /// Backward statistics.
     pub stats: DiffStats,
@@ -189,18 +192,18 @@ pub struct ModeCheck {
     pub groups: Vec<GroupCheck>,
     /// The group with the largest relative error at its best step.
     pub worst: Option<String>,
-    /// Its analytic value.
+    /// Its analytic value (the loss unit).
     pub worst_analytic: Option<f64>,
-    /// Its finite difference.
+    /// Its finite difference (the loss unit).
     pub worst_fd: Option<f64>,
-    /// Its relative error.
+    /// Its relative error (1).
     pub worst_rel_error: Option<f64>,
     /// Every group passes.
     pub passes: bool,
 }
 
 /// The checks of one case.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct CaseCheck {
     /// Name.
     pub name: String,

@@ -11,15 +11,15 @@ use crate::plot::{self, LogLogChart, Series};
 use crate::solver::Settings;
 
 /// Gradient error against a converged reference for one setting.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct CostPoint {
     /// Mode.
     pub mode: Mode,
     /// Local-global iterations per step (tolerance 0).
     pub iterations: usize,
-    /// `max_k |g_k - g_ref_k| / max_k |g_ref_k|` over the checked scalar derivatives.
+    /// `max_k |g_k - g_ref_k| / max_k |g_ref_k|` over the checked scalar derivatives (1).
     pub gradient_error: f64,
-    /// Loss error against the reference.
+    /// Loss error against the reference (m: the loss is a centre-of-mass coordinate).
     pub loss_error: f64,
     /// Forward + backward wall time (ms).
     pub wall_ms: f64,
@@ -28,13 +28,14 @@ pub struct CostPoint {
 }
 
 /// Gradient accuracy against cost for one case.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct CostReport {
     /// Case.
     pub case: String,
     /// Parameters whose derivatives are compared.
     pub parameters: Vec<String>,
-    /// Reference: unrolled gradient of a forward converged to relative change 1e-13.
+    /// Reference: unrolled gradient of a forward converged to relative change 1e-13 (loss unit per
+    /// parameter unit, in the order of `parameters`).
     pub reference: Vec<f64>,
     /// Reference settings: iteration cap and tolerance.
     pub reference_iterations: usize,

@@ -7,7 +7,7 @@ use super::cases::Case;
 use crate::diff::{self, DiffError, Mode, Options};
 
 /// Memory and time of the backward pass for growing horizons.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct MemoryPoint {
     /// Scene.
     pub scene: String,
@@ -31,7 +31,7 @@ pub struct MemoryPoint {
     pub forward_ms: f64,
     /// Backward (ms).
     pub backward_ms: f64,
-    /// Backward / forward.
+    /// Backward / forward (1).
     pub ratio: f64,
 }
 

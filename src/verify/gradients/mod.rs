@@ -23,6 +23,8 @@ pub use sysid::*;
 
 /// Schema of `gradients.json`.
 pub const GRADIENTS_SCHEMA: &str = "diffsoft.gradients/1";
+/// Schema of `diffsoft gradcheck --json`.
+pub const GRADCHECK_SCHEMA: &str = "diffsoft.gradcheck/1";
 
 /// The store budget of the memory study's second unrolled run (bytes).
 pub const STORE_BUDGET: usize = 64_000_000;

@@ -14,7 +14,7 @@ use super::cost::write_cost_svg;
 use super::cost::{accuracy_vs_cost, CostReport};
 use super::memory::{memory, MemoryPoint};
 use super::sysid::{sysid, SysId};
-use super::{ATOL, GRADIENTS_SCHEMA, RTOL, STORE_BUDGET};
+use super::{ATOL, GRADCHECK_SCHEMA, GRADIENTS_SCHEMA, RTOL, STORE_BUDGET};
 use crate::diff::loss::CenterOfMass;
 use crate::diff::{Controls, Mode, Options};
 use crate::report::{Header, Verdict};
@@ -22,16 +22,16 @@ use crate::scene::{self, LoadOptions};
 use crate::solver::SolverKind;
 
 /// `reports/gradients.json`.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct GradientsReport {
     /// Schema and version.
     #[serde(flatten)]
     pub header: Header,
-    /// Relative tolerance.
+    /// Relative tolerance (1).
     pub rtol: f64,
-    /// Absolute tolerance.
+    /// Absolute tolerance (the loss unit: m for the centre-of-mass losses of the cases).
     pub atol: f64,
-    /// Relative steps of the V-curves.
+    /// Relative steps of the V-curves (1).
     pub steps: Vec<f64>,
     /// The cases.
     pub cases: Vec<CaseCheck>,
@@ -47,6 +47,33 @@ pub struct GradientsReport {
     pub verdicts: Vec<Verdict>,
     /// Wall time (s).
     pub wall_time_s: f64,
+}
+
+/// `diffsoft gradcheck --json`: the gradient checks of the built-in cases (the `cases` of
+/// `reports/gradients.json`, without the studies).
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
+pub struct GradcheckReport {
+    /// Schema and version.
+    #[serde(flatten)]
+    pub header: Header,
+    /// Relative tolerance (1).
+    pub rtol: f64,
+    /// Absolute tolerance (the loss unit: m for the centre-of-mass losses of the cases).
+    pub atol: f64,
+    /// The cases.
+    pub cases: Vec<CaseCheck>,
+}
+
+impl GradcheckReport {
+    /// The report of these checks.
+    pub fn new(cases: Vec<CaseCheck>) -> Self {
+        Self {
+            header: Header::new(GRADCHECK_SCHEMA),
+            rtol: RTOL,
+            atol: ATOL,
+            cases,
+        }
+    }
 }
 
 /// Inputs of the full gradient study.

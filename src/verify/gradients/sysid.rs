@@ -13,23 +13,24 @@ use crate::diff::{self, DiffError, Mode, Options, Param};
 
 /// System identification (paper Sec. 5): recover Young's modulus from the final barycentre
 /// displacement with L-BFGS on `log E`.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct SysId {
     /// Scene.
     pub scene: String,
     /// Steps simulated per evaluation.
     pub steps: usize,
-    /// Velocity damping per step used (quasi-static: the bridge settles within the horizon).
+    /// Velocity damping factor per step used (1; quasi-static: the bridge settles within the
+    /// horizon).
     pub damping: f64,
-    /// The true modulus (the scene's).
+    /// The true modulus, the scene's (Pa).
     pub true_youngs_modulus: f64,
-    /// The starting guess.
+    /// The starting guess (Pa).
     pub initial_youngs_modulus: f64,
     /// The target: the barycentre's displacement at the true modulus (m).
     pub target_displacement: [f64; 3],
-    /// The recovered modulus.
+    /// The recovered modulus (Pa).
     pub recovered_youngs_modulus: f64,
-    /// `|E - E_true| / E_true`.
+    /// `|E - E_true| / E_true` (1).
     pub relative_error: f64,
     /// Optimizer result (iterations, evaluations, history of `log E`).
     pub optimizer: Minimum,

@@ -46,7 +46,7 @@ pub use summary::summary;
 pub const ANDERSON_MEMORY: usize = 5;
 
 /// A family of global solvers (how each local-global iteration's linear system is solved).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, clap::ValueEnum, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum Family {
     /// Sparse Cholesky, factored once.
@@ -100,7 +100,7 @@ impl Family {
 }
 
 /// How the local-global iteration of each step stops.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum Knob {
     /// Exactly this many iterations per step (tolerance 0).
@@ -121,7 +121,7 @@ impl Knob {
 }
 
 /// What the Pareto fronts use as cost.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, clap::ValueEnum, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum TimeAxis {
     /// Thread CPU seconds per simulated second (one thread per setting).
@@ -132,7 +132,7 @@ pub enum TimeAxis {
 }
 
 /// Where a scene comes from.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case", deny_unknown_fields)]
 pub enum SceneSource {
     /// A scene file (diffsoft or paper format), relative to the suite file (or the working
@@ -178,7 +178,7 @@ fn default_tolerances() -> Vec<f64> {
 
 /// One scene's trade-off sweep (a `tradeoff.scenes` entry of `verification/suite.json`, or the
 /// `diffsoft tradeoff` options).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct TradeoffSpec {
     /// Name (file names, report).
@@ -193,7 +193,7 @@ pub struct TradeoffSpec {
     /// The reference runs at `h/R`; `R` is a multiple of every `d` and larger than all.
     #[serde(default = "default_reference_divisor")]
     pub reference_divisor: usize,
-    /// Tolerance of every reference run.
+    /// Tolerance of every reference run (1: relative RMS change over the length scale).
     #[serde(default = "default_reference_tolerance")]
     pub reference_tolerance: f64,
     /// Iteration cap of the reference runs.
@@ -209,7 +209,7 @@ pub struct TradeoffSpec {
     /// Iteration caps (tolerance 0).
     #[serde(default = "default_caps")]
     pub caps: Vec<usize>,
-    /// Tolerances.
+    /// Tolerances (1: relative RMS change over the length scale).
     #[serde(default = "default_tolerances")]
     pub tolerances: Vec<f64>,
     /// Iteration cap used with the tolerance knob.
@@ -221,7 +221,7 @@ pub struct TradeoffSpec {
     /// Loss of the gradients (`final_com.y`, `mean_com.x`, ...).
     #[serde(default = "default_loss")]
     pub loss: String,
-    /// Target relative errors to recommend a setting for.
+    /// Target relative errors to recommend a setting for (1).
     #[serde(default = "default_targets")]
     pub targets: Vec<f64>,
     /// Cost axis of the Pareto fronts.
@@ -379,7 +379,7 @@ impl TradeoffSpec {
 }
 
 /// One point of the grid.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct Setting {
     /// Solver family.
     pub family: Family,

@@ -10,7 +10,7 @@ use crate::solver::SolverKind;
 use crate::verify::shard::{Partial, Shard};
 
 /// Schema of a shard's partial report.
-pub const PARTIAL_SCHEMA: &str = "diffsoft.tradeoff.partial/1";
+pub const PARTIAL_SCHEMA: &str = "diffsoft.tradeoff_partial/1";
 /// Schema of `reports/tradeoff.json` and of merged reports.
 pub const SCHEMA: &str = "diffsoft.tradeoff/1";
 
@@ -20,7 +20,7 @@ pub const SCHEMA: &str = "diffsoft.tradeoff/1";
 pub const RESOLUTION_FACTOR: f64 = 1e3;
 
 /// What happened to a setting.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum Status {
     /// Ran every step.
@@ -37,25 +37,25 @@ pub enum Status {
 }
 
 /// Wall and CPU time of a setting's forward run.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct Timing {
-    /// Set-up (assembly, factorisation, certification), s.
+    /// Set-up (assembly, factorisation, certification) (s).
     pub setup_s: f64,
     /// Forward runs timed (the median is reported).
     pub runs: usize,
-    /// Median wall time of the stepping over the runs, s.
+    /// Median wall time of the stepping over the runs (s).
     pub wall_s: f64,
-    /// Mean thread CPU time of the stepping over the runs (total / runs), s (`null` without
+    /// Mean thread CPU time of the stepping over the runs, total / runs (s; `null` without
     /// `/proc`).
     pub cpu_s: Option<f64>,
-    /// `wall_s` per simulated second.
+    /// `wall_s` per simulated second (s/s).
     pub wall_s_per_sim_s: f64,
-    /// `cpu_s` per simulated second.
+    /// `cpu_s` per simulated second (s/s).
     pub cpu_s_per_sim_s: Option<f64>,
 }
 
 /// Errors of a setting's trajectory, sampled at every multiple of the scene's step `h`.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct TrajectoryErrors {
     /// Largest vertex distance to the reference at `h/R` (m).
     pub max_vertex_error: f64,
@@ -63,43 +63,43 @@ pub struct TrajectoryErrors {
     pub rms_vertex_error: f64,
     /// Largest centre-of-mass distance to it (m).
     pub com_error: f64,
-    /// `max_vertex_error` / the reference's largest displacement: the error the fronts use.
+    /// `max_vertex_error` / the reference's largest displacement (1): the error the fronts use.
     pub max_relative: f64,
-    /// `rms_vertex_error` / the same scale.
+    /// `rms_vertex_error` / the same scale (1).
     pub rms_relative: f64,
-    /// `com_error` / the same scale.
+    /// `com_error` / the same scale (1).
     pub com_relative: f64,
-    /// Largest vertex distance to the converged run at the same time step, / the same scale
-    /// (the solver's share of the error).
+    /// Largest vertex distance to the converged run at the same time step, / the same scale (1; the
+    /// solver's share of the error).
     pub solver_max_relative: f64,
-    /// RMS of the same.
+    /// RMS of the same (1).
     pub solver_rms_relative: f64,
-    /// `(E_end - E_0) / E_scale`: total energy drift over the run.
+    /// `(E_end - E_0) / E_scale` (1): total energy drift over the run.
     pub energy_drift: f64,
-    /// `|energy_drift - reference energy_drift|`.
+    /// `|energy_drift - reference energy_drift|` (1).
     pub energy_drift_error: f64,
 }
 
 /// A setting's gradient.
-#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct GradientResult {
-    /// `p dL/dp` for each parameter (log-derivatives, all in loss units), `null` when not
-    /// computed.
+    /// `p dL/dp` for each parameter (log-derivatives, in the loss unit: m for centre-of-mass
+    /// losses), `null` when not computed.
     pub values: Option<Vec<f64>>,
     /// Why there is no gradient (unsupported scene, not requested, forward failed).
     pub message: Option<String>,
-    /// Wall time of forward + backward, s.
+    /// Wall time of forward + backward (s).
     pub wall_s: Option<f64>,
-    /// Thread CPU time of forward + backward, s.
+    /// Thread CPU time of forward + backward (s).
     pub cpu_s: Option<f64>,
-    /// `max_k |g_k - g_ref_k| / max_k |g_ref_k|` against the reference gradient at `h/R`.
+    /// `max_k |g_k - g_ref_k| / max_k |g_ref_k|` against the reference gradient at `h/R` (1).
     pub error: Option<f64>,
-    /// The same against the tight-tolerance gradient at the setting's own time step.
+    /// The same against the tight-tolerance gradient at the setting's own time step (1).
     pub solver_error: Option<f64>,
 }
 
 /// One setting of the grid.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct Row {
     /// Position in the grid.
     pub index: usize,
@@ -132,13 +132,13 @@ pub struct Row {
 }
 
 /// A reference trajectory (direct solver, tight tolerance).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct Reference {
     /// Time step divisor.
     pub dt_divisor: usize,
     /// Time step (s).
     pub dt: f64,
-    /// Tolerance.
+    /// Tolerance (1: relative RMS change over the length scale).
     pub tolerance: f64,
     /// Iteration cap.
     pub max_iterations: usize,
@@ -151,14 +151,14 @@ pub struct Reference {
     /// Largest displacement of a vertex from rest over the samples (m; the length scale if
     /// nothing moves): relative errors divide by the `h/R` reference's.
     pub displacement_scale: f64,
-    /// Energy drift over the run, `(E_end - E_0) / E_scale`.
+    /// Energy drift over the run, `(E_end - E_0) / E_scale` (1).
     pub energy_drift: f64,
     /// Hash of the sampled states (equal in every shard).
     pub fingerprint: String,
 }
 
 /// A reference gradient (direct solver, tight tolerance, unrolled).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct GradientReference {
     /// Time step divisor.
     pub dt_divisor: usize,
@@ -167,7 +167,7 @@ pub struct GradientReference {
 }
 
 /// A shard's part of a sweep (`diffsoft tradeoff --shard K/N`).
-#[derive(Debug, Clone, Serialize, Deserialize)]
+#[derive(Debug, Clone, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct TradeoffPartial {
     /// [`PARTIAL_SCHEMA`].
     pub schema: String,
@@ -210,18 +210,19 @@ impl Partial for TradeoffPartial {
 }
 
 /// A point of a Pareto front or a recommendation.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, schemars::JsonSchema)]
 pub struct Pick {
     /// Setting id.
     pub id: String,
-    /// Cost per simulated second (the report's time axis).
+    /// Cost per simulated second on the report's time axis (s/s of CPU time for `cpu`, iterations
+    /// per simulated second for `iterations`).
     pub time: f64,
-    /// Error.
+    /// Error (1, relative: as the front it is on).
     pub error: f64,
 }
 
 /// The Pareto fronts.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct Fronts {
     /// Cost axis.
     pub time_axis: TimeAxis,
@@ -240,9 +241,9 @@ pub struct Fronts {
 }
 
 /// The setting to pick for a target error.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct Recommendation {
-    /// Target relative error.
+    /// Target relative error (1).
     pub target: f64,
     /// Fastest setting whose trajectory error (vs the `h/R` reference) is within the target.
     pub trajectory: Option<Pick>,
@@ -265,22 +266,22 @@ pub struct Recommendation {
 }
 
 /// The order of convergence in the time step between two grid steps.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct ObservedOrder {
     /// The coarser step's row (direct solver, tightest tolerance).
     pub coarse: String,
     /// The finer step's row (half the step).
     pub fine: String,
-    /// Its error against the `h/R` reference.
+    /// Its error against the `h/R` reference (1, relative).
     pub coarse_error: f64,
-    /// The finer row's.
+    /// The finer row's (1, relative).
     pub fine_error: f64,
-    /// `p` with `e(x) = C (x^p - (h/R)^p)` (`null` outside `[0.05, 8]`).
+    /// `p` with `e(x) = C (x^p - (h/R)^p)` (1; `null` outside `[0.05, 8]`).
     pub order: Option<f64>,
 }
 
 /// How the study measured, in words and numbers.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct Method {
     /// The references.
     pub reference: String,
@@ -292,12 +293,12 @@ pub struct Method {
     pub workers: Vec<usize>,
     /// Number of shards merged.
     pub shards: usize,
-    /// Differences below this relative error are not resolved (monotonicity verdicts).
+    /// Differences below this relative error are not resolved (1; monotonicity verdicts).
     pub resolution: f64,
 }
 
 /// The study of one scene.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct SceneTradeoff {
     /// Sweep name.
     pub name: String,
@@ -332,7 +333,7 @@ pub struct SceneTradeoff {
 }
 
 /// `reports/tradeoff.json`.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct TradeoffReport {
     /// [`SCHEMA`].
     pub schema: String,

@@ -15,7 +15,7 @@ use crate::solver::Settings;
 
 /// A beam along x, Kuhn-split box cells, its `x = 0` face held fixed (Dirichlet), under gravity
 /// `-9.81` along y.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Cantilever {
     /// Cells along x, y, z (6 tets per cell).
@@ -24,7 +24,7 @@ pub struct Cantilever {
     pub size: [f64; 3],
     /// Young's modulus (Pa).
     pub youngs_modulus: f64,
-    /// Poisson ratio.
+    /// Poisson ratio (1).
     pub poisson_ratio: f64,
     /// Density (kg/m^3).
     pub density: f64,
@@ -78,7 +78,7 @@ impl Cantilever {
 }
 
 /// What a scene is, for the report.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct SceneSummary {
     /// Vertices.
     pub vertices: usize,

@@ -17,7 +17,7 @@ pub fn thread_cpu_s() -> Option<f64> {
 }
 
 /// Work done by a run (deterministic).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct Work {
     /// Steps taken.
     pub steps: usize,
