@@ -37,7 +37,8 @@
 //! * [`scene`]: the JSON scene format and the importer of the paper's scene files.
 //! * [`output`]: VTK frames and the JSON run log of a simulation.
 //! * [`report`], [`plot`], [`verify`]: versioned JSON reports, SVG plots and the harness the main
-//!   job (`diffsoft verify`) runs.
+//!   job (`diffsoft verify`) runs; [`verify::schemas()`] generates the JSON Schemas of every report,
+//!   the run log, the scene format and the suite file (`schemas/`, `diffsoft schemas`).
 //! * [`alloc`]: a counting allocator, to measure peak heap and allocations.
 //!
 //! ## The seams
