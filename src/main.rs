@@ -951,7 +951,7 @@ fn grad(a: GradArgs) -> Result<()> {
         g.stats.forward_iterations
     );
     let missed = sc.settings.tolerance > 0.0 && g.stats.unconverged_steps > 0;
-    if missed || g.stats.replay_deviation > 1e-9 * sc.model.length_scale() {
+    if missed || g.stats.replay_deviation > 1e-6 * sc.model.length_scale() {
         say!(
             "warning: {} of {} forward steps did not converge, replay deviation {:.3e} m (allowed by --allow-unconverged)",
             g.stats.unconverged_steps, a.steps, g.stats.replay_deviation

@@ -94,7 +94,7 @@ pub enum DiffError {
     NotReplayable {
         /// Largest position difference between replay and forward (m).
         deviation: f64,
-        /// The allowed difference (m): 1e-9 of the model's length scale.
+        /// The allowed difference (m): 1e-6 of the model's length scale.
         allowed: f64,
     },
     /// The forward simulation failed.
