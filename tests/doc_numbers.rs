@@ -213,7 +213,7 @@ fn quoted_tables_match_the_tables_the_main_job_writes() {
                 .copied()
                 .collect();
             let table = std::fs::read_to_string(root.join("reports").join(name)).unwrap();
-            let want: Vec<&str> = table.lines().collect();
+            let want: Vec<&str> = table.trim_matches('\n').lines().collect();
             assert_eq!(
                 block,
                 want,
