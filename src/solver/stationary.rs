@@ -66,7 +66,8 @@ impl Stationary {
             lx: vec![Vector3::zeros(); n],
             x_hat: vec![Vector3::zeros(); n],
             x_prev: vec![Vector3::zeros(); n],
-            lambda: Vec::new(),
+            // Room for a contact on every vertex, so the solve does not allocate in a step.
+            lambda: Vec::with_capacity(n),
         }
     }
 }
@@ -96,7 +97,7 @@ impl GlobalSolver for Stationary {
         };
         let rho = if with_contacts { None } else { self.chebyshev_rho };
         self.x_prev.copy_from_slice(x);
-        // Grows to the largest contact count seen, then reuses its capacity.
+        // Reserved for one contact per vertex; grows only beyond that.
         self.lambda.clear();
         self.lambda.resize(contacts.len(), Vector3::zeros());
         let mut omega = 1.0;
