@@ -8,7 +8,8 @@ mod run_dir;
 mod runlog;
 mod vtk;
 
-pub use file::{check_writable, refuse_input, write_atomic};
+pub use crate::report::write_atomic;
+pub use file::{check_writable, refuse_input};
 pub use grad::{GradReport, GRAD_SCHEMA};
 pub use run_dir::{RunDir, RunStatus, COLLECTION, RUN_LOG};
 

@@ -5,8 +5,8 @@
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-use super::file::write_atomic;
 use super::runlog::RunLog;
+use crate::report::write_atomic;
 
 /// Files a run writes into its directory.
 pub const RUN_LOG: &str = "run.json";
