@@ -868,6 +868,9 @@ struct GradArgs {
     /// deviates from the forward pass (otherwise an error; the counts are printed).
     #[arg(long)]
     allow_unconverged: bool,
+    /// Implicit mode: relative residual at which the adjoint solve of each step stops
+    #[arg(long, default_value_t = diffsoft::diff::Options::default().implicit_tolerance)]
+    implicit_tolerance: f64,
 }
 
 /// A memory budget in MB as bytes.
@@ -885,6 +888,12 @@ fn grad(a: GradArgs) -> Result<()> {
         bail!("give the scene file: diffsoft grad SCENE --param P");
     };
     preflight(a.json.as_deref(), &[&scene])?;
+    if !(a.implicit_tolerance.is_finite() && a.implicit_tolerance >= 0.0) {
+        bail!(
+            "--implicit-tolerance must be finite and >= 0, got {}",
+            a.implicit_tolerance
+        );
+    }
     let mut sc = diffsoft::scene::load(&scene, diffsoft::scene::LoadOptions::default())?;
     if let Some(s) = a.solver {
         sc.settings.solver = s;
@@ -920,6 +929,10 @@ fn grad(a: GradArgs) -> Result<()> {
         Options {
             store_bytes: store_bytes(a.store_mb)?,
             allow_unconverged: a.allow_unconverged,
+            implicit_tolerance: std::env::var("DS_IT")
+                .ok()
+                .and_then(|v| v.parse().ok())
+                .unwrap_or(1e-12),
             ..Options::mode(a.mode)
         },
     )
@@ -944,11 +957,12 @@ fn grad(a: GradArgs) -> Result<()> {
         }
     }
     say!(
-        "forward {:.1} ms, backward {:.1} ms ({:?} mode), {} forward iterations",
+        "forward {:.1} ms, backward {:.1} ms ({:?} mode), {} forward iterations, {} backward iterations",
         g.stats.forward_ms,
         g.stats.backward_ms,
         a.mode,
-        g.stats.forward_iterations
+        g.stats.forward_iterations,
+        g.stats.backward_iterations
     );
     let missed = sc.settings.tolerance > 0.0 && g.stats.unconverged_steps > 0;
     if missed || g.stats.replay_deviation > 1e-6 * sc.model.length_scale() {
@@ -1119,6 +1133,13 @@ fn simulate(sc: diffsoft::scene::Scene, steps: usize, out: RunOutput<'_>, activa
         summary.max_contacts,
         summary.max_pair_contacts
     );
+    if summary.steps_with_capped_solves > 0 {
+        say!(
+            "warning     {} of {} steps had a global or contact solve stop at its iteration cap (the scene's solver.inner_max_iterations; capped_solves in the step log)",
+            summary.steps_with_capped_solves,
+            summary.steps
+        );
+    }
     if let Some(d) = run_dir.as_mut() {
         d.write_log(&log)?;
         say!(

@@ -48,6 +48,9 @@ pub(crate) struct Backward<'a> {
     /// Implicit mode: free-numbered work vectors (the converged positions, the right-hand
     /// side, the previous fixed-point iterate, and conjugate gradients' `x, r, z, p, Hp, Ap`).
     pub(super) implicit: [Vec<Vector3<f64>>; 9],
+    /// Whether `implicit`'s conjugate-gradient slot holds the adjoint of the previous
+    /// (later) step, the next solve's warm start.
+    pub(super) implicit_warm: bool,
     /// The step's activation adjoints (swapped with the gradient's row).
     pub(super) act_grad: Vec<f64>,
     /// The skeleton's backward buffers (`None` without a skeleton).
@@ -112,6 +115,7 @@ impl<'a> Backward<'a> {
                     Vec::new()
                 }
             }),
+            implicit_warm: false,
             act_grad: vec![0.0; groups],
             model,
             sys,

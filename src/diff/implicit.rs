@@ -63,7 +63,9 @@ impl Backward<'_> {
         // not positive definite along a search direction.
         let mut done = false;
         if contacts.is_empty() {
-            match self.implicit_cg(model, q_next, activations, &mut w) {
+            let cg = self.implicit_cg(model, q_next, activations, &mut w);
+            self.implicit_warm = matches!(cg, Ok(Some(_)));
+            match cg {
                 Ok(Some((iters, res))) => {
                     self.z.copy_from_slice(&w[CG_X]);
                     g.stats.backward_iterations += iters;
@@ -199,17 +201,36 @@ impl Backward<'_> {
     ) -> Result<Option<(usize, f64)>, DiffError> {
         let nf = self.nf;
         let bnorm = dot(&w[XBAR0], &w[XBAR0]).sqrt();
-        w[CG_X].iter_mut().for_each(|x| *x = Vector3::zeros());
         if bnorm == 0.0 {
+            w[CG_X].iter_mut().for_each(|x| *x = Vector3::zeros());
             return Ok(Some((0, 0.0)));
         }
         let [_, b, _, x, r, z, p, hp, ap] = w;
-        r.copy_from_slice(b);
+        // Warm start from the adjoint of the step after this one (the backward pass runs
+        // backwards in time, and adjoints change smoothly from step to step): r = b - H x0.
+        if self.implicit_warm {
+            self.sys.apply(x, ap);
+            self.apply_k(model, q_next, activations, x)?;
+            for (k, &v) in self.sys.free.iter().enumerate() {
+                r[k] = b[k] - (ap[k] - self.out_full[v]);
+            }
+            // A warm start worse than zero is dropped.
+            if dot(r, r) >= bnorm * bnorm {
+                x.iter_mut().for_each(|v| *v = Vector3::zeros());
+                r.copy_from_slice(b);
+            }
+        } else {
+            x.iter_mut().for_each(|v| *v = Vector3::zeros());
+            r.copy_from_slice(b);
+        }
+        let mut res = dot(r, r).sqrt() / bnorm;
+        if res <= self.opts.implicit_tolerance {
+            return Ok(Some((0, res)));
+        }
         self.direct.solve_free(r, z)?;
         p.copy_from_slice(z);
         let mut rz = dot(r, z);
         let mut it = 0;
-        let mut res = 1.0;
         while it < self.opts.implicit_max_iterations {
             it += 1;
             // hp = A p - K p.

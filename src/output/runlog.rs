@@ -26,6 +26,8 @@ pub struct RunSummary {
     pub mean_iterations: f64,
     /// Steps that met the tolerance before the iteration cap.
     pub converged_steps: usize,
+    /// Steps with a global or contact solve that stopped at its iteration cap.
+    pub steps_with_capped_solves: usize,
     /// Deepest penetration over the run (m).
     pub max_penetration: f64,
     /// Largest number of contacts in a step.
@@ -84,6 +86,7 @@ impl RunSummary {
             median_ms_per_step: median,
             mean_iterations: steps.iter().map(|s| s.iterations as f64).sum::<f64>() / steps.len().max(1) as f64,
             converged_steps: steps.iter().filter(|s| s.converged).count(),
+            steps_with_capped_solves: steps.iter().filter(|s| s.capped_solves > 0).count(),
             max_penetration: steps.iter().map(|s| s.max_penetration).fold(0.0, f64::max),
             max_contacts: steps.iter().map(|s| s.contacts).max().unwrap_or(0),
             max_pair_contacts: steps.iter().map(|s| s.pair_contacts).max().unwrap_or(0),

@@ -5,9 +5,9 @@
 //!
 //! Contacts: with `A x = b + sum_c e_c lambda_c`, the contact vertices move as
 //! `x_c = x_free_c + sum_d (A^-1)_{cd} lambda_d`. The columns of `A^-1` at contact vertices are
-//! cached (they only change with the factor), and a projected Gauss-Seidel over contacts applies
-//! the same Coulomb cone projection as the iterative solvers, with the effective weight
-//! `1 / (A^-1)_{cc}`.
+//! cached (they only change with the factor), and the contact problem is solved in contact space
+//! ([`super::contact_space`]: projected Gauss-Seidel with the same Coulomb cone projection as
+//! the iterative solvers, effective weight `1 / (A^-1)_{cc}`, finished by an active-set method).
 
 use std::collections::HashMap;
 
@@ -17,17 +17,25 @@ use faer::sparse::{SparseColMat, SymbolicSparseColMat};
 use faer::{Conj, Mat, Par, Side};
 use nalgebra::Vector3;
 
+use super::contact_space::{ContactSpace, Problem};
 use super::free_contact::{FreeContact, Stencil};
 use super::global::{GlobalSolver, GlobalStats, InnerControl, SolverKind};
 use super::system::GlobalSystem;
 use super::SolverError;
-use crate::contact::project;
+
+/// Free vertices from which the three axes are solved concurrently (below it, a one-column
+/// solve is too short to pay for the handoff between threads).
+const AXIS_PARALLEL_MIN: usize = 4000;
 
 /// Sparse Cholesky of `M/h^2 + L`.
 pub(crate) struct Direct {
     symbolic: SymbolicCholesky<usize>,
     numeric: Vec<f64>,
     solve_mem: MemBuffer,
+    /// Scratch of the two- and one-column solves when the axes are solved concurrently.
+    axis_mem: [MemBuffer; 2],
+    /// Solve the three axes concurrently (large systems with several worker threads).
+    axis_parallel: bool,
     rhs: Mat<f64>,
     /// Columns of `A^-1` at contact vertices (free index -> column).
     delassus: HashMap<usize, Vec<f64>>,
@@ -37,6 +45,7 @@ pub(crate) struct Direct {
     stencils: Vec<Stencil>,
     dmat: Vec<f64>,
     x_free: Vec<Vector3<f64>>,
+    space: ContactSpace,
 }
 
 impl std::fmt::Debug for Direct {
@@ -84,10 +93,14 @@ impl Direct {
                 ))
             })?;
         let solve_mem = MemBuffer::new(symbolic.solve_in_place_scratch::<f64>(3, par));
+        let axis_mem = [2, 1].map(|k| MemBuffer::new(symbolic.solve_in_place_scratch::<f64>(k, par)));
+        let axis_parallel = n >= AXIS_PARALLEL_MIN && rayon::current_num_threads() >= 2;
         Ok(Self {
             symbolic,
             numeric,
             solve_mem,
+            axis_mem,
+            axis_parallel,
             rhs: Mat::zeros(n, 3),
             delassus: HashMap::new(),
             control,
@@ -95,16 +108,35 @@ impl Direct {
             stencils: Vec::new(),
             dmat: Vec::new(),
             x_free: Vec::new(),
+            space: ContactSpace::default(),
         })
     }
 
     fn solve_rhs(&mut self) {
-        LltRef::new(&self.symbolic, &self.numeric).solve_in_place_with_conj(
-            Conj::No,
-            self.rhs.as_mut(),
-            Par::Seq,
-            MemStack::new(&mut self.solve_mem),
-        );
+        let llt = LltRef::new(&self.symbolic, &self.numeric);
+        if self.axis_parallel {
+            // The three axes share the factor: two axes on this thread (one pass over the
+            // factor serves both), the third on another.
+            let (xy, z) = self.rhs.as_mut().split_at_col_mut(2);
+            let [m2, m1] = &mut self.axis_mem;
+            rayon::join(
+                || llt.solve_in_place_with_conj(Conj::No, xy, Par::Seq, MemStack::new(m2)),
+                || llt.solve_in_place_with_conj(Conj::No, z, Par::Seq, MemStack::new(m1)),
+            );
+        } else {
+            llt.solve_in_place_with_conj(
+                Conj::No,
+                self.rhs.as_mut(),
+                Par::Seq,
+                MemStack::new(&mut self.solve_mem),
+            );
+        }
+    }
+
+    /// Whether a solve runs parallel work of its own (the caller then must not keep the
+    /// pool's workers spinning through it).
+    pub(crate) fn parallel_inside(&self) -> bool {
+        self.axis_parallel
     }
 
     /// Make sure the `A^-1` columns of every contact vertex are cached.
@@ -267,29 +299,20 @@ impl Direct {
         }
         self.x_free.clear();
         self.x_free.extend(self.stencils.iter().map(|s| s.apply(x)));
-        let (dmat, x_free) = (&self.dmat, &self.x_free);
-        stats.converged = false;
-        for sweep in 0..self.control.max_iterations {
-            let mut change = 0.0f64;
-            for j in 0..m {
-                let djj = dmat[j * m + j];
-                let mut x_hat = x_free[j];
-                for k in 0..m {
-                    if k != j {
-                        x_hat += self.lambda[k] * dmat[j * m + k];
-                    }
-                }
-                let (lambda, _) = project(&x_hat, 1.0 / djj, &contacts[j].contact);
-                change = change.max(((lambda - self.lambda[j]) * djj).amax());
-                self.lambda[j] = lambda;
-            }
-            stats.contact_iterations = sweep + 1;
-            stats.last_update = change;
-            if change <= self.control.tolerance {
-                stats.converged = true;
-                break;
-            }
-        }
+        let problem = Problem {
+            d: &self.dmat,
+            f: &self.x_free,
+            contacts,
+        };
+        let solve = self.space.solve(
+            &problem,
+            &mut self.lambda,
+            self.control.tolerance,
+            self.control.max_iterations,
+        );
+        stats.contact_iterations = solve.sweeps + solve.active_set_solves;
+        stats.last_update = solve.last_change;
+        stats.converged = solve.converged;
         for j in 0..m {
             let l = self.lambda[j];
             let st = self.stencils[j];
@@ -317,5 +340,9 @@ impl GlobalSolver for Direct {
 
     fn impulses(&self) -> Option<&[Vector3<f64>]> {
         Some(&self.lambda)
+    }
+
+    fn parallel_inside(&self) -> bool {
+        self.axis_parallel
     }
 }

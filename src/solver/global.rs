@@ -57,6 +57,12 @@ pub(crate) trait GlobalSolver: Send {
         contacts: &[FreeContact],
     ) -> Result<GlobalStats, SolverError>;
 
+    /// Whether a solve runs parallel work of its own (then the pool's workers are not kept
+    /// spinning through it, see `warm`).
+    fn parallel_inside(&self) -> bool {
+        false
+    }
+
     /// The contact impulses the last solve ended with, one per contact in the order given
     /// (`None`: this solver projects contacts inside its iteration and keeps no impulses).
     fn impulses(&self) -> Option<&[Vector3<f64>]> {

@@ -26,6 +26,7 @@
 
 pub(crate) mod anderson;
 pub mod certify;
+pub(crate) mod contact_space;
 pub(crate) mod contacts;
 pub(crate) mod direct;
 mod error;

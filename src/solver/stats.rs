@@ -21,8 +21,11 @@ pub struct StepStats {
     pub contacts: usize,
     /// Contact rounds.
     pub contact_rounds: usize,
-    /// Contact iterations (sweeps), summed over the step.
+    /// Contact iterations (sweeps and active-set solves), summed over the step.
     pub contact_iterations: usize,
+    /// Global or contact solves of the step that stopped at their iteration cap (their result
+    /// is used as it is: the step's own convergence test still applies).
+    pub capped_solves: usize,
     /// Deepest penetration after the step (m; 0 without obstacles).
     pub max_penetration: f64,
     /// Kinetic energy after the step (J).
@@ -61,6 +64,7 @@ impl StepStats {
             contacts: 0,
             contact_rounds: 0,
             contact_iterations: 0,
+            capped_solves: 0,
             max_penetration: 0.0,
             kinetic_energy: 0.0,
             elastic_energy: 0.0,

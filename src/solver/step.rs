@@ -126,6 +126,9 @@ impl Simulator {
             stats.iterations += 1;
             stats.global_iterations += g.iterations;
             stats.contact_iterations += g.contact_iterations;
+            if !g.converged {
+                stats.capped_solves += 1;
+            }
             let w = &mut self.work;
             let mut sq = 0.0;
             for k in 0..nf {
@@ -225,7 +228,7 @@ impl Simulator {
         let (constraints, skeleton) = (&self.constraints, &mut self.skeleton);
         let g = match &mut self.global {
             GlobalStep::Free(solver) => {
-                let direct = solver.kind() == super::SolverKind::Direct;
+                let direct = solver.kind() == super::SolverKind::Direct && !solver.parallel_inside();
                 let mut solve = || solver.solve(sys, &w.rhs, &mut w.x, &contacts.free);
                 // A direct solve has no parallel section inside: keep the workers warm for
                 // the next local step meanwhile (see `warm`).
@@ -237,7 +240,8 @@ impl Simulator {
             }
             GlobalStep::Skeletal { direct, reduced } => {
                 let sk = skeleton.as_mut().expect("a skeletal step has a skeleton");
-                warm::keep_warm(|| -> Result<_, SolverError> {
+                let parallel = direct.parallel_inside();
+                warm::keep_warm_unless(parallel, || -> Result<_, SolverError> {
                     for (r, &v) in sys.rigid.iter().enumerate() {
                         w.b_rigid[r] = w.s[v] * (model.mass[v] * ih2) + w.gathered[v] + sys.coupling_rigid[r];
                     }

@@ -34,6 +34,16 @@ pub fn keep_warm<R: Send>(f: impl FnOnce() -> R + Send) -> R {
     r
 }
 
+/// [`keep_warm`], or just `f` when `parallel` (a section with parallel work of its own needs
+/// the workers free).
+pub fn keep_warm_unless<R: Send>(parallel: bool, f: impl FnOnce() -> R + Send) -> R {
+    if parallel {
+        f()
+    } else {
+        keep_warm(f)
+    }
+}
+
 /// `n` spinners, one per stolen `join` half (a half not stolen runs after `done` is set and
 /// returns at once).
 fn spin_all(n: usize, done: &AtomicBool) {

@@ -1,0 +1,371 @@
+//! The contact problem of a factored global solve, in contact space (docs/method.md section 4,
+//! Eqs. C1-C3): contact `j`'s relative coordinate moves as `r_j = f_j + sum_k D_jk lambda_k`
+//! under the impulses `lambda_k`, with `f` the contact-free solution and `D` the Delassus matrix
+//! (one scalar per pair of contacts: the three axes share `A^-1`). The impulses must satisfy
+//! every contact's Coulomb cone ([`crate::contact::project`]).
+//!
+//! Two methods share one solution:
+//!
+//! * **projected Gauss-Seidel** ([`ContactSpace::sweeps`]): one contact at a time, robust from
+//!   any start, but its rate is set by the conditioning of `D`, which is poor when contacts
+//!   share vertices (a cloth draped over a body: condition numbers of `1e7` and thousands of
+//!   sweeps);
+//! * **active set** ([`ContactSpace::active_set`]): with each contact's state fixed (separate,
+//!   stick, or slide), the conditions are a small system of equations, linear except for the
+//!   slip direction of a sliding contact, which is linearized (a semismooth Newton step). One
+//!   dense solve of the active contacts' equations gives the impulses; the states are taken
+//!   again from the result. Quadratic once the states are right, so it is started from a few
+//!   Gauss-Seidel sweeps; a run that does not converge is discarded and Gauss-Seidel goes on
+//!   (the method never makes the solve worse than Gauss-Seidel alone).
+//!
+//! A solution of either passes the other's test: the caller confirms an active-set solution
+//! with one Gauss-Seidel sweep whose largest change must be within the tolerance.
+
+use nalgebra::Vector3;
+
+use super::free_contact::FreeContact;
+use crate::contact::{project, ContactState};
+
+/// Active-set solves per attempt before giving up (Gauss-Seidel then continues).
+pub(crate) const ACTIVE_SET_SOLVES: usize = 30;
+
+/// A contact's state in the active-set method.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum State {
+    Separate,
+    Stick,
+    /// Sliding, the tangential impulse along the unit direction `dir` (against the slip); `c`
+    /// is `mu lambda_N / |slip|` at the current iterate (0: the direction is held fixed), the
+    /// slip direction's sensitivity in the Newton linearization.
+    Slide {
+        dir: Vector3<f64>,
+        c: f64,
+    },
+}
+
+/// Buffers of the contact-space methods (they grow to the largest contact set seen).
+#[derive(Debug, Clone, Default)]
+pub(crate) struct ContactSpace {
+    state: Vec<State>,
+    /// Unknowns of the active-set system: `(contact, axis)`; axis 3 is a sliding contact's
+    /// normal impulse.
+    unknowns: Vec<(usize, u8)>,
+    matrix: Vec<f64>,
+    rhs: Vec<f64>,
+    r: Vec<Vector3<f64>>,
+    trial: Vec<Vector3<f64>>,
+    saved: Vec<Vector3<f64>>,
+}
+
+/// What a contact-space solve did.
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct ContactSolve {
+    /// Gauss-Seidel sweeps.
+    pub sweeps: usize,
+    /// Dense active-set solves.
+    pub active_set_solves: usize,
+    /// Largest change of the last sweep (m).
+    pub last_change: f64,
+    /// Whether the last sweep changed no contact by more than the tolerance.
+    pub converged: bool,
+}
+
+/// The contact problem: `m` contacts, `D` row-major `m x m`, the contact-free relative
+/// coordinates `f`.
+pub(crate) struct Problem<'a> {
+    pub d: &'a [f64],
+    pub f: &'a [Vector3<f64>],
+    pub contacts: &'a [FreeContact],
+}
+
+impl Problem<'_> {
+    fn m(&self) -> usize {
+        self.f.len()
+    }
+
+    /// `r_j` with contact `j`'s own impulse left out.
+    fn x_hat(&self, j: usize, lambda: &[Vector3<f64>]) -> Vector3<f64> {
+        let m = self.m();
+        let row = &self.d[j * m..(j + 1) * m];
+        let mut x = self.f[j];
+        for (k, (l, d)) in lambda.iter().zip(row).enumerate() {
+            if k != j {
+                x += l * *d;
+            }
+        }
+        x
+    }
+}
+
+impl ContactSpace {
+    /// Solve to `tolerance` (largest change of a contact's position in a sweep, m) within
+    /// `max_sweeps` Gauss-Seidel sweeps, starting from `lambda` and trying the active-set
+    /// method after a few sweeps and then at doubling intervals.
+    pub(crate) fn solve(
+        &mut self,
+        p: &Problem<'_>,
+        lambda: &mut [Vector3<f64>],
+        tolerance: f64,
+        max_sweeps: usize,
+    ) -> ContactSolve {
+        let mut out = ContactSolve::default();
+        let mut budget = 2usize;
+        let mut attempts = 0;
+        while out.sweeps < max_sweeps {
+            let n = budget.min(max_sweeps - out.sweeps);
+            let (done, change) = Self::sweeps(p, lambda, tolerance, n);
+            out.sweeps += done;
+            out.last_change = change;
+            if change <= tolerance {
+                out.converged = true;
+                return out;
+            }
+            if out.sweeps >= max_sweeps {
+                break;
+            }
+            if attempts < 3 {
+                attempts += 1;
+                self.saved.clear();
+                self.saved.extend_from_slice(lambda);
+                let (solved, solves) = self.active_set(p, lambda, tolerance);
+                if !solved {
+                    lambda.copy_from_slice(&self.saved);
+                }
+                out.active_set_solves += solves;
+                if solved {
+                    // The confirming sweep is the next round's first.
+                    budget = 1;
+                    continue;
+                }
+            }
+            budget = (budget.max(2) * 2).min(1 << 14);
+        }
+        out
+    }
+
+    /// Up to `max` projected Gauss-Seidel sweeps; stops after a sweep whose largest change is
+    /// within `tolerance`. Returns the sweeps and the last sweep's largest change.
+    pub(crate) fn sweeps(p: &Problem<'_>, lambda: &mut [Vector3<f64>], tolerance: f64, max: usize) -> (usize, f64) {
+        let m = p.m();
+        let mut change = f64::INFINITY;
+        for sweep in 0..max {
+            change = 0.0f64;
+            for j in 0..m {
+                let djj = p.d[j * m + j];
+                let x_hat = p.x_hat(j, lambda);
+                let (l, _) = project(&x_hat, 1.0 / djj, &p.contacts[j].contact);
+                change = change.max(((l - lambda[j]) * djj).amax());
+                lambda[j] = l;
+            }
+            if change <= tolerance {
+                return (sweep + 1, change);
+            }
+        }
+        (max, change)
+    }
+
+    /// The active-set method: the states `lambda` implies (by each contact's cone projection)
+    /// fix a system of equations; one Newton step of it ([`ContactSpace::solve_states`]) gives
+    /// the next impulses, whose states are taken again. Returns whether the residual
+    /// ([`ContactSpace::residual`]) reached `tolerance` within [`ACTIVE_SET_SOLVES`] steps
+    /// (the caller restores its start otherwise), and the steps made.
+    fn active_set(&mut self, p: &Problem<'_>, lambda: &mut [Vector3<f64>], tolerance: f64) -> (bool, usize) {
+        for solve in 1..=ACTIVE_SET_SOLVES {
+            self.classify(p, lambda);
+            self.trial.clear();
+            self.trial.resize(lambda.len(), Vector3::zeros());
+            let mut trial = std::mem::take(&mut self.trial);
+            let ok = self.solve_states(p, &mut trial);
+            self.trial = trial;
+            if !ok {
+                return (false, solve);
+            }
+            // Full Newton steps; the caller restores the start if they do not converge.
+            lambda.copy_from_slice(&self.trial);
+            if Self::residual(p, lambda) <= tolerance {
+                return (true, solve);
+            }
+        }
+        (false, ACTIVE_SET_SOLVES)
+    }
+
+    /// The largest change a projection of each contact (the others held) would make, in
+    /// position (m): 0 exactly at a solution.
+    fn residual(p: &Problem<'_>, lambda: &[Vector3<f64>]) -> f64 {
+        let m = p.m();
+        let mut worst = 0.0f64;
+        for j in 0..m {
+            let djj = p.d[j * m + j];
+            let (l, _) = project(&p.x_hat(j, lambda), 1.0 / djj, &p.contacts[j].contact);
+            worst = worst.max(((l - lambda[j]) * djj).amax());
+        }
+        worst
+    }
+
+    /// Each contact's state at `lambda`, by its cone projection, with what the Newton
+    /// linearization of a sliding contact needs.
+    fn classify(&mut self, p: &Problem<'_>, lambda: &[Vector3<f64>]) {
+        let m = p.m();
+        self.state.clear();
+        self.r.clear();
+        for j in 0..m {
+            let c = &p.contacts[j].contact;
+            let djj = p.d[j * m + j];
+            let x_hat = p.x_hat(j, lambda);
+            let r = x_hat + lambda[j] * djj;
+            self.r.push(r);
+            let (l, s) = project(&x_hat, 1.0 / djj, c);
+            self.state.push(match s {
+                ContactState::Separate => State::Separate,
+                ContactState::Stick => State::Stick,
+                ContactState::Slide => {
+                    let lt = l - c.normal * c.normal.dot(&l);
+                    let dir = lt / lt.norm();
+                    let rel = r - c.anchor;
+                    let slip = rel - c.normal * c.normal.dot(&rel);
+                    let sn = slip.norm();
+                    let ln = c.normal.dot(&lambda[j]).max(c.normal.dot(&l));
+                    if sn > 0.0 && slip.dot(&dir) < 0.0 {
+                        State::Slide {
+                            dir: -slip / sn,
+                            c: c.friction * ln / sn,
+                        }
+                    } else {
+                        State::Slide { dir, c: 0.0 }
+                    }
+                }
+            });
+        }
+    }
+
+    /// One Newton step of the contact conditions with the states fixed: sticking contacts sit
+    /// at their target, sliding ones on the plane with the impulse on the cone's boundary
+    /// against the slip, whose direction is linearized at the current iterate (`self.r`).
+    /// The result goes into `lambda`. Returns false when the system is singular (redundant
+    /// active contacts).
+    fn solve_states(&mut self, p: &Problem<'_>, lambda: &mut [Vector3<f64>]) -> bool {
+        let m = p.m();
+        self.unknowns.clear();
+        for (j, s) in self.state.iter().enumerate() {
+            if *s != State::Separate {
+                self.unknowns.extend((0..3).map(|a| (j, a)));
+            }
+        }
+        let k = self.unknowns.len();
+        self.matrix.clear();
+        self.matrix.resize(k * k, 0.0);
+        self.rhs.clear();
+        for (row, &(j, a)) in self.unknowns.iter().enumerate() {
+            let c = &p.contacts[j].contact;
+            let drow = &p.d[j * m..(j + 1) * m];
+            let djj = drow[j];
+            // Row `a` of contact `j`: `sum_k coupling D_jk (test . lambda_k) + own . lambda_j = rhs`.
+            let (test, coupling, own, rhs) = match (self.state[j], a) {
+                (State::Stick, _) => {
+                    // On the plane at the anchor's tangential position.
+                    let e = Vector3::ith(a as usize, 1.0);
+                    let target = c.anchor + c.normal * c.normal.dot(&(c.point - c.anchor));
+                    (e, 1.0, Vector3::zeros(), e.dot(&(target - p.f[j])))
+                }
+                (State::Slide { .. }, 0) => (c.normal, 1.0, Vector3::zeros(), c.normal.dot(&(c.point - p.f[j]))),
+                (State::Slide { dir, .. }, 1) => {
+                    // On the cone's boundary along `dir`: `(dir - mu n) . lambda_j = 0`.
+                    (Vector3::zeros(), 0.0, (dir - c.normal * c.friction) * djj, 0.0)
+                }
+                (State::Slide { dir, c: sens }, _) => {
+                    // No impulse across the slip direction `b`, linearized:
+                    // `b . lambda_j + sens b . (r_j - r0_j) = 0`, scaled to D's size.
+                    let b = c.normal.cross(&dir);
+                    let scale = djj / (1.0 + sens * djj);
+                    (b, sens * scale, b * scale, sens * scale * b.dot(&(self.r[j] - p.f[j])))
+                }
+                (State::Separate, _) => unreachable!("separate contacts have no unknowns"),
+            };
+            self.rhs.push(rhs);
+            let out = &mut self.matrix[row * k..(row + 1) * k];
+            for (col, &(kc, b)) in self.unknowns.iter().enumerate() {
+                let mut v = coupling * drow[kc] * test[b as usize];
+                if kc == j {
+                    v += own[b as usize];
+                }
+                out[col] = v;
+            }
+        }
+        if !lu_solve(&mut self.matrix, &mut self.rhs, k) {
+            return false;
+        }
+        lambda.iter_mut().for_each(|l| *l = Vector3::zeros());
+        for (&(j, a), u) in self.unknowns.iter().zip(&self.rhs) {
+            lambda[j][a as usize] = *u;
+        }
+        lambda.iter().all(|l| l.iter().all(|v| v.is_finite()))
+    }
+}
+
+/// Solve the row-major `k x k` system in place by Gaussian elimination with partial pivoting
+/// (`rhs` becomes the solution). False if a pivot is negligible against the largest entry.
+fn lu_solve(a: &mut [f64], rhs: &mut [f64], k: usize) -> bool {
+    let scale = a.iter().fold(0.0f64, |s, v| s.max(v.abs()));
+    if k == 0 {
+        return true;
+    }
+    if !(scale > 0.0 && scale.is_finite()) {
+        return false;
+    }
+    for col in 0..k {
+        let (piv, pmax) = (col..k)
+            .map(|r| (r, a[r * k + col].abs()))
+            .fold((col, -1.0), |best, x| if x.1 > best.1 { x } else { best });
+        if pmax <= 1e-13 * scale {
+            return false;
+        }
+        if piv != col {
+            for c in 0..k {
+                a.swap(piv * k + c, col * k + c);
+            }
+            rhs.swap(piv, col);
+        }
+        let d = a[col * k + col];
+        let (top, bottom) = a.split_at_mut((col + 1) * k);
+        let pivot_row = &top[col * k..col * k + k];
+        for r in 0..k - col - 1 {
+            let row = &mut bottom[r * k..r * k + k];
+            let f = row[col] / d;
+            if f == 0.0 {
+                continue;
+            }
+            row[col] = 0.0;
+            for c in col + 1..k {
+                row[c] -= f * pivot_row[c];
+            }
+            rhs[col + 1 + r] -= f * rhs[col];
+        }
+    }
+    for col in (0..k).rev() {
+        let mut s = rhs[col];
+        for c in col + 1..k {
+            s -= a[col * k + c] * rhs[c];
+        }
+        rhs[col] = s / a[col * k + col];
+    }
+    true
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn lu_solves_a_pivoting_system() {
+        let mut a = vec![0.0, 2.0, 1.0, 1.0, 1.0, 0.0, 3.0, 0.0, 1.0];
+        let x = [1.0, -2.0, 0.5];
+        let mut b: Vec<f64> = (0..3).map(|r| (0..3).map(|c| a[r * 3 + c] * x[c]).sum()).collect();
+        assert!(lu_solve(&mut a, &mut b, 3));
+        for (u, v) in b.iter().zip(x) {
+            assert!((u - v).abs() < 1e-14, "{b:?}");
+        }
+        let mut singular = vec![1.0, 2.0, 2.0, 4.0];
+        let mut b = vec![1.0, 2.0];
+        assert!(!lu_solve(&mut singular, &mut b, 2));
+    }
+}
