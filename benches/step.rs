@@ -156,5 +156,57 @@ fn episodes(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, steps, episodes);
+/// Steps in contact between bodies, each timed from the same saved state (the contact solve's
+/// warm starts aside): the paper's cloth_ball with the cloth draped over the ball (after 150
+/// steps), and a ball dropped onto a pinned cloth at 1, 100 and 1000 m/s (the first steps of
+/// the impact).
+fn contacts(c: &mut Criterion) {
+    let mut g = c.benchmark_group("contact_steps");
+    g.sample_size(10);
+    let impact = |speed: f64| {
+        move || {
+            let mut sim = scene_sim("scenes/ball_on_cloth.json", 0, false);
+            let (q, v) = (sim.state().q.clone(), sim.state().v.clone());
+            // The scene drops the ball at 1 m/s: scale its velocity.
+            let v: Vec<_> = v.iter().map(|x| x * speed).collect();
+            sim.set_state(q, v).expect("state");
+            sim
+        }
+    };
+    let cases: Vec<(&str, usize, Make)> = vec![
+        (
+            "cloth_ball_draped",
+            5,
+            Box::new(|| scene_sim("paper/cloth_ball/cloth_ball.json", 150, false)),
+        ),
+        ("impact_1_m_s", 5, Box::new(impact(1.0))),
+        ("impact_100_m_s", 3, Box::new(impact(100.0))),
+        ("impact_1000_m_s", 3, Box::new(impact(1000.0))),
+    ];
+    for (name, steps, make) in cases {
+        for threads in [1usize, 2] {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .expect("pool");
+            let mut sim = pool.install(&make);
+            let (q, v) = (sim.state().q.clone(), sim.state().v.clone());
+            let (t, k) = (sim.state().time, sim.state().step);
+            g.bench_function(BenchmarkId::new(name, format!("{threads}_threads_{steps}_steps")), |b| {
+                b.iter(|| {
+                    pool.install(|| {
+                        sim.set_state_from(&q, &v).expect("state");
+                        sim.set_clock(t, k);
+                        for _ in 0..steps {
+                            sim.step().expect("step");
+                        }
+                    })
+                })
+            });
+        }
+    }
+    g.finish();
+}
+
+criterion_group!(benches, steps, episodes, contacts);
 criterion_main!(benches);

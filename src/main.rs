@@ -1135,7 +1135,7 @@ fn simulate(sc: diffsoft::scene::Scene, steps: usize, out: RunOutput<'_>, activa
     );
     if summary.steps_with_capped_solves > 0 {
         say!(
-            "warning     {} of {} steps had a global or contact solve stop at its iteration cap (the scene's solver.inner_max_iterations; capped_solves in the step log)",
+            "warning     {} of {} steps had a global or contact solve stop unconverged, at its iteration cap (the scene's solver.inner_max_iterations) or stalled (an infeasible contact set); capped_solves in the step log",
             summary.steps_with_capped_solves,
             summary.steps
         );

@@ -26,7 +26,7 @@ pub struct RunSummary {
     pub mean_iterations: f64,
     /// Steps that met the tolerance before the iteration cap.
     pub converged_steps: usize,
-    /// Steps with a global or contact solve that stopped at its iteration cap.
+    /// Steps with a global or contact solve that stopped unconverged (cap or stall).
     pub steps_with_capped_solves: usize,
     /// Deepest penetration over the run (m).
     pub max_penetration: f64,

@@ -14,9 +14,9 @@
 //!   stick, or slide), the conditions are a small system of equations, linear except for the
 //!   slip direction of a sliding contact, which is linearized (a semismooth Newton step). One
 //!   dense solve of the active contacts' equations gives the impulses; the states are taken
-//!   again from the result. Quadratic once the states are right, so it is started from a few
-//!   Gauss-Seidel sweeps; a run that does not converge is discarded and Gauss-Seidel goes on
-//!   (the method never makes the solve worse than Gauss-Seidel alone).
+//!   again from the result. Each step is damped (halved until the residual decreases), so the
+//!   method only improves the impulses; it is quadratic once the states are right, and starts
+//!   after a few Gauss-Seidel sweeps (Gauss-Seidel goes on if it stalls).
 //!
 //! A solution of either passes the other's test: the caller confirms an active-set solution
 //! with one Gauss-Seidel sweep whose largest change must be within the tolerance.
@@ -26,8 +26,29 @@ use nalgebra::Vector3;
 use super::free_contact::FreeContact;
 use crate::contact::{project, ContactState};
 
-/// Active-set solves per attempt before giving up (Gauss-Seidel then continues).
+/// Dense solves per active-set attempt before giving up (Gauss-Seidel then continues); a
+/// contact solve makes at most twice as many in all.
 pub(crate) const ACTIVE_SET_SOLVES: usize = 30;
+
+/// Active-set attempts per contact solve.
+const MAX_ATTEMPTS: usize = 12;
+
+/// Contacts a Newton step may separate before it is taken.
+const MAX_DROPS: usize = 20;
+
+/// A batch of at least this many sweeps that lowers the largest change by less than
+/// [`STALL_RATIO`] ends the solve as stalled.
+const STALL_SWEEPS: usize = 128;
+/// See [`STALL_SWEEPS`].
+const STALL_RATIO: f64 = 0.99;
+
+/// Shortest step along a Newton direction the line search tries.
+const MIN_STEP: f64 = 1e-6;
+
+/// Compliance added to the active contacts' own entries (relative to `D_jj`) so that redundant
+/// contacts (several on the same vertices, a singular `D`) still give a solvable system; it
+/// moves a contact by `1e-10 D_jj |lambda_j|`, far below the solve's tolerance.
+const REGULARIZATION: f64 = 1e-10;
 
 /// A contact's state in the active-set method.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -54,7 +75,8 @@ pub(crate) struct ContactSpace {
     rhs: Vec<f64>,
     r: Vec<Vector3<f64>>,
     trial: Vec<Vector3<f64>>,
-    saved: Vec<Vector3<f64>>,
+    /// Work of the current solve's dense steps, in multiply-adds (LU and residuals).
+    dense_work: f64,
 }
 
 /// What a contact-space solve did.
@@ -68,6 +90,8 @@ pub(crate) struct ContactSolve {
     pub last_change: f64,
     /// Whether the last sweep changed no contact by more than the tolerance.
     pub converged: bool,
+    /// Whether the solve stopped early for lack of progress (not converged).
+    pub stalled: bool,
 }
 
 /// The contact problem: `m` contacts, `D` row-major `m x m`, the contact-free relative
@@ -100,7 +124,8 @@ impl Problem<'_> {
 impl ContactSpace {
     /// Solve to `tolerance` (largest change of a contact's position in a sweep, m) within
     /// `max_sweeps` Gauss-Seidel sweeps, starting from `lambda` and trying the active-set
-    /// method after a few sweeps and then at doubling intervals.
+    /// method after a few sweeps and then at doubling intervals. Stops early, not converged,
+    /// when a long batch of sweeps makes no progress (`stalled`).
     pub(crate) fn solve(
         &mut self,
         p: &Problem<'_>,
@@ -108,11 +133,17 @@ impl ContactSpace {
         tolerance: f64,
         max_sweeps: usize,
     ) -> ContactSolve {
-        let mut out = ContactSolve::default();
+        let mut out = ContactSolve {
+            last_change: f64::INFINITY,
+            ..ContactSolve::default()
+        };
+        let m = p.m();
+        self.dense_work = 0.0;
         let mut budget = 2usize;
         let mut attempts = 0;
         while out.sweeps < max_sweeps {
             let n = budget.min(max_sweeps - out.sweeps);
+            let before = out.last_change;
             let (done, change) = Self::sweeps(p, lambda, tolerance, n);
             out.sweeps += done;
             out.last_change = change;
@@ -123,14 +154,20 @@ impl ContactSpace {
             if out.sweeps >= max_sweeps {
                 break;
             }
-            if attempts < 3 {
+            if n >= STALL_SWEEPS && change > STALL_RATIO * before {
+                // No progress over a long batch: an infeasible set (contacts on the same
+                // vertices with opposed normals, e.g. two surfaces already crossed) or a rate
+                // that could not reach the tolerance within the cap anyway.
+                out.stalled = true;
+                break;
+            }
+            // The first attempt always; later ones while the dense work stays below the
+            // sweeps' (so a problem the active-set method cannot solve costs at most about
+            // twice Gauss-Seidel alone).
+            let sweep_work = (out.sweeps * m * m) as f64;
+            if attempts == 0 || (attempts < MAX_ATTEMPTS && self.dense_work <= sweep_work) {
                 attempts += 1;
-                self.saved.clear();
-                self.saved.extend_from_slice(lambda);
                 let (solved, solves) = self.active_set(p, lambda, tolerance);
-                if !solved {
-                    lambda.copy_from_slice(&self.saved);
-                }
                 out.active_set_solves += solves;
                 if solved {
                     // The confirming sweep is the next round's first.
@@ -167,26 +204,68 @@ impl ContactSpace {
     /// The active-set method: the states `lambda` implies (by each contact's cone projection)
     /// fix a system of equations; one Newton step of it ([`ContactSpace::solve_states`]) gives
     /// the next impulses, whose states are taken again. Returns whether the residual
-    /// ([`ContactSpace::residual`]) reached `tolerance` within [`ACTIVE_SET_SOLVES`] steps
-    /// (the caller restores its start otherwise), and the steps made.
+    /// ([`ContactSpace::residual`]) reached `tolerance` within [`ACTIVE_SET_SOLVES`] steps, and
+    /// the steps made. Each step is damped so the residual decreases: `lambda` only improves.
     fn active_set(&mut self, p: &Problem<'_>, lambda: &mut [Vector3<f64>], tolerance: f64) -> (bool, usize) {
-        for solve in 1..=ACTIVE_SET_SOLVES {
+        let mut res = Self::residual(p, lambda);
+        let mut solves = 0;
+        while solves < ACTIVE_SET_SOLVES {
             self.classify(p, lambda);
             self.trial.clear();
             self.trial.resize(lambda.len(), Vector3::zeros());
             let mut trial = std::mem::take(&mut self.trial);
-            let ok = self.solve_states(p, &mut trial);
+            let ok = self.solve_dropping_pulls(p, &mut trial, &mut solves);
             self.trial = trial;
             if !ok {
-                return (false, solve);
+                return (false, solves);
             }
-            // Full Newton steps; the caller restores the start if they do not converge.
-            lambda.copy_from_slice(&self.trial);
-            if Self::residual(p, lambda) <= tolerance {
-                return (true, solve);
+            // Damped: the longest step (halving from the full Newton step) that lowers the
+            // residual; none lowers it: give up.
+            let mut step = 1.0;
+            loop {
+                self.r.clear();
+                self.r
+                    .extend(lambda.iter().zip(&self.trial).map(|(l, t)| l + (t - l) * step));
+                let r = Self::residual(p, &self.r);
+                self.dense_work += (p.m() * p.m()) as f64;
+                if r < res {
+                    res = r;
+                    lambda.copy_from_slice(&self.r);
+                    break;
+                }
+                step *= 0.5;
+                if step < MIN_STEP {
+                    return (false, solves);
+                }
+            }
+            if res <= tolerance {
+                return (true, solves);
             }
         }
-        (false, ACTIVE_SET_SOLVES)
+        (false, solves)
+    }
+
+    /// [`ContactSpace::solve_states`], then, while an active contact's solution pulls
+    /// (negative normal impulse), that contact separates (the most negative first, one at a
+    /// time as in non-negative least squares) and the system is solved again.
+    fn solve_dropping_pulls(&mut self, p: &Problem<'_>, trial: &mut [Vector3<f64>], solves: &mut usize) -> bool {
+        let m = p.m();
+        for _ in 0..MAX_DROPS {
+            *solves += 1;
+            if !self.solve_states(p, trial) {
+                return false;
+            }
+            let worst = (0..m)
+                .filter(|&j| self.state[j] != State::Separate)
+                .map(|j| (j, p.contacts[j].contact.normal.dot(&trial[j]) * p.d[j * m + j]))
+                .filter(|&(_, pull)| pull < 0.0)
+                .min_by(|a, b| a.1.total_cmp(&b.1));
+            match worst {
+                Some((j, _)) => self.state[j] = State::Separate,
+                None => return true,
+            }
+        }
+        true
     }
 
     /// The largest change a projection of each contact (the others held) would make, in
@@ -265,9 +344,14 @@ impl ContactSpace {
                     // On the plane at the anchor's tangential position.
                     let e = Vector3::ith(a as usize, 1.0);
                     let target = c.anchor + c.normal * c.normal.dot(&(c.point - c.anchor));
-                    (e, 1.0, Vector3::zeros(), e.dot(&(target - p.f[j])))
+                    (e, 1.0, e * (REGULARIZATION * djj), e.dot(&(target - p.f[j])))
                 }
-                (State::Slide { .. }, 0) => (c.normal, 1.0, Vector3::zeros(), c.normal.dot(&(c.point - p.f[j]))),
+                (State::Slide { .. }, 0) => (
+                    c.normal,
+                    1.0,
+                    c.normal * (REGULARIZATION * djj),
+                    c.normal.dot(&(c.point - p.f[j])),
+                ),
                 (State::Slide { dir, .. }, 1) => {
                     // On the cone's boundary along `dir`: `(dir - mu n) . lambda_j = 0`.
                     (Vector3::zeros(), 0.0, (dir - c.normal * c.friction) * djj, 0.0)
@@ -291,6 +375,7 @@ impl ContactSpace {
                 out[col] = v;
             }
         }
+        self.dense_work += (k * k * k) as f64 / 3.0 + (k * m) as f64;
         if !lu_solve(&mut self.matrix, &mut self.rhs, k) {
             return false;
         }
@@ -354,6 +439,75 @@ fn lu_solve(a: &mut [f64], rhs: &mut [f64], k: usize) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::contact::Contact;
+    use crate::solver::free_contact::Stencil;
+
+    fn ground(index: usize, normal: Vector3<f64>, friction: f64) -> FreeContact {
+        FreeContact::single(
+            index,
+            Contact {
+                vertex: index,
+                obstacle: 0,
+                normal,
+                point: Vector3::zeros(),
+                anchor: Vector3::new(0.0, 0.1, 0.0),
+                friction,
+            },
+        )
+    }
+
+    /// Two contacts on two vertices coupled strongly through `D`, plus a duplicate of the first
+    /// (a singular `D`): the solve converges to a point that every contact accepts.
+    #[test]
+    fn redundant_coupled_contacts_converge() {
+        let y = Vector3::y();
+        let contacts = [ground(0, y, 0.3), ground(1, y, 0.3), ground(0, y, 0.3)];
+        // D of vertices 0, 1 (strongly coupled) with contact 2 = contact 0.
+        let (a, b) = (1.0, 0.999);
+        let d = [a, b, a, b, a, b, a, b, a];
+        let f = [
+            Vector3::new(0.05, -0.2, 0.0),
+            Vector3::new(-0.02, -0.1, 0.0),
+            Vector3::new(0.05, -0.2, 0.0),
+        ];
+        let p = Problem {
+            d: &d,
+            f: &f,
+            contacts: &contacts,
+        };
+        let mut lambda = vec![Vector3::zeros(); 3];
+        let mut space = ContactSpace::default();
+        let out = space.solve(&p, &mut lambda, 1e-12, 2000);
+        assert!(out.converged, "{out:?}");
+        assert!(ContactSpace::residual(&p, &lambda) <= 1e-12);
+        for (j, c) in contacts.iter().enumerate() {
+            let r = p.x_hat(j, &lambda) + lambda[j] * d[j * 3 + j];
+            assert!(c.contact.normal.dot(&r) >= -1e-11, "contact {j} penetrates: {r}");
+            assert!(c.contact.normal.dot(&lambda[j]) >= 0.0, "contact {j} pulls");
+        }
+    }
+
+    /// Contacts that ask the same vertex to be above and below a plane: no solution; the solve
+    /// says so (not converged, stalled) long before its cap.
+    #[test]
+    fn an_infeasible_set_stalls_instead_of_running_to_the_cap() {
+        let y = Vector3::y();
+        let mut below = ground(0, -y, 0.0);
+        below.contact.point = Vector3::new(0.0, -0.1, 0.0);
+        let mut contacts = [ground(0, y, 0.0), below];
+        contacts[1].stencil = Stencil::single(0);
+        let d = [1.0, 1.0, 1.0, 1.0];
+        let f = [Vector3::new(0.0, -0.5, 0.0); 2];
+        let p = Problem {
+            d: &d,
+            f: &f,
+            contacts: &contacts,
+        };
+        let mut lambda = vec![Vector3::zeros(); 2];
+        let out = ContactSpace::default().solve(&p, &mut lambda, 1e-12, 100_000);
+        assert!(!out.converged && out.stalled, "{out:?}");
+        assert!(out.sweeps < 2000, "{out:?}");
+    }
 
     #[test]
     fn lu_solves_a_pivoting_system() {

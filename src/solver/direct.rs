@@ -46,6 +46,8 @@ pub(crate) struct Direct {
     dmat: Vec<f64>,
     x_free: Vec<Vector3<f64>>,
     space: ContactSpace,
+    /// The previous solve's impulses by contact vertices (warm starts).
+    previous: HashMap<(u8, [usize; 4]), Vector3<f64>>,
 }
 
 impl std::fmt::Debug for Direct {
@@ -109,6 +111,7 @@ impl Direct {
             dmat: Vec::new(),
             x_free: Vec::new(),
             space: ContactSpace::default(),
+            previous: HashMap::new(),
         })
     }
 
@@ -271,15 +274,22 @@ impl Direct {
         // local-global iterations): warm-start the impulses and keep the Delassus matrix.
         let same = self.stencils.len() == m && self.stencils.iter().zip(contacts).all(|(s, c)| *s == c.stencil);
         if !same {
-            // Contacts that were already in the set (a contact round added others) keep their
-            // impulses as the warm start; the rest start from zero.
-            let carried = self.stencils.len() < m && self.stencils.iter().zip(contacts).all(|(s, c)| *s == c.stencil);
+            // Warm start: a contact on the same vertices as one of the previous solve (the
+            // same pair in the previous contact round or the previous step) starts from its
+            // impulse; the rest start from zero.
+            self.previous.clear();
+            for (st, l) in self.stencils.iter().zip(&self.lambda) {
+                self.previous.insert(stencil_key(st), *l);
+            }
             self.stencils.clear();
             self.stencils.extend(contacts.iter().map(|c| c.stencil));
-            if !carried {
-                self.lambda.clear();
-            }
-            self.lambda.resize(m, Vector3::zeros());
+            self.lambda.clear();
+            let previous = &self.previous;
+            self.lambda.extend(
+                self.stencils
+                    .iter()
+                    .map(|st| previous.get(&stencil_key(st)).copied().unwrap_or_else(Vector3::zeros)),
+            );
             // Delassus entries D[j][k] = e_j^T A^-1 e_k (for single vertices (A^-1)_{c_j c_k}).
             let mut dmat = std::mem::take(&mut self.dmat);
             dmat.clear();
@@ -312,7 +322,6 @@ impl Direct {
         );
         stats.contact_iterations = solve.sweeps + solve.active_set_solves;
         stats.last_update = solve.last_change;
-        stats.converged = solve.converged;
         for j in 0..m {
             let l = self.lambda[j];
             let st = self.stencils[j];
@@ -320,6 +329,11 @@ impl Direct {
         }
         stats
     }
+}
+
+/// A contact's identity across solves: its stencil's vertices.
+fn stencil_key(s: &Stencil) -> (u8, [usize; 4]) {
+    (s.len, s.index)
 }
 
 impl GlobalSolver for Direct {
