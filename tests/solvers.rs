@@ -29,9 +29,11 @@ fn direct_split_chebyshev_and_certified_reach_the_same_state() {
 #[test]
 fn certified_solver_falls_back_on_a_paper_mesh_where_split_diverges() {
     let path = root().join("verification/paper/bridgesus/bridgesus.json");
-    let sc = scene::load(&path, LoadOptions::default()).unwrap();
-    assert_eq!(sc.settings.solver, SolverKind::Split);
+    let mut sc = scene::load(&path, LoadOptions::default()).unwrap();
+    assert_eq!(sc.settings.solver, SolverKind::Auto);
     assert_eq!(sc.settings.certify, CertifyPolicy::Fallback);
+    // This test is about the split iteration's certificate: ask for it.
+    sc.settings.solver = SolverKind::Split;
     let mut sim = Simulator::new(sc.model.clone(), sc.settings.clone()).unwrap();
     let c = sim.certificate().clone();
     assert_eq!(c.used, SolverKind::Direct);
@@ -199,4 +201,72 @@ fn certification_also_rejects_iterations_too_slow_for_their_cap() {
     )
     .unwrap();
     assert_eq!(ok.certificate().used, SolverKind::Split, "{}", ok.certificate().message);
+}
+
+/// A beam of about `tets` tets, clamped at `z = 0`, under gravity.
+fn clamped_beam(tets: usize, youngs_modulus: f64) -> diffsoft::Model {
+    let mesh = mesh::generate::box_with_about(tets, 4.0).build().unwrap();
+    let mut body = BodySpec::new(
+        "beam",
+        mesh,
+        Material {
+            youngs_modulus,
+            poisson_ratio: 0.4,
+        },
+        MassSpec::Density(1000.0),
+    );
+    body.fixed = (0..body.mesh.vertices.len())
+        .filter(|&i| body.mesh.vertices[i].z < 1e-9)
+        .collect();
+    ModelBuilder::new().body(body).build().unwrap()
+}
+
+#[test]
+fn auto_picks_direct_on_a_stiff_clamped_beam() {
+    let model = clamped_beam(1500, 1e6);
+    // The split iteration needs hundreds of inner iterations per solve here.
+    let split = Simulator::new(
+        model.clone(),
+        Settings {
+            solver: SolverKind::Split,
+            ..Settings::default()
+        },
+    )
+    .unwrap();
+    let predicted = split.certificate().predicted_iterations.unwrap_or(f64::INFINITY);
+    assert!(predicted > 200.0, "{}", split.certificate().message);
+    let sim = Simulator::new(model, Settings::default()).unwrap();
+    let c = sim.certificate();
+    assert_eq!(c.requested, SolverKind::Auto);
+    assert_eq!(c.used, SolverKind::Direct, "{}", c.message);
+    assert!(c.message.starts_with("auto: direct"), "{}", c.message);
+    let direct = c.candidates.iter().find(|k| k.solver == SolverKind::Direct).unwrap();
+    assert!(direct.eligible && direct.predicted_ms.is_some(), "{c:?}");
+}
+
+#[test]
+fn auto_picks_split_where_it_converges_in_a_handful_of_iterations() {
+    // A soft beam at a tiny time step: inertia dominates and the split iteration contracts
+    // by orders of magnitude per iteration.
+    let model = clamped_beam(5000, 1e4);
+    let s = Settings {
+        dt: 1e-5,
+        ..Settings::default()
+    };
+    let mut sim = Simulator::new(model, s).unwrap();
+    let c = sim.certificate().clone();
+    assert_eq!(c.used, SolverKind::Split, "{}", c.message);
+    assert!(
+        c.message.contains("row-sum bound") && c.message.contains("cheaper than direct"),
+        "{}",
+        c.message
+    );
+    let split = c.candidates.iter().find(|k| k.solver == SolverKind::Split).unwrap();
+    let n = split.predicted_iterations.unwrap();
+    assert!(n <= 5.0, "{c:?}");
+    let stats = sim.step().unwrap();
+    assert!(
+        (stats.global_iterations as f64) <= 2.0 * n * stats.iterations as f64,
+        "{stats:?} against {n} predicted per solve"
+    );
 }

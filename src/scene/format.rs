@@ -14,7 +14,7 @@
 //!     "fixed": { "box": { "min": [-1, -1, -1], "max": [0.001, 1, 1] } }
 //!   }],
 //!   "obstacles": [{ "plane": { "point": [0, -1, 0], "normal": [0, 1, 0] }, "friction": 0.5 }],
-//!   "solver": { "solver": "split", "certify": "fallback", "max_iterations": 30 }
+//!   "solver": { "solver": "auto", "certify": "fallback", "max_iterations": 30 }
 //! }
 //! ```
 
@@ -62,7 +62,8 @@ pub struct SceneFile {
 #[derive(Debug, Clone, Default, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct SolverFile {
-    /// Global solver: `direct`, `plain`, `split`, `chebyshev`.
+    /// Global solver: `auto` (default: the cheapest for the mesh and time step), `direct`,
+    /// `plain`, `split`, `chebyshev`.
     pub solver: Option<SolverKind>,
     /// Certification: `off`, `refuse`, `fallback`.
     pub certify: Option<CertifyPolicy>,

@@ -8,12 +8,14 @@
 //!   `gamma = 2/(2 - mu_min - mu_max)` with radius `r = (mu_max - mu_min)/(2 - mu_min - mu_max)`,
 //!   always below 1, and Chebyshev acceleration with that `r` (asymptotic rate
 //!   `r / (1 + sqrt(1 - r^2))`); contacts use the relaxed split iteration with `min(gamma, 1)`;
-//! * direct: always converges.
+//! * direct: always converges;
+//! * auto: the cheapest of the three for this mesh and time step (`choose.rs`).
 
 use std::time::Instant;
 
 use serde::Serialize;
 
+use super::choose::Candidate;
 use super::global::SolverKind;
 use super::system::GlobalSystem;
 use super::SolverError;
@@ -52,7 +54,8 @@ pub struct Certificate {
     pub policy: CertifyPolicy,
     /// Time step certified (s).
     pub dt: f64,
-    /// Spectral radius of the requested iteration (1; null for direct or when not checked).
+    /// Spectral radius of the requested iteration (1; null for direct or when not checked;
+    /// auto: of the iteration chosen, split's possibly the row-sum bound, Chebyshev's `r`).
     pub spectral_radius: Option<f64>,
     /// Extreme eigenvalues of `G21` (Chebyshev only).
     pub split_extremes: Option<EigenvalueRange>,
@@ -67,12 +70,39 @@ pub struct Certificate {
     /// Asymptotic error reduction per inner iteration (1; `rho`; Chebyshev: `r / (1 + sqrt(1 -
     /// r^2))`).
     pub asymptotic_rate: Option<f64>,
-    /// Inner iterations predicted for a `1e-10` error reduction, `ln(1e-10) / ln(rate)`.
+    /// Inner iterations predicted for a `1e-10` error reduction, `ln(1e-10) / ln(rate)` (auto:
+    /// the chosen iteration's predicted iterations per warm-started solve, see `candidates`).
     pub predicted_iterations: Option<f64>,
+    /// Auto only: each candidate solver's measured and predicted cost, from which the
+    /// cheapest was chosen (empty when a solver was requested).
+    pub candidates: Vec<Candidate>,
     /// What happened, in words.
     pub message: String,
-    /// Time spent on the eigenvalue computation (ms).
+    /// Time spent on certification: the eigenvalue computation, and for auto the timings (ms).
     pub elapsed_ms: f64,
+}
+
+impl Certificate {
+    /// A certificate that `requested` runs as requested, with nothing checked yet.
+    pub(crate) fn unchecked(requested: SolverKind, policy: CertifyPolicy, dt: f64) -> Self {
+        Self {
+            requested,
+            used: requested,
+            policy,
+            dt,
+            spectral_radius: None,
+            split_extremes: None,
+            relaxation: 1.0,
+            contact_relaxation: 1.0,
+            chebyshev_rho: None,
+            converges: None,
+            asymptotic_rate: None,
+            predicted_iterations: None,
+            candidates: Vec::new(),
+            message: String::new(),
+            elapsed_ms: 0.0,
+        }
+    }
 }
 
 /// Error reduction a global solve must be able to reach within its iteration cap.
@@ -89,22 +119,7 @@ pub(crate) fn certify(
     max_iterations: usize,
 ) -> Result<Certificate, SolverError> {
     let t0 = Instant::now();
-    let mut cert = Certificate {
-        requested,
-        used: requested,
-        policy,
-        dt: h,
-        spectral_radius: None,
-        split_extremes: None,
-        relaxation: 1.0,
-        contact_relaxation: 1.0,
-        chebyshev_rho: None,
-        converges: None,
-        asymptotic_rate: None,
-        predicted_iterations: None,
-        message: String::new(),
-        elapsed_ms: 0.0,
-    };
+    let mut cert = Certificate::unchecked(requested, policy, h);
     if requested == SolverKind::Direct {
         cert.converges = Some(true);
         cert.message = "direct sparse Cholesky: no convergence condition".into();
@@ -140,7 +155,11 @@ pub(crate) fn certify(
             cert.chebyshev_rho = Some(r);
             (r, "relaxed split iteration under Chebyshev acceleration")
         }
-        SolverKind::Direct => unreachable!(),
+        SolverKind::Direct | SolverKind::Auto => {
+            return Err(SolverError::input(format!(
+                "{requested:?} has no iteration of its own to certify"
+            )))
+        }
     };
     cert.spectral_radius = Some(rho);
     cert.elapsed_ms = t0.elapsed().as_secs_f64() * 1e3;

@@ -27,6 +27,9 @@ pub enum SolverKind {
     Split,
     /// Eq. 21, relaxed and Chebyshev-accelerated with parameters from the spectral analysis.
     Chebyshev,
+    /// The cheapest of direct, split and Chebyshev for this mesh and time step, predicted by
+    /// certification.
+    Auto,
 }
 
 /// What one global solve did.

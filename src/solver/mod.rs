@@ -22,10 +22,12 @@
 //! integrator's explicit phases (`integrator.rs`); the contact phase (`contacts.rs`); the
 //! global system (`system.rs`) and the global solvers behind one trait (`global.rs`:
 //! `direct.rs`, `stationary.rs`), the skeleton's reduced step (`skeletal.rs`); certification
-//! (`certify.rs`), Anderson acceleration (`anderson.rs`), observers of a step (`observer.rs`).
+//! (`certify.rs`) and the default solver's choice (`choose.rs`), Anderson acceleration
+//! (`anderson.rs`), observers of a step (`observer.rs`).
 
 pub(crate) mod anderson;
 pub mod certify;
+pub mod choose;
 pub(crate) mod contact_space;
 pub(crate) mod contacts;
 pub(crate) mod direct;
@@ -46,6 +48,7 @@ mod warm;
 use nalgebra::Vector3;
 
 pub use certify::{Certificate, CertifyPolicy, EigenvalueRange};
+pub use choose::Candidate;
 pub use contacts::{PAIR_OBSTACLE, PAIR_TOLERANCE};
 pub use error::SolverError;
 pub use global::{GlobalStats, SolverKind};

@@ -14,7 +14,7 @@ use crate::analysis::spectral::EigenMethod;
 pub struct Settings {
     /// Time step (s).
     pub dt: f64,
-    /// Global solver.
+    /// Global solver (default `auto`: the cheapest for the mesh and time step).
     pub solver: SolverKind,
     /// Certification policy for iterative solvers.
     pub certify: CertifyPolicy,
@@ -43,7 +43,7 @@ impl Default for Settings {
     fn default() -> Self {
         Self {
             dt: 0.01,
-            solver: SolverKind::Split,
+            solver: SolverKind::Auto,
             certify: CertifyPolicy::Fallback,
             max_iterations: 30,
             tolerance: 1e-6,

@@ -6,6 +6,7 @@ use nalgebra::Vector3;
 
 use super::anderson::Anderson;
 use super::certify::{self, Certificate};
+use super::choose;
 use super::contacts::StepContacts;
 use super::direct::Direct;
 use super::global::{GlobalSolver, InnerControl, SolverKind};
@@ -135,62 +136,21 @@ fn build_global(
             "collisions between bodies with a skeleton are not supported yet (bone vertices in a pair contact)",
         ));
     }
-    let h = settings.dt;
-    let cert = if model.collision.is_some() && settings.solver != SolverKind::Direct {
-        // A contact between two bodies couples several vertices through one impulse: the
-        // projected Gauss-Seidel runs on the factored matrix's Delassus operator.
-        let mut c = certify::certify(
-            system,
-            h,
-            SolverKind::Direct,
-            settings.certify,
-            settings.eigen_method,
-            0,
-        )?;
-        c.requested = settings.solver;
-        c.message = format!(
-            "{:?} requested, but contacts between bodies couple several vertices per impulse: direct sparse Cholesky",
-            settings.solver
-        );
-        c
-    } else if model.skeleton.is_some() && settings.solver != SolverKind::Direct {
-        // The reduced step (Eqs. 17-18) eliminates the free vertices with the factored free
-        // block, so a skeleton always runs on the direct solver; no eigenvalue check is needed.
-        let mut c = certify::certify(
-            system,
-            h,
-            SolverKind::Direct,
-            settings.certify,
-            settings.eigen_method,
-            0,
-        )?;
-        c.requested = settings.solver;
-        c.message = format!(
-            "{:?} requested, but the skeleton's reduced step (Eqs. 17-18) factors the free block: direct sparse Cholesky",
-            settings.solver
-        );
-        c
-    } else {
-        certify::certify(
-            system,
-            h,
-            settings.solver,
-            settings.certify,
-            settings.eigen_method,
-            settings.inner_max_iterations,
-        )?
-    };
     let control = InnerControl {
         tolerance: settings.inner_tolerance * model.length_scale,
         max_iterations: settings.inner_max_iterations,
     };
+    let (cert, factored) = certify_global(model, settings, system, control)?;
     let global = match (&model.skeleton, cert.used) {
         (Some(sk), _) => {
             let direct = Box::new(Direct::new(system, control)?);
             let reduced = Box::new(Skeletal::new(system, &direct, sk));
             GlobalStep::Skeletal { direct, reduced }
         }
-        (None, SolverKind::Direct) => GlobalStep::Free(Box::new(Direct::new(system, control)?)),
+        (None, SolverKind::Direct) => GlobalStep::Free(Box::new(match factored {
+            Some(d) => d,
+            None => Direct::new(system, control)?,
+        })),
         (None, kind) => GlobalStep::Free(Box::new(Stationary::new(
             system,
             if kind == SolverKind::Chebyshev {
@@ -205,6 +165,65 @@ fn build_global(
         ))),
     };
     Ok((global, cert))
+}
+
+/// The direct solver's certificate when `why` forces it on a run that requested another.
+fn forced_direct(settings: &Settings, system: &GlobalSystem, why: &str) -> Result<Certificate, SolverError> {
+    let h = settings.dt;
+    let mut c = certify::certify(
+        system,
+        h,
+        SolverKind::Direct,
+        settings.certify,
+        settings.eigen_method,
+        0,
+    )?;
+    c.requested = settings.solver;
+    c.message = format!("{:?} requested, but {why}: direct sparse Cholesky", settings.solver);
+    Ok(c)
+}
+
+/// Certify the requested solver (auto: choose it); with auto's choice of direct, its factor.
+fn certify_global(
+    model: &Model,
+    settings: &Settings,
+    system: &GlobalSystem,
+    control: InnerControl,
+) -> Result<(Certificate, Option<Direct>), SolverError> {
+    let h = settings.dt;
+    let requested = settings.solver;
+    if model.collision.is_some() && requested != SolverKind::Direct {
+        // A contact between two bodies couples several vertices through one impulse: the
+        // projected Gauss-Seidel runs on the factored matrix's Delassus operator.
+        let why = "contacts between bodies couple several vertices per impulse";
+        return Ok((forced_direct(settings, system, why)?, None));
+    }
+    if model.skeleton.is_some() && requested != SolverKind::Direct {
+        // The reduced step (Eqs. 17-18) eliminates the free vertices with the factored free
+        // block, so a skeleton always runs on the direct solver; no eigenvalue check is needed.
+        let why = "the skeleton's reduced step (Eqs. 17-18) factors the free block";
+        return Ok((forced_direct(settings, system, why)?, None));
+    }
+    if requested == SolverKind::Auto {
+        let base = Certificate::unchecked(requested, settings.certify, h);
+        return choose::choose(
+            system,
+            h,
+            base,
+            settings.eigen_method,
+            settings.inner_tolerance,
+            control,
+        );
+    }
+    let cert = certify::certify(
+        system,
+        h,
+        requested,
+        settings.certify,
+        settings.eigen_method,
+        settings.inner_max_iterations,
+    )?;
+    Ok((cert, None))
 }
 
 impl Simulator {
