@@ -192,17 +192,20 @@ fn contacts(c: &mut Criterion) {
             let mut sim = pool.install(&make);
             let (q, v) = (sim.state().q.clone(), sim.state().v.clone());
             let (t, k) = (sim.state().time, sim.state().step);
-            g.bench_function(BenchmarkId::new(name, format!("{threads}_threads_{steps}_steps")), |b| {
-                b.iter(|| {
-                    pool.install(|| {
-                        sim.set_state_from(&q, &v).expect("state");
-                        sim.set_clock(t, k);
-                        for _ in 0..steps {
-                            sim.step().expect("step");
-                        }
+            g.bench_function(
+                BenchmarkId::new(name, format!("{threads}_threads_{steps}_steps")),
+                |b| {
+                    b.iter(|| {
+                        pool.install(|| {
+                            sim.set_state_from(&q, &v).expect("state");
+                            sim.set_clock(t, k);
+                            for _ in 0..steps {
+                                sim.step().expect("step");
+                            }
+                        })
                     })
-                })
-            });
+                },
+            );
         }
     }
     g.finish();
