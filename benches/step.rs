@@ -79,6 +79,14 @@ fn fixed_iterations(sc: &mut scene::Scene) {
     sc.settings.anderson = 0;
 }
 
+/// A worker pool of `threads` threads.
+fn pool(threads: usize) -> rayon::ThreadPool {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .expect("pool")
+}
+
 /// Builds the simulator of one benchmark case.
 type Make = Box<dyn Fn() -> Simulator + Send + Sync>;
 
@@ -116,10 +124,7 @@ fn steps(c: &mut Criterion) {
     ];
     for (name, make) in cases {
         for threads in [1usize, 2] {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .expect("pool");
+            let pool = pool(threads);
             let mut sim = pool.install(&make);
             g.bench_function(BenchmarkId::new(name, format!("{threads}_threads")), |b| {
                 b.iter(|| pool.install(|| sim.step().expect("step")))
@@ -135,10 +140,7 @@ fn episodes(c: &mut Criterion) {
     let mut g = c.benchmark_group("episode_100_steps");
     g.sample_size(10);
     for threads in [1usize, 2] {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .expect("pool");
+        let pool = pool(threads);
         g.bench_function(BenchmarkId::new("baymax_skeleton", format!("{threads}_threads")), |b| {
             b.iter_batched(
                 || pool.install(|| scene_sim("scenes/baymax_skeleton.json", 0, false)),
@@ -185,10 +187,7 @@ fn contacts(c: &mut Criterion) {
     ];
     for (name, steps, make) in cases {
         for threads in [1usize, 2] {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .expect("pool");
+            let pool = pool(threads);
             let mut sim = pool.install(&make);
             let (q, v) = (sim.state().q.clone(), sim.state().v.clone());
             let (t, k) = (sim.state().time, sim.state().step);

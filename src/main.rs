@@ -158,6 +158,12 @@ enum Command {
         /// Override the local-global iteration cap.
         #[arg(long)]
         max_iterations: Option<usize>,
+        /// Override the local-global tolerance (0: always run the cap), as on `grad`.
+        #[arg(long)]
+        tolerance: Option<f64>,
+        /// Override the Anderson memory of the local-global iteration (0: off), as on `grad`.
+        #[arg(long)]
+        anderson: Option<usize>,
         /// Paper scenes: drop features this version cannot simulate, with a note, instead of
         /// failing (every feature of the paper's own files is simulated now).
         #[arg(long)]
@@ -542,6 +548,8 @@ fn run(command: Command) -> Result<()> {
             certify,
             dt,
             max_iterations,
+            tolerance,
+            anderson,
             passive,
             activation,
             overwrite,
@@ -558,6 +566,12 @@ fn run(command: Command) -> Result<()> {
             }
             if let Some(m) = max_iterations {
                 sc.settings.max_iterations = m;
+            }
+            if let Some(t) = tolerance {
+                sc.settings.tolerance = t;
+            }
+            if let Some(m) = anderson {
+                sc.settings.anderson = m;
             }
             let mut held = Vec::new();
             for a in &activation {
@@ -929,10 +943,7 @@ fn grad(a: GradArgs) -> Result<()> {
         Options {
             store_bytes: store_bytes(a.store_mb)?,
             allow_unconverged: a.allow_unconverged,
-            implicit_tolerance: std::env::var("DS_IT")
-                .ok()
-                .and_then(|v| v.parse().ok())
-                .unwrap_or(1e-12),
+            implicit_tolerance: a.implicit_tolerance,
             ..Options::mode(a.mode)
         },
     )

@@ -448,3 +448,48 @@ fn skeleton_implicit_matches_unrolled_at_convergence() {
         close(dot(&u), dot(&i), "torques and initial velocities");
     }
 }
+
+/// `grad --implicit-tolerance` reaches the implicit adjoint: a looser tolerance takes fewer
+/// backward iterations and gives nearly the same gradient; a negative one is an error.
+#[test]
+fn grad_cli_implicit_tolerance_takes_effect() {
+    let dir = common::tmp_dir("grad-implicit-tolerance");
+    let scene = common::root().join("verification/paper/bridgesus/bridgesus.json");
+    let run = |tol: &str| {
+        let json = dir.join(format!("g{tol}.json"));
+        let out = Command::new(env!("CARGO_BIN_EXE_diffsoft"))
+            .args(["--threads", "1", "grad"])
+            .arg(&scene)
+            .args(["--steps", "10", "--param", "youngs_modulus", "--mode", "implicit"])
+            .args([
+                "--tolerance",
+                "1e-10",
+                "--max-iterations",
+                "200",
+                "--implicit-tolerance",
+                tol,
+                "--json",
+            ])
+            .arg(&json)
+            .output()
+            .unwrap();
+        (out, json)
+    };
+    let read = |json: &std::path::Path| {
+        let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(json).unwrap()).unwrap();
+        (
+            v["gradient"]["youngs_modulus"].as_f64().unwrap(),
+            v["stats"]["backward_iterations"].as_u64().unwrap(),
+        )
+    };
+    let (tight, jt) = run("1e-12");
+    assert!(tight.status.success(), "{}", String::from_utf8_lossy(&tight.stderr));
+    let (loose, jl) = run("1e-4");
+    assert!(loose.status.success(), "{}", String::from_utf8_lossy(&loose.stderr));
+    let ((gt, it), (gl, il)) = (read(&jt), read(&jl));
+    assert!(il < it, "backward iterations: {il} at 1e-4, {it} at 1e-12");
+    assert!((gl - gt).abs() <= 1e-3 * gt.abs(), "gradients {gl:e} and {gt:e}");
+    let (bad, _) = run("-1");
+    assert!(!bad.status.success());
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("--implicit-tolerance"));
+}

@@ -384,3 +384,55 @@ fn counts_and_scales_beyond_reason_are_errors_naming_the_flag() {
     assert_eq!(o.status.code(), Some(1));
     assert!(stderr(&o).contains("overflows"), "not 'degenerate': {}", stderr(&o));
 }
+
+/// `simulate --tolerance` and `--anderson` mean what they mean on `grad`: tolerance 0 runs
+/// exactly the cap every step, the settings land in the run log, and bad values are errors
+/// naming the setting.
+#[test]
+fn simulate_takes_tolerance_and_anderson() {
+    let dir = tmp_dir("hard-sim-tolerance");
+    let scene = root().join("verification/paper/bridgesus/bridgesus.json");
+    let out = dir.join("run");
+    let s = scene.to_str().unwrap();
+    let o = out.to_str().unwrap();
+    let ok = diffsoft(&[
+        "--threads",
+        "1",
+        "simulate",
+        s,
+        "--steps",
+        "3",
+        "--every",
+        "0",
+        "--out",
+        o,
+        "--tolerance",
+        "0",
+        "--max-iterations",
+        "4",
+        "--anderson",
+        "3",
+    ]);
+    assert!(ok.status.success(), "{}", stderr(&ok));
+    let log = json(&out.join("run.json"));
+    assert_eq!(log["settings"]["tolerance"].as_f64(), Some(0.0));
+    assert_eq!(log["settings"]["anderson"].as_u64(), Some(3));
+    for step in log["steps"].as_array().unwrap() {
+        assert_eq!(step["iterations"].as_u64(), Some(4), "{step}");
+    }
+    let bad = diffsoft(&[
+        "simulate",
+        s,
+        "--steps",
+        "1",
+        "--every",
+        "0",
+        "--out",
+        o,
+        "--overwrite",
+        "--tolerance",
+        "-1",
+    ]);
+    assert!(!bad.status.success());
+    assert!(stderr(&bad).contains("tolerance"), "{}", stderr(&bad));
+}
