@@ -73,8 +73,11 @@ pub(crate) struct ContactSpace {
     unknowns: Vec<(usize, u8)>,
     matrix: Vec<f64>,
     rhs: Vec<f64>,
+    /// `r = f + D lambda` at the current iterate (set by `classify`).
     r: Vec<Vector3<f64>>,
     trial: Vec<Vector3<f64>>,
+    /// A point of the line search.
+    candidate: Vec<Vector3<f64>>,
     /// Work of the current solve's dense steps, in multiply-adds (LU and residuals).
     dense_work: f64,
 }
@@ -182,7 +185,7 @@ impl ContactSpace {
 
     /// Up to `max` projected Gauss-Seidel sweeps; stops after a sweep whose largest change is
     /// within `tolerance`. Returns the sweeps and the last sweep's largest change.
-    pub(crate) fn sweeps(p: &Problem<'_>, lambda: &mut [Vector3<f64>], tolerance: f64, max: usize) -> (usize, f64) {
+    fn sweeps(p: &Problem<'_>, lambda: &mut [Vector3<f64>], tolerance: f64, max: usize) -> (usize, f64) {
         let m = p.m();
         let mut change = f64::INFINITY;
         for sweep in 0..max {
@@ -223,14 +226,14 @@ impl ContactSpace {
             // residual; none lowers it: give up.
             let mut step = 1.0;
             loop {
-                self.r.clear();
-                self.r
+                self.candidate.clear();
+                self.candidate
                     .extend(lambda.iter().zip(&self.trial).map(|(l, t)| l + (t - l) * step));
-                let r = Self::residual(p, &self.r);
+                let r = Self::residual(p, &self.candidate);
                 self.dense_work += (p.m() * p.m()) as f64;
                 if r < res {
                     res = r;
-                    lambda.copy_from_slice(&self.r);
+                    lambda.copy_from_slice(&self.candidate);
                     break;
                 }
                 step *= 0.5;

@@ -136,12 +136,6 @@ impl Direct {
         }
     }
 
-    /// Whether a solve runs parallel work of its own (the caller then must not keep the
-    /// pool's workers spinning through it).
-    pub(crate) fn parallel_inside(&self) -> bool {
-        self.axis_parallel
-    }
-
     /// Make sure the `A^-1` columns of every contact vertex are cached.
     fn ensure_columns(&mut self, contacts: &[FreeContact]) {
         let missing: Vec<usize> = {

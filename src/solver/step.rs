@@ -15,7 +15,7 @@ use std::time::Instant;
 
 use nalgebra::Vector3;
 
-use super::global::InnerControl;
+use super::global::{GlobalSolver, InnerControl};
 use super::observer::{NoObserver, SolveInfo, StepObserver};
 use super::simulator::{GlobalStep, Simulator};
 use super::{warm, SolverError, StepStats};
