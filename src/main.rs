@@ -149,6 +149,9 @@ enum Command {
         /// Override the global solver.
         #[arg(long, value_enum)]
         solver: Option<diffsoft::solver::SolverKind>,
+        /// Override the time integrator (bdf2: second order; its first step is implicit Euler).
+        #[arg(long, value_enum)]
+        integrator: Option<diffsoft::solver::Integrator>,
         /// Override the certification policy.
         #[arg(long, value_enum)]
         certify: Option<diffsoft::solver::CertifyPolicy>,
@@ -545,6 +548,7 @@ fn run(command: Command) -> Result<()> {
             out,
             every,
             solver,
+            integrator,
             certify,
             dt,
             max_iterations,
@@ -557,6 +561,9 @@ fn run(command: Command) -> Result<()> {
             let mut sc = diffsoft::scene::load(&scene, diffsoft::scene::LoadOptions { passive })?;
             if let Some(s) = solver {
                 sc.settings.solver = s;
+            }
+            if let Some(i) = integrator {
+                sc.settings.integrator = i;
             }
             if let Some(c) = certify {
                 sc.settings.certify = c;
@@ -862,6 +869,9 @@ struct GradArgs {
     /// Override the global solver.
     #[arg(long, value_enum)]
     solver: Option<diffsoft::solver::SolverKind>,
+    /// Override the time integrator (bdf2: second order; its first step is implicit Euler).
+    #[arg(long, value_enum)]
+    integrator: Option<diffsoft::solver::Integrator>,
     /// Override the local-global iteration cap.
     #[arg(long)]
     max_iterations: Option<usize>,
@@ -911,6 +921,9 @@ fn grad(a: GradArgs) -> Result<()> {
     let mut sc = diffsoft::scene::load(&scene, diffsoft::scene::LoadOptions::default())?;
     if let Some(s) = a.solver {
         sc.settings.solver = s;
+    }
+    if let Some(i) = a.integrator {
+        sc.settings.integrator = i;
     }
     if let Some(m) = a.max_iterations {
         sc.settings.max_iterations = m;

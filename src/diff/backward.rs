@@ -16,14 +16,13 @@ use crate::model::Model;
 use crate::solver::direct::Direct;
 use crate::solver::free_contact::FreeContact;
 use crate::solver::global::InnerControl;
-use crate::solver::integrator::ImplicitEuler;
+use crate::solver::integrator::{Previous, Scheme};
 use crate::solver::system::GlobalSystem;
-use crate::solver::Settings;
 
 /// Buffers of the backward pass, sized once.
 pub(crate) struct Backward<'a> {
     pub(super) model: &'a Model,
-    pub(super) integrator: ImplicitEuler,
+    pub(super) integrator: Scheme,
     pub(super) sys: GlobalSystem,
     pub(super) direct: Direct,
     pub(super) local: Constraints,
@@ -41,6 +40,9 @@ pub(crate) struct Backward<'a> {
     pub(super) xn_full: Vec<Vector3<f64>>,
     pub(super) out_full: Vec<Vector3<f64>>,
     pub(super) s: Vec<Vector3<f64>>,
+    /// The adjoint of the step's inertial target `s` (Eq. 2 / T1), distributed to the states
+    /// it was built from at the end of the step.
+    pub(super) s_bar: Vec<Vector3<f64>>,
     pub(super) anchor_scratch: Vec<Vector3<f64>>,
     pub(super) scratch_rot: Vec<f64>,
     pub(super) scratch_vol: Vec<f64>,
@@ -73,14 +75,17 @@ pub(crate) struct StepInputs<'r> {
     pub replay: Option<&'r Recording>,
     /// The step's final contacts and impulses (implicit mode).
     pub final_contacts: Option<(&'r [FreeContact], &'r [Vector3<f64>])>,
+    /// The state before `(q_n, v_n)`, which a two-step scheme (BDF2) reads.
+    pub previous: Previous<'r>,
     /// Step index.
     pub step: usize,
 }
 
 impl<'a> Backward<'a> {
-    /// Assemble and factor the system for `settings`' time step and allocate every buffer.
-    pub(crate) fn new(model: &'a Model, settings: &Settings, opts: Options) -> Result<Self, DiffError> {
-        let sys = GlobalSystem::new(model, settings.dt)?;
+    /// Assemble and factor the system of `scheme` (the time step and integrator of the steps
+    /// it will differentiate) and allocate every buffer.
+    pub(crate) fn new(model: &'a Model, scheme: Scheme, opts: Options) -> Result<Self, DiffError> {
+        let sys = GlobalSystem::new(model, scheme.h_e())?;
         let direct = Direct::new(
             &sys,
             InnerControl {
@@ -93,7 +98,7 @@ impl<'a> Backward<'a> {
         let mut b = Self {
             skel: None,
             contact_ms: 0.0,
-            integrator: ImplicitEuler::new(settings.dt, settings.damping),
+            integrator: scheme,
             local: Constraints::new(model),
             contact: ContactAdjoint::default(),
             xbar: vec![Vector3::zeros(); nf],
@@ -104,6 +109,7 @@ impl<'a> Backward<'a> {
             xn_full: vec![Vector3::zeros(); n],
             out_full: vec![Vector3::zeros(); n],
             s: vec![Vector3::zeros(); n],
+            s_bar: vec![Vector3::zeros(); n],
             anchor_scratch: vec![Vector3::zeros(); n],
             scratch_rot: vec![0.0; model.tets.len()],
             scratch_vol: vec![0.0; model.tets.len()],
@@ -183,18 +189,30 @@ impl<'a> Backward<'a> {
     }
 
     /// One step's adjoint: `qbar`, `vbar` hold the adjoints of `(q_{n+1}, v_{n+1})` on entry and
-    /// of `(q_n, v_n)` on exit; parameter adjoints are added to `g`.
+    /// this step's part of those of `(q_n, v_n)` on exit; `before_bar` receives its part of
+    /// those of `(q_{n-1}, v_{n-1})` (zero unless the scheme has two steps); parameter adjoints
+    /// are added to `g`.
     pub(crate) fn step(
         &mut self,
         inp: StepInputs<'_>,
         qbar: &mut [Vector3<f64>],
         vbar: &mut [Vector3<f64>],
+        before_bar: (&mut [Vector3<f64>], &mut [Vector3<f64>]),
         g: &mut Gradient,
     ) -> Result<(), DiffError> {
         let model = self.model;
         let ih2 = self.integrator.inv_h2();
         let c = self.integrator.velocity_coefficient();
-        self.integrator.inertial_target(model, inp.q_n, inp.v_n, &mut self.s);
+        let (a0, a1) = self.integrator.weights();
+        let two_step = self.integrator.two_step();
+        if two_step && inp.previous.is_none() {
+            return Err(DiffError::Unsupported(format!(
+                "step {}: the BDF2 adjoint needs the state before the step",
+                inp.step + 1
+            )));
+        }
+        self.integrator
+            .inertial_target(model, inp.q_n, inp.v_n, inp.previous, &mut self.s);
         for (k, &v) in self.sys.free.iter().enumerate() {
             self.xbar[k] = qbar[v] + vbar[v] * c;
             self.base_acc[k] = Vector3::zeros();
@@ -205,12 +223,18 @@ impl<'a> Backward<'a> {
                 sa.q_r_bar_in[r] = qbar[v] + vbar[v] * c;
             }
         }
-        // q_{n+1} = x_N on free vertices; v_{n+1} = c (q_{n+1} - q_n) everywhere (Eq. 4).
+        // q_{n+1} = x_N on free vertices; v_{n+1} = c (q_{n+1} - a0 q_n - a1 q_{n-1})
+        // everywhere (Eq. 4 / T3).
+        let (qb_before, vb_before) = before_bar;
         for i in 0..self.n {
-            qbar[i] = -vbar[i] * c;
+            qbar[i] = -vbar[i] * (c * a0);
+            qb_before[i] = -vbar[i] * (c * a1);
             vbar[i] = Vector3::zeros();
+            vb_before[i] = Vector3::zeros();
+            self.s_bar[i] = Vector3::zeros();
         }
         let step = inp.step;
+        let mut s_bar = std::mem::take(&mut self.s_bar);
         std::mem::swap(&mut self.act_grad, &mut g.activations[step]);
         let r = match (self.opts.mode, inp.replay) {
             (mode, Some(rec)) if self.skel.is_some() => {
@@ -221,7 +245,7 @@ impl<'a> Backward<'a> {
                     rec,
                     inp.activations,
                     qbar,
-                    vbar,
+                    &mut s_bar,
                     g,
                     step,
                     &mut act_grad,
@@ -230,12 +254,22 @@ impl<'a> Backward<'a> {
                 self.act_grad = act_grad;
                 r
             }
-            (Mode::Unrolled, Some(rec)) => self.unrolled(rec, inp.q_n, inp.activations, qbar, vbar, g),
-            (Mode::Implicit, _) => self.implicit(&inp, qbar, vbar, g),
+            (Mode::Unrolled, Some(rec)) => self.unrolled(rec, inp.q_n, inp.activations, qbar, &mut s_bar, g),
+            (Mode::Implicit, _) => self.implicit(&inp, qbar, &mut s_bar, g),
             (Mode::Unrolled, None) => Err(DiffError::Unsupported("unrolled mode needs a replay".into())),
         };
         std::mem::swap(&mut self.act_grad, &mut g.activations[step]);
+        self.s_bar = s_bar;
         r?;
+        // The inertial target's adjoint to the states it was built from (Eq. 2 / T1).
+        for (i, sb) in self.s_bar.iter().enumerate() {
+            if model.fixed[i] {
+                continue;
+            }
+            let before = two_step.then(|| (&mut qb_before[i], &mut vb_before[i]));
+            self.integrator
+                .inertial_target_adjoint(*sb, (&mut qbar[i], &mut vbar[i]), before, &mut g.accel[i]);
+        }
         // The constant part of the right-hand side: M s/h^2 and the attachments.
         for (k, &v) in self.sys.free.iter().enumerate() {
             g.mass[v] += self.base_acc[k].dot(&self.s[v]) * ih2;
@@ -255,7 +289,7 @@ impl<'a> Backward<'a> {
         q_n: &[Vector3<f64>],
         activations: &[f64],
         qbar: &mut [Vector3<f64>],
-        vbar: &mut [Vector3<f64>],
+        s_bar: &mut [Vector3<f64>],
         g: &mut Gradient,
     ) -> Result<(), DiffError> {
         let model = self.model;
@@ -293,8 +327,7 @@ impl<'a> Backward<'a> {
         }
         // x_0 = s.
         for (k, &v) in self.sys.free.iter().enumerate() {
-            let sbar = self.xbar[k] + self.base_acc[k] * (model.mass[v] * ih2);
-            self.add_s_adjoint(v, sbar, qbar, vbar, g);
+            s_bar[v] += self.xbar[k] + self.base_acc[k] * (model.mass[v] * ih2);
         }
         Ok(())
     }
@@ -309,18 +342,5 @@ impl<'a> Backward<'a> {
         }
         g.stats.contact_sweeps = self.contact.sweeps;
         g.stats.contact_residual = self.contact.worst_residual;
-    }
-
-    /// The adjoint of the inertial target (Eq. 2) on vertex `v`.
-    pub(super) fn add_s_adjoint(
-        &self,
-        v: usize,
-        sbar: Vector3<f64>,
-        qbar: &mut [Vector3<f64>],
-        vbar: &mut [Vector3<f64>],
-        g: &mut Gradient,
-    ) {
-        self.integrator
-            .inertial_target_adjoint(sbar, &mut qbar[v], &mut vbar[v], &mut g.accel[v]);
     }
 }

@@ -12,7 +12,8 @@ use super::loss::{Loss, LossGrad};
 use super::recording::Recording;
 use super::{Controls, DiffError, DiffStats, Gradient, Mode, Options};
 use crate::model::Model;
-use crate::solver::{Settings, Simulator, SolverKind};
+use crate::solver::integrator::Scheme;
+use crate::solver::{Integrator, Settings, Simulator, SolverKind};
 
 /// Where a gradient evaluation is (for progress reports and observers).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -129,7 +130,15 @@ pub fn gradient_with(
     g.stats.stored_bytes = fwd.stored_bytes;
     g.stats.stored_steps = fwd.stored.iter().filter(|r| r.is_some()).count();
     g.stats.checkpoint_bytes = fwd.checkpoint_bytes();
-    let mut bw = Backward::new(model, settings, opts)?;
+    // Every step's scheme but the first (BDF2 starts with implicit Euler, whose matrix differs:
+    // its backward is built when step 0 is reached).
+    let bdf2 = settings.integrator == Integrator::Bdf2;
+    let mut bw = Backward::new(
+        model,
+        Scheme::for_step(settings.integrator, settings.dt, settings.damping, bdf2),
+        opts,
+    )?;
+    let mut bw_first: Option<Backward> = None;
     // Implicit mode with a skeleton replays too: it linearizes the step's last iteration.
     let mut replayer = if implicit && model.skeleton.is_none() {
         None
@@ -138,7 +147,13 @@ pub fn gradient_with(
         Some((sim, Recording::new(true)))
     };
     let (mut qbar, mut vbar) = (vec![Vector3::zeros(); n], vec![Vector3::zeros(); n]);
+    // BDF2: a step's adjoints of the state before its start, added to the next (earlier)
+    // step's output; the other pair is that step's own.
+    let two = if bdf2 { n } else { 0 };
+    let (mut pend_q, mut pend_v) = (vec![Vector3::zeros(); two], vec![Vector3::zeros(); two]);
+    let (mut out_q, mut out_v) = (vec![Vector3::zeros(); n], vec![Vector3::zeros(); n]);
     for step in (0..steps).rev() {
+        let previous = (bdf2 && step > 0).then(|| (fwd.q.row(step - 1), fwd.v.row(step - 1)));
         // The loss term of the state after this step.
         let (qs, vs) = (fwd.q.row(step + 1), fwd.v.row(step + 1));
         if let (Some(sa), Some(j)) = (bw.skel.as_mut(), fwd.joints.get(step)) {
@@ -160,6 +175,9 @@ pub fn gradient_with(
         let stored = fwd.stored.get(step).and_then(|r| r.as_ref());
         if let (Some((sim, replay)), None) = (replayer.as_mut(), stored) {
             sim.set_state_from(fwd.q.row(step), fwd.v.row(step))?;
+            if let Some((q, v)) = previous {
+                sim.set_previous_state(q, v)?;
+            }
             if let Some(st) = fwd.skeleton.get(step) {
                 sim.set_skeleton_state(st)?;
             }
@@ -191,7 +209,24 @@ pub fn gradient_with(
         }
         g.stats.replay_ms += tr.elapsed().as_secs_f64() * 1e3;
         let rec = stored.or_else(|| replayer.as_ref().map(|(_, r)| r));
-        bw.step(
+        let b = if bdf2 && step == 0 {
+            let first = match bw_first.take() {
+                Some(b) => b,
+                None => {
+                    let mut b = Backward::new(model, Scheme::implicit_euler(settings.dt, settings.damping), opts)?;
+                    // The skeleton's adjoint of z_1 carries over from the later steps.
+                    if let (Some(dst), Some(src)) = (b.skel.as_mut(), bw.skel.as_ref()) {
+                        dst.z_bar.copy_from_slice(&src.z_bar);
+                    }
+                    b.contact_ms = bw.contact_ms;
+                    b
+                }
+            };
+            bw_first.insert(first)
+        } else {
+            &mut bw
+        };
+        b.step(
             StepInputs {
                 q_n: fwd.q.row(step),
                 v_n: fwd.v.row(step),
@@ -199,20 +234,33 @@ pub fn gradient_with(
                 activations: fwd.activations.row(step),
                 replay: rec,
                 final_contacts: fwd.contacts.get(step),
+                previous,
                 step,
             },
             &mut qbar,
             &mut vbar,
+            (&mut out_q, &mut out_v),
             &mut g,
         )?;
+        if bdf2 {
+            // The adjoint of (q_n, v_n) is this step's part plus the later step's (which read
+            // them as its earlier state); this step's part for (q_{n-1}, v_{n-1}) waits.
+            for i in 0..n {
+                qbar[i] += pend_q[i];
+                vbar[i] += pend_v[i];
+            }
+            std::mem::swap(&mut pend_q, &mut out_q);
+            std::mem::swap(&mut pend_v, &mut out_v);
+        }
         progress(super::Progress::Backward(step));
     }
     g.q0 = qbar;
     g.v0 = vbar;
-    if let Some(sa) = bw.skel.as_ref() {
+    let last = bw_first.as_ref().unwrap_or(&bw);
+    if let Some(sa) = last.skel.as_ref() {
         g.joints0.copy_from_slice(&sa.z_bar);
     }
     g.stats.backward_ms = t1.elapsed().as_secs_f64() * 1e3;
-    g.stats.contact_ms = bw.contact_ms;
+    g.stats.contact_ms = last.contact_ms;
     Ok(g)
 }

@@ -44,7 +44,7 @@ impl Backward<'_> {
         &mut self,
         inp: &StepInputs<'_>,
         qbar: &mut [Vector3<f64>],
-        vbar: &mut [Vector3<f64>],
+        s_bar: &mut [Vector3<f64>],
         g: &mut Gradient,
     ) -> Result<(), DiffError> {
         let model = self.model;
@@ -110,8 +110,7 @@ impl Backward<'_> {
             },
         )?;
         for (k, &v) in self.sys.free.iter().enumerate() {
-            let sbar = self.base_acc[k] * (model.mass[v] * ih2);
-            self.add_s_adjoint(v, sbar, qbar, vbar, g);
+            s_bar[v] += self.base_acc[k] * (model.mass[v] * ih2);
         }
         Ok(())
     }

@@ -219,9 +219,10 @@ fn contacts_of(rec: &Recording, k: usize) -> (&[FreeContact], &[Vector3<f64>]) {
 }
 
 impl Backward<'_> {
-    /// The unrolled backward of one step with a skeleton (see the module docs). On entry `qbar`,
-    /// `vbar` are the adjoints of `(q_{n+1}, v_{n+1})` and the skeleton adjoint holds that of
-    /// `z_{n+1}`; on exit those of `(q_n, v_n)` and `z_n`.
+    /// The unrolled backward of one step with a skeleton (see the module docs). On entry the
+    /// skeleton adjoint holds the adjoint of `z_{n+1}` (and `qbar` the velocity update's part of
+    /// that of `q_n`); on exit `qbar` has the step's direct part of the adjoint of `q_n`, `s_bar`
+    /// that of the inertial target, and the skeleton adjoint that of `z_n`.
     #[allow(clippy::too_many_arguments)]
     pub(super) fn skeletal_step(
         &mut self,
@@ -229,7 +230,7 @@ impl Backward<'_> {
         rec: &Recording,
         activations: &[f64],
         qbar: &mut [Vector3<f64>],
-        vbar: &mut [Vector3<f64>],
+        s_bar: &mut [Vector3<f64>],
         g: &mut Gradient,
         step: usize,
         act_grad: &mut [f64],
@@ -250,12 +251,10 @@ impl Backward<'_> {
             // x_0 = s on free vertices (unrolled mode), and s enters b on every vertex.
             let x0 = if implicit { 0.0 } else { 1.0 };
             for (k, &v) in self.sys.free.iter().enumerate() {
-                let sbar = self.xbar[k] * x0 + self.base_acc[k] * (model.mass[v] * ih2);
-                self.add_s_adjoint(v, sbar, qbar, vbar, g);
+                s_bar[v] += self.xbar[k] * x0 + self.base_acc[k] * (model.mass[v] * ih2);
             }
             for (r, &v) in self.sys.rigid.iter().enumerate() {
-                let sbar = sa.base_acc[r] * (model.mass[v] * ih2);
-                self.add_s_adjoint(v, sbar, qbar, vbar, g);
+                s_bar[v] += sa.base_acc[r] * (model.mass[v] * ih2);
                 g.mass[v] += sa.base_acc[r].dot(&self.s[v]) * ih2;
             }
             let (rigid_index, base_acc) = (&self.sys.rigid_index, &sa.base_acc);

@@ -22,7 +22,7 @@ use std::path::PathBuf;
 
 use serde::Deserialize;
 
-use crate::solver::{CertifyPolicy, Settings, SolverKind};
+use crate::solver::{CertifyPolicy, Integrator, Settings, SolverKind};
 
 /// Schema name of the scene format.
 pub const SCENE_SCHEMA: &str = "diffsoft.scene/1";
@@ -65,6 +65,9 @@ pub struct SolverFile {
     /// Global solver: `auto` (default: the cheapest for the mesh and time step), `direct`,
     /// `plain`, `split`, `chebyshev`.
     pub solver: Option<SolverKind>,
+    /// Time integrator: `implicit_euler` (default) or `bdf2` (second order; its first step is
+    /// implicit Euler).
+    pub integrator: Option<Integrator>,
     /// Certification: `off`, `refuse`, `fallback`.
     pub certify: Option<CertifyPolicy>,
     /// Local-global iteration cap.
@@ -92,6 +95,7 @@ impl SolverFile {
         Settings {
             dt,
             solver: self.solver.unwrap_or(d.solver),
+            integrator: self.integrator.unwrap_or(d.integrator),
             certify: self.certify.unwrap_or(d.certify),
             max_iterations: self.max_iterations.unwrap_or(d.max_iterations),
             tolerance: self.tolerance.unwrap_or(d.tolerance),

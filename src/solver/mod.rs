@@ -52,6 +52,7 @@ pub use choose::Candidate;
 pub use contacts::{PAIR_OBSTACLE, PAIR_TOLERANCE};
 pub use error::SolverError;
 pub use global::{GlobalStats, SolverKind};
+pub use integrator::Integrator;
 pub use settings::Settings;
 pub use simulator::Simulator;
 pub use stats::StepStats;

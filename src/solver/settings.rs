@@ -1,10 +1,11 @@
-//! The settings of a simulation: time step, global solver and its certification, iteration caps
+//! The settings of a simulation: time step and integrator, global solver and its certification, iteration caps
 //! and tolerances, damping, contact handling, Anderson acceleration.
 
 use serde::Serialize;
 
 use super::certify::CertifyPolicy;
 use super::global::SolverKind;
+use super::integrator::Integrator;
 use super::SolverError;
 use crate::analysis::spectral::EigenMethod;
 
@@ -14,6 +15,9 @@ use crate::analysis::spectral::EigenMethod;
 pub struct Settings {
     /// Time step (s).
     pub dt: f64,
+    /// Time integrator (default implicit Euler; `bdf2` is second order, docs/method.md
+    /// Eqs. T1-T3).
+    pub integrator: Integrator,
     /// Global solver (default `auto`: the cheapest for the mesh and time step).
     pub solver: SolverKind,
     /// Certification policy for iterative solvers.
@@ -43,6 +47,7 @@ impl Default for Settings {
     fn default() -> Self {
         Self {
             dt: 0.01,
+            integrator: Integrator::ImplicitEuler,
             solver: SolverKind::Auto,
             certify: CertifyPolicy::Fallback,
             max_iterations: 30,

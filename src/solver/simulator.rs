@@ -10,7 +10,7 @@ use super::choose;
 use super::contacts::StepContacts;
 use super::direct::Direct;
 use super::global::{GlobalSolver, InnerControl, SolverKind};
-use super::integrator::ImplicitEuler;
+use super::integrator::{Integrator, Scheme};
 use super::skeletal::Skeletal;
 use super::stationary::Stationary;
 use super::system::GlobalSystem;
@@ -91,12 +91,38 @@ pub(crate) struct Work {
     pub torque: Vec<f64>,
 }
 
+/// The state one step before the current one, which BDF2 reads (docs/method.md Eq. T1).
+#[derive(Debug, Clone, Default)]
+pub(crate) struct PreviousState {
+    /// Positions `q_{n-1}` (empty for implicit Euler).
+    pub q: Vec<Vector3<f64>>,
+    /// Velocities `v_{n-1}`.
+    pub v: Vec<Vector3<f64>>,
+    /// Whether `q`, `v` hold the state before the current one (false at the start and after
+    /// the state was replaced).
+    pub valid: bool,
+}
+
+/// A global system built for the scheme not in use, swapped in when the scheme changes.
+pub(crate) struct Alternate {
+    scheme: Scheme,
+    system: GlobalSystem,
+    global: GlobalStep,
+    certificate: Certificate,
+}
+
 /// A running simulation.
 pub struct Simulator {
     pub(crate) model: Model,
     pub(crate) settings: Settings,
-    pub(crate) integrator: ImplicitEuler,
+    /// The scheme the global system below is built for (BDF2's first step: implicit Euler).
+    pub(crate) integrator: Scheme,
     pub(crate) state: State,
+    /// BDF2: the state one step before `state` (empty for implicit Euler).
+    pub(crate) previous: PreviousState,
+    /// BDF2: the other scheme's system, solver and certificate, kept once built (its first step
+    /// runs implicit Euler, whose matrix differs).
+    pub(crate) alternate: Option<Box<Alternate>>,
     pub(crate) system: GlobalSystem,
     pub(crate) global: GlobalStep,
     pub(crate) certificate: Certificate,
@@ -130,6 +156,7 @@ fn build_global(
     model: &Model,
     settings: &Settings,
     system: &GlobalSystem,
+    h: f64,
 ) -> Result<(GlobalStep, Certificate), SolverError> {
     if model.collision.is_some() && model.skeleton.is_some() {
         return Err(SolverError::input(
@@ -140,7 +167,7 @@ fn build_global(
         tolerance: settings.inner_tolerance * model.length_scale,
         max_iterations: settings.inner_max_iterations,
     };
-    let (cert, factored) = certify_global(model, settings, system, control)?;
+    let (cert, factored) = certify_global(model, settings, system, h, control)?;
     let global = match (&model.skeleton, cert.used) {
         (Some(sk), _) => {
             let direct = Box::new(Direct::new(system, control)?);
@@ -168,8 +195,7 @@ fn build_global(
 }
 
 /// The direct solver's certificate when `why` forces it on a run that requested another.
-fn forced_direct(settings: &Settings, system: &GlobalSystem, why: &str) -> Result<Certificate, SolverError> {
-    let h = settings.dt;
+fn forced_direct(settings: &Settings, system: &GlobalSystem, h: f64, why: &str) -> Result<Certificate, SolverError> {
     let mut c = certify::certify(
         system,
         h,
@@ -188,21 +214,21 @@ fn certify_global(
     model: &Model,
     settings: &Settings,
     system: &GlobalSystem,
+    h: f64,
     control: InnerControl,
 ) -> Result<(Certificate, Option<Direct>), SolverError> {
-    let h = settings.dt;
     let requested = settings.solver;
     if model.collision.is_some() && requested != SolverKind::Direct {
         // A contact between two bodies couples several vertices through one impulse: the
         // projected Gauss-Seidel runs on the factored matrix's Delassus operator.
         let why = "contacts between bodies couple several vertices per impulse";
-        return Ok((forced_direct(settings, system, why)?, None));
+        return Ok((forced_direct(settings, system, h, why)?, None));
     }
     if model.skeleton.is_some() && requested != SolverKind::Direct {
         // The reduced step (Eqs. 17-18) eliminates the free vertices with the factored free
         // block, so a skeleton always runs on the direct solver; no eigenvalue check is needed.
         let why = "the skeleton's reduced step (Eqs. 17-18) factors the free block";
-        return Ok((forced_direct(settings, system, why)?, None));
+        return Ok((forced_direct(settings, system, h, why)?, None));
     }
     if requested == SolverKind::Auto {
         let base = Certificate::unchecked(requested, settings.certify, h);
@@ -230,8 +256,16 @@ impl Simulator {
     /// Set up a simulation from the model's initial state (rest positions, initial velocities).
     pub fn new(model: Model, settings: Settings) -> Result<Self, SolverError> {
         settings.validate()?;
-        let system = GlobalSystem::new(&model, settings.dt)?;
-        let (global, certificate) = build_global(&model, &settings, &system)?;
+        // BDF2 runs its own scheme from the second step on: build that system first (its
+        // certificate is the run's), the first step's implicit Euler when it is taken.
+        let scheme = Scheme::for_step(
+            settings.integrator,
+            settings.dt,
+            settings.damping,
+            settings.integrator == Integrator::Bdf2,
+        );
+        let system = GlobalSystem::new(&model, scheme.h_e())?;
+        let (global, certificate) = build_global(&model, &settings, &system, scheme.h_e())?;
         let n = model.n();
         let nf = system.n();
         let nr = system.rigid.len();
@@ -248,7 +282,17 @@ impl Simulator {
         let dofs = model.skeleton.as_ref().map_or(0, |sk| sk.dofs);
         let groups = model.actuators.as_ref().map_or(0, |a| a.groups.len());
         Ok(Self {
-            integrator: ImplicitEuler::new(settings.dt, settings.damping),
+            integrator: scheme,
+            previous: if settings.integrator == Integrator::Bdf2 {
+                PreviousState {
+                    q: vec![Vector3::zeros(); n],
+                    v: vec![Vector3::zeros(); n],
+                    valid: false,
+                }
+            } else {
+                PreviousState::default()
+            },
+            alternate: None,
             activation_override: vec![None; groups],
             constraints: Constraints::new(&model),
             activations: model
@@ -318,6 +362,75 @@ impl Simulator {
         }
         self.state.q.copy_from_slice(q);
         self.state.v.copy_from_slice(v);
+        // A new state has no history: BDF2's next step is implicit Euler (or see
+        // `set_previous_state`).
+        self.previous.valid = false;
+        Ok(())
+    }
+
+    /// BDF2: set the state one step before the current one (positions and velocities), so the
+    /// next step is a BDF2 step rather than the implicit Euler step that starts a run. Call it
+    /// after [`Simulator::set_state`] (which forgets the earlier state); an error under
+    /// implicit Euler, which reads no earlier state.
+    pub fn set_previous_state(&mut self, q: &[Vector3<f64>], v: &[Vector3<f64>]) -> Result<(), SolverError> {
+        if self.settings.integrator != Integrator::Bdf2 {
+            return Err(SolverError::input(format!(
+                "set_previous_state: the integrator is {}, which reads no earlier state",
+                self.settings.integrator.name()
+            )));
+        }
+        if q.len() != self.model.n() || v.len() != self.model.n() {
+            return Err(SolverError::input(format!(
+                "previous state has {} positions and {} velocities, the model {} vertices",
+                q.len(),
+                v.len(),
+                self.model.n()
+            )));
+        }
+        if !q.iter().chain(v).all(|x| x.iter().all(|c| c.is_finite())) {
+            return Err(SolverError::input("previous state has non-finite entries"));
+        }
+        self.previous.q.copy_from_slice(q);
+        self.previous.v.copy_from_slice(v);
+        self.previous.valid = true;
+        Ok(())
+    }
+
+    /// BDF2: the state one step before the current one, `(positions, velocities)`, once a step
+    /// was taken (`None` under implicit Euler and at the start of a run).
+    pub fn previous_state(&self) -> Option<(&[Vector3<f64>], &[Vector3<f64>])> {
+        self.previous
+            .valid
+            .then_some((&self.previous.q[..], &self.previous.v[..]))
+    }
+
+    /// Make the built system match the scheme of the next step (BDF2: implicit Euler without an
+    /// earlier state, BDF2 with one), swapping in the other system or building it once.
+    pub(crate) fn prepare_scheme(&mut self) -> Result<(), SolverError> {
+        let s = &self.settings;
+        let want = Scheme::for_step(s.integrator, s.dt, s.damping, self.previous.valid);
+        if want == self.integrator {
+            return Ok(());
+        }
+        let alt = match self.alternate.take() {
+            Some(a) if a.scheme == want => a,
+            _ => {
+                let system = GlobalSystem::new(&self.model, want.h_e())?;
+                let (global, certificate) = build_global(&self.model, &self.settings, &system, want.h_e())?;
+                Box::new(Alternate {
+                    scheme: want,
+                    system,
+                    global,
+                    certificate,
+                })
+            }
+        };
+        let mut alt = alt;
+        std::mem::swap(&mut self.integrator, &mut alt.scheme);
+        std::mem::swap(&mut self.system, &mut alt.system);
+        std::mem::swap(&mut self.global, &mut alt.global);
+        std::mem::swap(&mut self.certificate, &mut alt.certificate);
+        self.alternate = Some(alt);
         Ok(())
     }
 
@@ -466,14 +579,24 @@ impl Simulator {
         &self.certificate
     }
 
-    /// Change the time step: rebuilds, re-certifies and refactors the global system.
+    /// Change the time step: rebuilds, re-certifies and refactors the global system. Under
+    /// BDF2 only before the first step or after [`Simulator::set_state`] (its formula assumes
+    /// a constant step).
     pub fn set_dt(&mut self, dt: f64) -> Result<(), SolverError> {
+        if self.previous.valid && dt != self.settings.dt {
+            return Err(SolverError::input(format!(
+                "set_dt: BDF2 assumes a constant time step, and this run has taken steps of {} s; change dt before the first step or after set_state (which restarts BDF2 with an implicit Euler step)",
+                self.settings.dt
+            )));
+        }
         let mut s = self.settings.clone();
         s.dt = dt;
         s.validate()?;
-        let system = GlobalSystem::new(&self.model, dt)?;
-        let (global, cert) = build_global(&self.model, &s, &system)?;
-        self.integrator = ImplicitEuler::new(s.dt, s.damping);
+        let scheme = Scheme::for_step(s.integrator, s.dt, s.damping, s.integrator == Integrator::Bdf2);
+        let system = GlobalSystem::new(&self.model, scheme.h_e())?;
+        let (global, cert) = build_global(&self.model, &s, &system, scheme.h_e())?;
+        self.integrator = scheme;
+        self.alternate = None;
         self.settings = s;
         self.system = system;
         self.global = global;

@@ -1,13 +1,14 @@
-//! One implicit Euler step of projective dynamics (docs/method.md section 2), as named phases:
+//! One step of projective dynamics (docs/method.md section 2; implicit Euler or BDF2, Eqs.
+//! T1-T3, which differ only in the explicit phases 1 and 4), as named phases:
 //!
-//! 1. [`Simulator::begin_step`]: the inertial target `s_n` (Eq. 2), the right-hand side's
+//! 1. [`Simulator::begin_step`]: the inertial target `s_n` (Eq. 2 / T1), the right-hand side's
 //!    constant part, the step's activations and torques, the first iterate `x_0 = s_n`;
 //! 2. the contact phase ([`StepContacts`](super::contacts::StepContacts)): candidates before the
 //!    iterations, new penetrations after each round (Eqs. C2-C3);
 //! 3. [`Simulator::iterate`]: local-global iterations for one contact set, each a local step
 //!    ([`Simulator::local_phase`], Eq. 3, with Anderson's safeguard) and a global step
 //!    ([`Simulator::global_phase`], Eq. 5, or the skeleton's reduced step, Eqs. 17-18);
-//! 4. [`Simulator::finish`]: the velocity update (Eq. 4), energies and divergence checks.
+//! 4. [`Simulator::finish`]: the velocity update (Eq. 4 / T3), energies and divergence checks.
 //!
 //! A [`StepObserver`] watches every phase (the backward pass records through one).
 
@@ -32,6 +33,7 @@ impl Simulator {
     /// Advance one time step with `observer` watching its phases.
     pub(crate) fn step_observed(&mut self, observer: &mut dyn StepObserver) -> Result<StepStats, SolverError> {
         let t0 = Instant::now();
+        self.prepare_scheme()?;
         self.begin_step();
         let margin = self.settings.contact_margin * self.model.length_scale;
         self.contacts
@@ -71,7 +73,11 @@ impl Simulator {
         let (model, sys, w, st) = (&self.model, &self.system, &mut self.work, &self.state);
         let ih2 = self.integrator.inv_h2();
         w.q_start.copy_from_slice(&st.q);
-        self.integrator.inertial_target(model, &st.q, &st.v, &mut w.s);
+        let previous = self
+            .previous
+            .valid
+            .then_some((&self.previous.q[..], &self.previous.v[..]));
+        self.integrator.inertial_target(model, &st.q, &st.v, previous, &mut w.s);
         for (k, &v) in sys.free.iter().enumerate() {
             w.base[k] = w.s[v] * (model.mass[v] * ih2) + sys.coupling[k];
             w.x[k] = w.s[v];
@@ -291,9 +297,17 @@ impl Simulator {
         }
         let mut kinetic = 0.0;
         let mut potential = 0.0;
+        let prev = &mut self.previous;
+        let keep = !prev.q.is_empty();
         for i in 0..model.n() {
             let q = w.full[i];
-            let v = self.integrator.velocity(&w.q_start[i], &q);
+            // BDF2 reads q_{n-1}; implicit Euler ignores it (and keeps no history).
+            let before = if keep { prev.q[i] } else { w.q_start[i] };
+            let v = self.integrator.velocity(&w.q_start[i], &before, &q);
+            if keep {
+                prev.q[i] = st.q[i];
+                prev.v[i] = st.v[i];
+            }
             st.q[i] = q;
             st.v[i] = v;
             kinetic += 0.5 * model.mass[i] * v.norm_squared();
@@ -302,6 +316,7 @@ impl Simulator {
         if let Some(sk) = &self.skeleton {
             stats.bone_length_error = sk.bone_length_error(&st.q);
         }
+        prev.valid = keep;
         st.time += self.integrator.h();
         st.step += 1;
         stats.kinetic_energy = kinetic;
