@@ -185,6 +185,9 @@ enum Command {
         /// Steps per case.
         #[arg(long, default_value_t = 20)]
         steps: usize,
+        /// Time integrator of every case (default: each case's own, implicit Euler).
+        #[arg(long, value_enum)]
+        integrator: Option<diffsoft::solver::Integrator>,
         /// Write the JSON report here (`-`: standard output).
         #[arg(long, default_value = "reports/gradcheck.json")]
         json: PathBuf,
@@ -299,6 +302,15 @@ struct TradeoffArgs {
     /// Solver families.
     #[arg(long, value_enum, value_delimiter = ',', default_values = ["direct", "split", "chebyshev", "certified"])]
     families: Vec<diffsoft::verify::tradeoff::Family>,
+    /// Time integrators of the grid (bdf2 rows are named `bdf2/...`).
+    #[arg(long, value_enum, value_delimiter = ',', default_values = ["implicit-euler"])]
+    integrators: Vec<diffsoft::solver::Integrator>,
+    /// Families run with the integrators after the first (default: every one of --families).
+    #[arg(long, value_enum, value_delimiter = ',')]
+    integrator_families: Vec<diffsoft::verify::tradeoff::Family>,
+    /// Integrator of the h/R reference run (the total error of every setting).
+    #[arg(long, value_enum, default_value = "implicit-euler")]
+    reference_integrator: diffsoft::solver::Integrator,
     /// Iteration caps (tolerance 0), comma-separated; `--caps ''` for none.
     #[arg(long, default_value = "1,3,10,30,100")]
     caps: List<usize>,
@@ -613,13 +625,22 @@ fn run(command: Command) -> Result<()> {
             }
             say!("wrote {} schemas in {}", all.len(), out.display());
         }
-        Command::Gradcheck { steps, json } => {
+        Command::Gradcheck {
+            steps,
+            integrator,
+            json,
+        } => {
             use verify::gradients;
             preflight(Some(&json), &[])?;
             // The largest case keeps about 1000 vertices' positions and velocities per step.
             diffsoft::base::memory::check(&format!("--steps {steps}"), steps, 64 * 1024)?;
             let data = find_data(Path::new("verification"))?;
-            let cases = gradients::builtin_cases(&gradients::CaseScenes::under(&data), steps)?;
+            let mut cases = gradients::builtin_cases(&gradients::CaseScenes::under(&data), steps)?;
+            if let Some(i) = integrator {
+                for c in &mut cases {
+                    c.settings.integrator = i;
+                }
+            }
             let checks = gradients::check_all(&cases, 2021);
             say_raw!("{}", gradients::checks_table(&checks));
             let (failed, total) = (checks.iter().filter(|c| !c.passes).count(), checks.len());
@@ -739,6 +760,9 @@ fn tradeoff(args: TradeoffArgs) -> Result<()> {
         reference_tolerance,
         reference_anderson,
         families,
+        integrators,
+        integrator_families,
+        reference_integrator,
         caps,
         tolerances,
         gradient_dt_divisors,
@@ -793,6 +817,9 @@ fn tradeoff(args: TradeoffArgs) -> Result<()> {
             s.reference_tolerance = reference_tolerance;
             s.reference_anderson = reference_anderson;
             s.families = families;
+            s.integrators = integrators;
+            s.integrator_families = integrator_families;
+            s.reference_integrator = reference_integrator;
             s.caps = caps.0;
             s.tolerances = tolerances.0;
             s.gradient_dt_divisors = gradient_dt_divisors;

@@ -228,3 +228,40 @@ fn bdf2_implicit_matches_unrolled_at_convergence() {
         );
     }
 }
+
+/// The trade-off study with the integrator as a knob: bridgesus over 0.2 s against BDF2 at h/32
+/// reports both integrators' observed orders and BDF2's verdicts (issue 18's criterion).
+#[test]
+fn tradeoff_reports_bdf2_orders() {
+    use diffsoft::verify::tradeoff::{self, Family, SceneSource, TimeAxis, TradeoffSpec};
+    let path = common::root().join("verification/paper/bridgesus/bridgesus.json");
+    let mut spec = TradeoffSpec::new("bridgesus", SceneSource::Scene(path), 40);
+    spec.families = vec![Family::Direct];
+    spec.integrators = vec![Integrator::ImplicitEuler, Integrator::Bdf2];
+    spec.reference_integrator = Integrator::Bdf2;
+    spec.reference_divisor = 32;
+    spec.dt_divisors = vec![1, 2, 4];
+    spec.caps = vec![];
+    spec.tolerances = vec![1e-10];
+    spec.time_axis = TimeAxis::Iterations;
+    spec.min_timing_s = 0.0;
+    let s = tradeoff::run_scene(&spec, std::path::Path::new("."), 2, false).unwrap();
+    let orders: Vec<_> = s
+        .observed_orders
+        .iter()
+        .map(|o| (o.integrator, o.coarse.clone(), o.order))
+        .collect();
+    eprintln!("{orders:?}");
+    assert_eq!(orders.len(), 4, "two pairs per integrator");
+    let verdict = |claim: &str| {
+        s.verdicts
+            .iter()
+            .find(|v| v.claim.starts_with(claim))
+            .unwrap_or_else(|| panic!("no verdict '{claim}'"))
+    };
+    let order = verdict("BDF2 (Eq. T1) converges at second order");
+    assert!(order.holds, "{:?}", order);
+    let ratio = verdict("BDF2 at the scene's time step is at least twice as accurate");
+    assert!(ratio.holds, "{:?}", ratio);
+    assert!(s.rows.iter().any(|r| r.id == "bdf2/direct/tol=1e-10/h/4"));
+}

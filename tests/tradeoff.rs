@@ -8,6 +8,7 @@ use std::path::Path;
 use std::process::Command;
 
 use common::tmp_dir;
+use diffsoft::solver::Integrator;
 use diffsoft::verify::shard::Shard;
 use diffsoft::verify::tradeoff::{
     self, Cantilever, Family, Knob, SceneSource, Status, TimeAxis, TradeoffPartial, TradeoffSpec,
@@ -133,6 +134,9 @@ fn merge_spec() -> TradeoffSpec {
     spec.dt_divisors = vec![1, 2];
     spec.reference_divisor = 4;
     spec.gradient_dt_divisors = vec![1];
+    // BDF2 rows with their own references and reference gradients, keyed by integrator.
+    spec.integrators = vec![Integrator::ImplicitEuler, Integrator::Bdf2];
+    spec.integrator_families = vec![Family::Direct];
     spec
 }
 
@@ -162,6 +166,14 @@ fn shards_merge_into_the_unsharded_report() {
     // Gradients were computed and compared with the reference gradient.
     let rows = expected["scenes"][0]["rows"].as_array().unwrap();
     assert!(rows.iter().any(|r| r["gradient"]["error"].is_number()));
+    let bdf2 = |r: &&Value| r["id"].as_str().unwrap().starts_with("bdf2/direct/");
+    assert_eq!(rows.iter().filter(bdf2).count(), 3 * 2);
+    assert!(rows
+        .iter()
+        .filter(bdf2)
+        .any(|r| r["gradient"]["solver_error"].is_number()));
+    let refs = expected["scenes"][0]["dt_references"].as_array().unwrap();
+    assert!(refs.iter().any(|r| r["integrator"] == "bdf2"));
 
     // Missing, duplicate and foreign shards are refused with a message.
     let e = tradeoff::merge(parts[..2].to_vec(), &names[..2])

@@ -21,7 +21,21 @@ use serde::{Deserialize, Serialize};
 use crate::model::Model;
 
 /// The time integrator (scene key `solver.integrator`, CLI `--integrator`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, clap::ValueEnum, schemars::JsonSchema)]
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    PartialEq,
+    Eq,
+    Hash,
+    PartialOrd,
+    Ord,
+    Default,
+    Serialize,
+    Deserialize,
+    clap::ValueEnum,
+    schemars::JsonSchema,
+)]
 #[serde(rename_all = "snake_case")]
 pub enum Integrator {
     /// Implicit (backward) Euler: first order, damps numerically (docs/method.md Eqs. 2-5).

@@ -8,6 +8,7 @@ use std::collections::BTreeMap;
 
 use super::report::*;
 use super::{SceneSummary, TradeoffSpec};
+use crate::solver::Integrator;
 use crate::verify::shard::{check_partials, check_same, ShardError};
 
 fn rel_vec_error(a: &[f64], r: &[f64]) -> Option<f64> {
@@ -21,17 +22,19 @@ fn rel_vec_error(a: &[f64], r: &[f64]) -> Option<f64> {
 fn union_by_divisor<T: Clone + PartialEq>(
     what: &str,
     lists: Vec<(Vec<T>, &String)>,
-    divisor: impl Fn(&T) -> usize,
+    divisor: impl Fn(&T) -> (Integrator, usize),
     same: impl Fn(&T, &T) -> bool,
 ) -> Result<Vec<T>, ShardError> {
-    let mut out: BTreeMap<usize, (T, String)> = BTreeMap::new();
+    let mut out: BTreeMap<(Integrator, usize), (T, String)> = BTreeMap::new();
     for (list, path) in lists {
         for x in list {
             let d = divisor(&x);
             if let Some((y, p)) = out.get(&d) {
                 if !same(y, &x) {
                     return Err(ShardError::Mismatch(format!(
-                        "{what} at h/{d} differs between {p} and {path} (different builds or inputs?)"
+                        "{what} ({}) at h/{} differs between {p} and {path} (different builds or inputs?)",
+                        d.0.name(),
+                        d.1
                     )));
                 }
             } else {
@@ -65,7 +68,7 @@ pub fn finalize(parts: Vec<TradeoffPartial>, paths: &[String]) -> Result<SceneTr
             .zip(paths)
             .map(|(p, path)| (p.dt_references.clone(), path))
             .collect(),
-        |r| r.dt_divisor,
+        |r| (r.integrator, r.dt_divisor),
         |a, b| a.fingerprint == b.fingerprint,
     )?;
     let gradient_references = union_by_divisor(
@@ -75,7 +78,7 @@ pub fn finalize(parts: Vec<TradeoffPartial>, paths: &[String]) -> Result<SceneTr
             .zip(paths)
             .map(|(p, path)| (p.gradient_references.clone(), path))
             .collect(),
-        |r| r.dt_divisor,
+        |r| (r.integrator, r.dt_divisor),
         |a, b| a.gradient.values == b.gradient.values && a.gradient.message == b.gradient.message,
     )?;
     let mut rows: Vec<Row> = parts.iter().flat_map(|p| p.rows.iter().cloned()).collect();
@@ -88,17 +91,18 @@ pub fn finalize(parts: Vec<TradeoffPartial>, paths: &[String]) -> Result<SceneTr
     }
     let workers: Vec<usize> = parts.iter().map(|p| p.workers).collect();
     let wall_time_s = parts.iter().map(|p| p.wall_time_s).sum();
-    let grad_ref = |d: usize| {
+    let grad_ref = |i: Integrator, d: usize| {
         gradient_references
             .iter()
-            .find(|g| g.dt_divisor == d)
+            .find(|g| g.dt_divisor == d && g.integrator == i)
             .and_then(|g| g.gradient.values.clone())
     };
-    let total_ref = grad_ref(spec.reference_divisor);
+    let total_ref = grad_ref(spec.reference_integrator, spec.reference_divisor);
     for r in rows.iter_mut() {
         if let Some(v) = r.gradient.values.clone() {
             r.gradient.error = total_ref.as_deref().and_then(|g| rel_vec_error(&v, g));
-            r.gradient.solver_error = grad_ref(r.setting.dt_divisor).and_then(|g| rel_vec_error(&v, &g));
+            r.gradient.solver_error =
+                grad_ref(r.setting.integrator, r.setting.dt_divisor).and_then(|g| rel_vec_error(&v, &g));
         }
     }
     let resolution = RESOLUTION_FACTOR * spec.reference_tolerance * scene.length_scale / reference.displacement_scale;
@@ -109,11 +113,12 @@ pub fn finalize(parts: Vec<TradeoffPartial>, paths: &[String]) -> Result<SceneTr
     let verdicts = assess::verdicts(&spec, &rows, &reference, &dt_references, resolution, &observed_orders);
     let method = Method {
         reference: format!(
-            "direct solver, tolerance {:e} (RMS change per iteration relative to the length scale {:.4} m), cap {} iterations, Anderson memory {}, at h/{} = {:e} s for the total error and at every grid step h/d for the solver error; reference gradients: unrolled, same tolerance, no Anderson",
+            "direct solver, tolerance {:e} (RMS change per iteration relative to the length scale {:.4} m), cap {} iterations, Anderson memory {}, {} at h/{} = {:e} s for the total error and each setting's integrator at every grid step h/d for the solver error; reference gradients: unrolled, same tolerance, no Anderson",
             spec.reference_tolerance,
             scene.length_scale,
             spec.reference_max_iterations,
             spec.reference_anderson,
+            spec.reference_integrator.name(),
             spec.reference_divisor,
             scene.dt / spec.reference_divisor as f64
         ),

@@ -1,10 +1,11 @@
 //! The accuracy/cost trade-off of the solver settings (`diffsoft tradeoff`,
 //! `reports/tradeoff.json`).
 //!
-//! For one scene, a grid of settings (global solver family x iteration cap or tolerance x time
-//! step `h/d`) runs against reference trajectories computed with the direct solver at a tight
-//! tolerance: one at the small step `h/R` (the total error of a setting: time discretisation of
-//! implicit Euler, docs/method.md Eq. 2, plus the truncated local-global iteration, Eqs. 3-5) and one
+//! For one scene, a grid of settings (time integrator x global solver family x iteration cap or
+//! tolerance x time step `h/d`) runs against reference trajectories computed with the direct
+//! solver at a tight tolerance: one at the small step `h/R` with the reference integrator (the
+//! total error of a setting: time discretisation of implicit Euler, docs/method.md Eq. 2, or
+//! BDF2, Eq. T1, plus the truncated local-global iteration, Eqs. 3-5) and one per integrator
 //! at each grid step `h/d` (the solver error alone). Each setting records its time per simulated
 //! second, its trajectory errors (max and RMS vertex error, centre-of-mass error, energy drift)
 //! and, where the backward pass supports the scene, the error of its gradient against
@@ -31,7 +32,7 @@ use std::path::PathBuf;
 
 use serde::{Deserialize, Serialize};
 
-use crate::solver::{CertifyPolicy, Settings, SolverKind};
+use crate::solver::{CertifyPolicy, Integrator, Settings, SolverKind};
 
 pub use merge::{finalize, merge};
 pub use report::{
@@ -169,6 +170,9 @@ fn default_min_timing_s() -> f64 {
 fn default_families() -> Vec<Family> {
     vec![Family::Direct, Family::Split, Family::Chebyshev, Family::Certified]
 }
+fn default_integrators() -> Vec<Integrator> {
+    vec![Integrator::ImplicitEuler]
+}
 fn default_caps() -> Vec<usize> {
     vec![1, 3, 10, 30, 100]
 }
@@ -206,6 +210,17 @@ pub struct TradeoffSpec {
     /// Solver families.
     #[serde(default = "default_families")]
     pub families: Vec<Family>,
+    /// Time integrators of the grid (default implicit Euler only; docs/method.md Eqs. 2, T1).
+    #[serde(default = "default_integrators")]
+    pub integrators: Vec<Integrator>,
+    /// Families run with the integrators after the first (empty: every one of `families`).
+    #[serde(default)]
+    pub integrator_families: Vec<Family>,
+    /// Integrator of the reference runs at `h/R` (the total error of every setting is measured
+    /// against it; each setting's solver error against a converged run of its own integrator at
+    /// its own step).
+    #[serde(default)]
+    pub reference_integrator: Integrator,
     /// Iteration caps (tolerance 0).
     #[serde(default = "default_caps")]
     pub caps: Vec<usize>,
@@ -286,6 +301,9 @@ impl TradeoffSpec {
             reference_max_iterations: default_reference_max_iterations(),
             reference_anderson: 0,
             families: default_families(),
+            integrators: default_integrators(),
+            integrator_families: Vec::new(),
+            reference_integrator: Integrator::ImplicitEuler,
             caps: default_caps(),
             tolerances: default_tolerances(),
             tolerance_max_iterations: default_tolerance_max_iterations(),
@@ -326,6 +344,15 @@ impl TradeoffSpec {
         if !distinct(&self.families) || !distinct(&self.caps) || !distinct(&self.tolerances) {
             return bad("families, caps and tolerances must not repeat".into());
         }
+        if self.integrators.is_empty() || !distinct(&self.integrators) {
+            return bad(format!(
+                "integrators must be distinct and at least one, got {:?}",
+                self.integrators
+            ));
+        }
+        if let Some(f) = self.integrator_families.iter().find(|f| !self.families.contains(f)) {
+            return bad(format!("integrator family {} is not one of families", f.name()));
+        }
         let r = self.reference_divisor;
         if let Some(d) = self.dt_divisors.iter().find(|&&d| d >= r || !r.is_multiple_of(d)) {
             return bad(format!(
@@ -354,7 +381,7 @@ impl TradeoffSpec {
         Ok(())
     }
 
-    /// The grid in report order: family, then caps and tolerances, then time steps.
+    /// The grid in report order: integrator, family, then caps and tolerances, then time steps.
     pub fn grid(&self) -> Vec<Setting> {
         let knobs: Vec<Knob> = self
             .caps
@@ -363,14 +390,22 @@ impl TradeoffSpec {
             .chain(self.tolerances.iter().map(|&t| Knob::Tolerance(t)))
             .collect();
         let mut out = Vec::new();
-        for &family in &self.families {
-            for &knob in &knobs {
-                for &dt_divisor in &self.dt_divisors {
-                    out.push(Setting {
-                        family,
-                        knob,
-                        dt_divisor,
-                    });
+        for (i, &integrator) in self.integrators.iter().enumerate() {
+            let families = if i == 0 || self.integrator_families.is_empty() {
+                &self.families
+            } else {
+                &self.integrator_families
+            };
+            for &family in families {
+                for &knob in &knobs {
+                    for &dt_divisor in &self.dt_divisors {
+                        out.push(Setting {
+                            family,
+                            knob,
+                            dt_divisor,
+                            integrator,
+                        });
+                    }
                 }
             }
         }
@@ -387,17 +422,24 @@ pub struct Setting {
     pub knob: Knob,
     /// The time step is `h / dt_divisor`.
     pub dt_divisor: usize,
+    /// Time integrator.
+    #[serde(default)]
+    pub integrator: Integrator,
 }
 
 impl Setting {
-    /// Id in reports, e.g. `direct/tol=1e-6/h/4`.
+    /// Id in reports, e.g. `direct/tol=1e-6/h/4` (implicit Euler) or `bdf2/direct/tol=1e-6/h/4`.
     pub fn id(&self) -> String {
         let dt = if self.dt_divisor == 1 {
             "h".to_string()
         } else {
             format!("h/{}", self.dt_divisor)
         };
-        format!("{}/{}/{dt}", self.family.name(), self.knob.label())
+        let scheme = match self.integrator {
+            Integrator::ImplicitEuler => String::new(),
+            other => format!("{}/", other.name()),
+        };
+        format!("{scheme}{}/{}/{dt}", self.family.name(), self.knob.label())
     }
 
     /// The solver settings: the scene's, with this family, knob and time step (and the
@@ -406,6 +448,7 @@ impl Setting {
         let mut s = base.clone();
         s.dt = base.dt / self.dt_divisor as f64;
         s.damping = damping_at(base.damping, self.dt_divisor);
+        s.integrator = self.integrator;
         self.family.apply(&mut s);
         match self.knob {
             Knob::Cap(k) => {
@@ -428,9 +471,17 @@ pub fn damping_at(per_step: f64, divisor: usize) -> f64 {
     per_step.powf(1.0 / divisor as f64)
 }
 
-/// Settings of the reference runs at `h / divisor`: direct, the reference tolerance and cap.
-pub fn reference_settings(base: &Settings, spec: &TradeoffSpec, divisor: usize, anderson: usize) -> Settings {
+/// Settings of the reference runs at `h / divisor` with `integrator`: direct, the reference
+/// tolerance and cap.
+pub fn reference_settings(
+    base: &Settings,
+    spec: &TradeoffSpec,
+    divisor: usize,
+    anderson: usize,
+    integrator: Integrator,
+) -> Settings {
     let mut s = base.clone();
+    s.integrator = integrator;
     s.dt = base.dt / divisor as f64;
     s.damping = damping_at(base.damping, divisor);
     Family::Direct.apply(&mut s);
@@ -488,6 +539,7 @@ mod tests {
             family: Family::Certified,
             knob: Knob::Cap(7),
             dt_divisor: 4,
+            integrator: Integrator::ImplicitEuler,
         }
         .settings(&base, &s);
         assert_eq!(
@@ -503,13 +555,16 @@ mod tests {
             family: Family::Direct,
             knob: Knob::Cap(1),
             dt_divisor: 8,
+            integrator: Integrator::Bdf2,
         }
         .settings(&damped, &s);
         assert!((c.damping.powi(8) - 0.9999).abs() < 1e-15, "same damping per second");
+        assert_eq!(c.integrator, Integrator::Bdf2);
         let b = Setting {
             family: Family::Anderson,
             knob: Knob::Tolerance(1e-8),
             dt_divisor: 1,
+            integrator: Integrator::ImplicitEuler,
         }
         .settings(&base, &s);
         assert_eq!(

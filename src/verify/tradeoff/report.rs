@@ -6,7 +6,7 @@ use serde::{Deserialize, Serialize};
 use super::trajectory::Work;
 use super::{SceneSummary, Setting, TimeAxis, TradeoffSpec};
 use crate::report::{Verdict, CRATE_VERSION};
-use crate::solver::SolverKind;
+use crate::solver::{Integrator, SolverKind};
 use crate::verify::shard::{Partial, Shard};
 
 /// Schema of a shard's partial report.
@@ -136,6 +136,9 @@ pub struct Row {
 pub struct Reference {
     /// Time step divisor.
     pub dt_divisor: usize,
+    /// Time integrator.
+    #[serde(default)]
+    pub integrator: Integrator,
     /// Time step (s).
     pub dt: f64,
     /// Tolerance (1: relative RMS change over the length scale).
@@ -162,6 +165,9 @@ pub struct Reference {
 pub struct GradientReference {
     /// Time step divisor.
     pub dt_divisor: usize,
+    /// Time integrator.
+    #[serde(default)]
+    pub integrator: Integrator,
     /// The gradient, or why there is none.
     pub gradient: GradientResult,
 }
@@ -268,6 +274,8 @@ pub struct Recommendation {
 /// The order of convergence in the time step between two grid steps.
 #[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct ObservedOrder {
+    /// The integrator of both rows.
+    pub integrator: Integrator,
     /// The coarser step's row (direct solver, tightest tolerance).
     pub coarse: String,
     /// The finer step's row (half the step).
@@ -276,7 +284,8 @@ pub struct ObservedOrder {
     pub coarse_error: f64,
     /// The finer row's (1, relative).
     pub fine_error: f64,
-    /// `p` with `e(x) = C (x^p - (h/R)^p)` (1; `null` outside `[0.05, 8]`).
+    /// `p` with `e(x) = C (x^p - (h/R)^p)` (1; `null` outside `[0.05, 8]`); against a reference
+    /// of another integrator, `e(x) = C x^p`.
     pub order: Option<f64>,
 }
 

@@ -18,7 +18,7 @@ use super::{
 use crate::diff::{self, loss::Loss, Controls, Mode, Options, Param};
 use crate::model::Model;
 use crate::report::{write_json, CRATE_VERSION};
-use crate::solver::{Settings, Simulator};
+use crate::solver::{Integrator, Settings, Simulator};
 use crate::verify::pool::{self, Task};
 use crate::verify::shard::Shard;
 
@@ -59,9 +59,12 @@ fn progress(len: usize, label: &str, show: bool) -> ProgressBar {
     bar
 }
 
-fn reference_run(ctx: &Ctx<'_>, divisor: usize) -> Result<(Reference, RefStates), String> {
+/// A reference trajectory is keyed by its integrator and time-step divisor.
+type RefKey = (Integrator, usize);
+
+fn reference_run(ctx: &Ctx<'_>, (integrator, divisor): RefKey) -> Result<(Reference, RefStates), String> {
     let spec = ctx.spec;
-    let settings = reference_settings(ctx.base, spec, divisor, spec.reference_anderson);
+    let settings = reference_settings(ctx.base, spec, divisor, spec.reference_anderson, integrator);
     let t0 = Instant::now();
     let mut sim = Simulator::new(ctx.model.clone(), settings.clone()).map_err(|e| e.to_string())?;
     let mut q = Vec::with_capacity(spec.steps);
@@ -74,6 +77,7 @@ fn reference_run(ctx: &Ctx<'_>, divisor: usize) -> Result<(Reference, RefStates)
     Ok((
         Reference {
             dt_divisor: divisor,
+            integrator,
             dt: settings.dt,
             tolerance: settings.tolerance,
             max_iterations: settings.max_iterations,
@@ -130,10 +134,11 @@ fn gradient(ctx: &Ctx<'_>, settings: &Settings, steps: usize) -> GradientResult 
     out
 }
 
-fn gradient_reference(ctx: &Ctx<'_>, divisor: usize) -> GradientReference {
-    let settings = reference_settings(ctx.base, ctx.spec, divisor, 0);
+fn gradient_reference(ctx: &Ctx<'_>, (integrator, divisor): RefKey) -> GradientReference {
+    let settings = reference_settings(ctx.base, ctx.spec, divisor, 0, integrator);
     GradientReference {
         dt_divisor: divisor,
+        integrator,
         gradient: gradient(ctx, &settings, ctx.spec.steps * divisor),
     }
 }
@@ -148,7 +153,7 @@ fn median(v: &mut [f64]) -> f64 {
     }
 }
 
-fn run_row(ctx: &Ctx<'_>, refs: &HashMap<usize, RefStates>, index: usize, setting: Setting) -> Row {
+fn run_row(ctx: &Ctx<'_>, refs: &HashMap<RefKey, RefStates>, index: usize, setting: Setting) -> Row {
     let spec = ctx.spec;
     let d = setting.dt_divisor;
     let settings = setting.settings(ctx.base, spec);
@@ -196,7 +201,10 @@ fn run_row(ctx: &Ctx<'_>, refs: &HashMap<usize, RefStates>, index: usize, settin
         row.gradient.message = Some("not computed: see resolved_to".into());
         return row;
     }
-    let (total_ref, same_ref) = (&refs[&spec.reference_divisor], &refs[&d]);
+    let (total_ref, same_ref) = (
+        &refs[&(spec.reference_integrator, spec.reference_divisor)],
+        &refs[&(setting.integrator, d)],
+    );
     let mut total = ErrorAcc::default();
     let mut solver = ErrorAcc::default();
     let first = advance(&mut sim, steps, d, |k, q| {
@@ -301,21 +309,23 @@ pub fn run_shard(
         .enumerate()
         .filter(|(i, _)| shard.owns(*i))
         .collect();
-    let mut divisors = vec![spec.reference_divisor];
+    let total_key = (spec.reference_integrator, spec.reference_divisor);
+    let mut divisors: Vec<RefKey> = vec![total_key];
     for (_, s) in &owned {
-        if !divisors.contains(&s.dt_divisor) {
-            divisors.push(s.dt_divisor);
+        if !divisors.contains(&(s.integrator, s.dt_divisor)) {
+            divisors.push((s.integrator, s.dt_divisor));
         }
     }
-    let mut grad_divisors = Vec::new();
+    let mut grad_divisors: Vec<RefKey> = Vec::new();
     if owned
         .iter()
         .any(|(_, s)| spec.gradient_dt_divisors.contains(&s.dt_divisor))
     {
-        grad_divisors.push(spec.reference_divisor);
+        grad_divisors.push(total_key);
         for (_, s) in &owned {
-            if spec.gradient_dt_divisors.contains(&s.dt_divisor) && !grad_divisors.contains(&s.dt_divisor) {
-                grad_divisors.push(s.dt_divisor);
+            let key = (s.integrator, s.dt_divisor);
+            if spec.gradient_dt_divisors.contains(&s.dt_divisor) && !grad_divisors.contains(&key) {
+                grad_divisors.push(key);
             }
         }
     }
@@ -335,20 +345,20 @@ pub fn run_shard(
     let mut refs = HashMap::new();
     let mut reference = None;
     let mut dt_references = Vec::new();
-    for (d, r) in divisors.iter().zip(pool::run(ref_tasks, workers, &bar)) {
+    for (key, r) in divisors.iter().zip(pool::run(ref_tasks, workers, &bar)) {
         let (info, states) = r.and_then(|x| x).map_err(|message| TradeoffError::Reference {
             name: spec.name.clone(),
-            divisor: *d,
+            divisor: key.1,
             message,
         })?;
-        if *d == spec.reference_divisor {
+        if *key == total_key {
             reference = Some(info);
         } else {
             dt_references.push(info);
         }
-        refs.insert(*d, states);
+        refs.insert(*key, states);
     }
-    dt_references.sort_by_key(|r| r.dt_divisor);
+    dt_references.sort_by_key(|r| (r.integrator, r.dt_divisor));
     let reference = reference.ok_or_else(|| TradeoffError::Reference {
         name: spec.name.clone(),
         divisor: spec.reference_divisor,
@@ -378,11 +388,12 @@ pub fn run_shard(
         .collect();
     let mut gradient_references = Vec::new();
     let mut rows = Vec::new();
-    for ((kind, r), d) in kinds
-        .into_iter()
-        .zip(pool::run(tasks, workers, &bar))
-        .zip(grad_divisors.iter().copied().chain(std::iter::repeat(0)))
-    {
+    for ((kind, r), d) in kinds.into_iter().zip(pool::run(tasks, workers, &bar)).zip(
+        grad_divisors
+            .iter()
+            .copied()
+            .chain(std::iter::repeat((Integrator::ImplicitEuler, 0))),
+    ) {
         match (r, kind) {
             (Ok(Out::Grad(g)), _) => gradient_references.push(g),
             (Ok(Out::Row(row)), _) => rows.push(*row),
@@ -403,7 +414,8 @@ pub fn run_shard(
                 gradient: GradientResult::default(),
             }),
             (Err(panic), None) => gradient_references.push(GradientReference {
-                dt_divisor: d,
+                dt_divisor: d.1,
+                integrator: d.0,
                 gradient: GradientResult {
                     message: Some(format!("panicked: {panic}")),
                     ..Default::default()
@@ -413,7 +425,7 @@ pub fn run_shard(
     }
     bar.finish_and_clear();
     rows.sort_by_key(|r| r.index);
-    gradient_references.sort_by_key(|g| g.dt_divisor);
+    gradient_references.sort_by_key(|g| (g.integrator, g.dt_divisor));
     Ok(TradeoffPartial {
         schema: PARTIAL_SCHEMA.into(),
         crate_version: CRATE_VERSION.into(),

@@ -19,13 +19,14 @@ pub fn summary(s: &SceneTradeoff) -> String {
         .collect();
     let _ = writeln!(
         o,
-        "  {}: {} vertices, {} tets{}, h = {:e} s, {} steps of h; reference h/{}; {} settings: {ran} ran, {resolved} resolved to another row, {} stopped with an error ({} s on {:?} workers)",
+        "  {}: {} vertices, {} tets{}, h = {:e} s, {} steps of h; reference {} at h/{}; {} settings: {ran} ran, {resolved} resolved to another row, {} stopped with an error ({} s on {:?} workers)",
         s.name,
         sc.vertices,
         sc.tets,
         if sc.bones > 0 { format!(", {} bones", sc.bones) } else { String::new() },
         sc.dt,
         s.inputs.steps,
+        s.inputs.reference_integrator.name(),
         s.inputs.reference_divisor,
         s.rows.len(),
         failed.len(),
@@ -51,6 +52,21 @@ pub fn summary(s: &SceneTradeoff) -> String {
     );
     for p in &s.pareto.trajectory {
         let _ = writeln!(o, "      {:<28} {:>10.4e} {:>10.3e}", p.id, p.time, p.error);
+    }
+    if !s.observed_orders.is_empty() {
+        let _ = writeln!(o, "    observed order in the time step (direct, tightest tolerance):");
+        for ord in &s.observed_orders {
+            let _ = writeln!(
+                o,
+                "      {:<14} {} -> {}: {} ({:.3e} -> {:.3e})",
+                ord.integrator.name(),
+                ord.coarse,
+                ord.fine,
+                ord.order.map_or("-".into(), |p| format!("{p:.2}")),
+                ord.coarse_error,
+                ord.fine_error
+            );
+        }
     }
     for r in &s.recommendations {
         let show = |p: &Option<Pick>, note: &str| match p {
