@@ -668,9 +668,11 @@ impl CaseScenes {
 }
 
 /// The built-in cases, in report order: free body, bridgesus, ground contact, actuated beam,
-/// Baymax with torques, Baymax on the ground, ball on cloth (built-in and the paper's).
+/// Baymax with torques, Baymax on the ground, ball on cloth (built-in and the paper's), then the
+/// free body, bridgesus, ground contact and Baymax with torques again with BDF2 (docs/method.md
+/// Eqs. T1-T3; names ending in `_bdf2`).
 pub fn builtin_cases(scenes: &CaseScenes, steps: usize) -> Result<Vec<Case>> {
-    Ok(vec![
+    let mut cases = vec![
         free_body(steps)?,
         bridgesus(&scenes.bridgesus, steps)?,
         ground_contact(steps)?,
@@ -679,5 +681,22 @@ pub fn builtin_cases(scenes: &CaseScenes, steps: usize) -> Result<Vec<Case>> {
         baymax_ground(&scenes.baymax_skeleton, steps)?,
         ball_on_cloth(steps)?,
         paper_ball_on_cloth(&scenes.ball_on_cloth, steps)?,
-    ])
+    ];
+    for case in [
+        free_body(steps)?,
+        bridgesus(&scenes.bridgesus, steps)?,
+        ground_contact(steps)?,
+        baymax_torques(&scenes.baymax_skeleton, steps)?,
+    ] {
+        cases.push(with_bdf2(case));
+    }
+    Ok(cases)
+}
+
+/// `case` integrated with BDF2 instead of implicit Euler.
+pub fn with_bdf2(mut case: Case) -> Case {
+    case.settings.integrator = crate::solver::Integrator::Bdf2;
+    case.name.push_str("_bdf2");
+    case.description = format!("{} Integrated with BDF2 (its first step implicit Euler).", case.description);
+    case
 }
