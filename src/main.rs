@@ -1088,6 +1088,11 @@ fn simulate(sc: diffsoft::scene::Scene, steps: usize, out: RunOutput<'_>, activa
     }
     let mut sim = diffsoft::solver::Simulator::new(sc.model, sc.settings.clone())?;
     say!("solver      {}", sim.certificate().message);
+    if sc.settings.integrator == diffsoft::solver::Integrator::Bdf2 {
+        say!(
+            "integrator  bdf2 (docs/method.md Eq. T1): the matrix above is M/h_e^2 + L with h_e = 2h/3; the first step is implicit Euler on M/h^2 + L, factored when it is taken"
+        );
+    }
     for (name, a) in activations {
         sim.set_activation(name, *a)?;
         say!("activation  {name} held at {a}");

@@ -145,3 +145,30 @@ def test_simulate_batch_equals_loop(beam):
         np.testing.assert_array_equal(r.positions, s.simulate(5).positions)
     with pytest.raises(ValueError, match=r"values\[1\]"):
         diffsoft.simulate_batch(beam, 5, [{"density": 1.0}, {"dens": 1.0}])
+
+
+@pytest.mark.parametrize("mode", ["unrolled", "implicit"])
+def test_bdf2_grads_match_central_differences(beam, mode):
+    """BDF2 (scene key solver.integrator) is differentiated in both modes."""
+    beam.configure(integrator="bdf2")
+    if mode == "implicit":
+        beam.configure(tolerance=1e-12, max_iterations=500)
+    _, grads = beam.grad(8, params=["youngs_modulus"], mode=mode)
+
+    def f(v):
+        s = beam.copy()
+        s.set("youngs_modulus", v)
+        return s.grad(8, mode=mode)[0]
+
+    assert grads["youngs_modulus"] == pytest.approx(central(f, 2e4, 20.0), rel=1e-5)
+
+
+def test_bdf2_differs_from_implicit_euler_from_the_second_step(beam):
+    euler = beam.simulate(2).positions
+    beam.configure(integrator="bdf2")
+    assert beam.settings["integrator"] == "bdf2"
+    bdf2 = beam.simulate(2).positions
+    np.testing.assert_allclose(bdf2[1], euler[1], rtol=0, atol=1e-12)
+    assert np.abs(bdf2[2] - euler[2]).max() > 1e-9
+    with pytest.raises(ValueError):
+        beam.configure(integrator="rk4")
