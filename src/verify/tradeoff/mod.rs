@@ -92,7 +92,7 @@ impl Family {
     pub fn running(used: SolverKind, anderson: usize) -> Family {
         match used {
             SolverKind::Direct if anderson > 0 => Family::Anderson,
-            SolverKind::Direct | SolverKind::Auto => Family::Direct,
+            SolverKind::Direct | SolverKind::Auto | SolverKind::Newton => Family::Direct,
             SolverKind::Split | SolverKind::Plain => Family::Split,
             SolverKind::Chebyshev => Family::Chebyshev,
         }
