@@ -23,7 +23,8 @@
 //! global system (`system.rs`) and the global solvers behind one trait (`global.rs`:
 //! `direct.rs`, `stationary.rs`), the skeleton's reduced step (`skeletal.rs`); certification
 //! (`certify.rs`) and the default solver's choice (`choose.rs`), Anderson acceleration
-//! (`anderson.rs`), observers of a step (`observer.rs`).
+//! (`anderson.rs`), observers of a step (`observer.rs`); Newton's method on the step energy
+//! instead of local-global iterations (`newton.rs`, with its projected Hessian in `hessian.rs`).
 
 pub(crate) mod anderson;
 pub mod certify;
