@@ -443,3 +443,20 @@ fn the_cli_runs_newton() {
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(stdout.contains("Newton"), "{stdout}");
 }
+
+/// `"solver": "newton"` in a scene's solver settings selects Newton.
+#[test]
+fn a_scene_file_selects_newton() {
+    let dir = tmp_dir("newton-scene");
+    let path = common::cube_scene(
+        &dir,
+        r#", "density": 1000, "fixed": { "box": { "min": [-1, -1, -1], "max": [0.001, 2, 2] } }"#,
+        r#", "solver": { "solver": "newton", "tolerance": 1e-10, "max_iterations": 50 }"#,
+    );
+    let sc = scene::load(&path, LoadOptions::default()).unwrap();
+    assert_eq!(sc.settings.solver, SolverKind::Newton);
+    let mut sim = Simulator::new(sc.model, sc.settings).unwrap();
+    assert_eq!(sim.certificate().used, SolverKind::Newton);
+    let s = sim.step().unwrap();
+    assert!(s.converged && s.iterations >= 1, "{s:?}");
+}
