@@ -137,7 +137,9 @@ fn a_newton_step_allocates_nothing_once_warm() {
         },
         MassSpec::Density(1000.0),
     );
-    body.fixed = (0..mesh.num_vertices()).filter(|&i| mesh.vertices[i].x < 1e-9).collect();
+    body.fixed = (0..mesh.num_vertices())
+        .filter(|&i| mesh.vertices[i].x < 1e-9)
+        .collect();
     let model = ModelBuilder::new()
         .gravity(Vector3::new(0.0, -9.81, 0.0))
         .body(body)

@@ -206,7 +206,10 @@ fn a_stiff_beam_on_a_line_of_fixed_vertices_swings_like_a_rigid_pendulum() {
     let (measured, period, stats) = pendulum_period(SolverKind::Newton, h, steps);
     summary("pendulum newton", &stats);
     let ratio = measured / period;
-    eprintln!("pendulum newton: period {measured:.5} s, rigid {period:.5} s, error {:.3} %", (ratio - 1.0) * 100.0);
+    eprintln!(
+        "pendulum newton: period {measured:.5} s, rigid {period:.5} s, error {:.3} %",
+        (ratio - 1.0) * 100.0
+    );
     let (pd, _, pd_stats) = pendulum_period(SolverKind::Direct, h, steps);
     summary("pendulum direct", &pd_stats);
     eprintln!(
@@ -235,16 +238,23 @@ fn newton_reaches_a_clamped_cantilevers_static_solution_in_few_iterations() {
         },
         MassSpec::Density(rho),
     );
-    body.fixed = (0..mesh.num_vertices()).filter(|&i| mesh.vertices[i].x < 1e-9).collect();
+    body.fixed = (0..mesh.num_vertices())
+        .filter(|&i| mesh.vertices[i].x < 1e-9)
+        .collect();
     body.volume_constraint = false;
     let model = ModelBuilder::new()
         .gravity(Vector3::new(0.0, -g, 0.0))
         .body(body)
         .build()
         .unwrap();
-    let tip: Vec<usize> = (0..model.n()).filter(|&i| (model.rest()[i].x - l).abs() < 1e-9).collect();
+    let tip: Vec<usize> = (0..model.n())
+        .filter(|&i| (model.rest()[i].x - l).abs() < 1e-9)
+        .collect();
     let deflection = |sim: &Simulator| {
-        -tip.iter().map(|&i| sim.state().q[i].y - sim.model().rest()[i].y).sum::<f64>() / tip.len() as f64
+        -tip.iter()
+            .map(|&i| sim.state().q[i].y - sim.model().rest()[i].y)
+            .sum::<f64>()
+            / tip.len() as f64
     };
     let settings = |solver| Settings {
         dt: 1e3,
@@ -317,8 +327,18 @@ fn implicit_gradients_through_newton_match_finite_differences() {
         diff::loss_value(&case.model, &case.settings, case.steps, &controls, case.loss.as_ref()).unwrap()
     };
     for (name, dir, analytic, eps) in [
-        ("q0", &dq, g.q0.iter().zip(&dq).map(|(a, b)| a.dot(b)).sum::<f64>(), 1e-6),
-        ("v0", &dv, g.v0.iter().zip(&dv).map(|(a, b)| a.dot(b)).sum::<f64>(), 1e-5),
+        (
+            "q0",
+            &dq,
+            g.q0.iter().zip(&dq).map(|(a, b)| a.dot(b)).sum::<f64>(),
+            1e-6,
+        ),
+        (
+            "v0",
+            &dv,
+            g.v0.iter().zip(&dv).map(|(a, b)| a.dot(b)).sum::<f64>(),
+            1e-5,
+        ),
     ] {
         let shifted = |s: f64| -> f64 {
             if name == "q0" {
@@ -331,7 +351,9 @@ fn implicit_gradients_through_newton_match_finite_differences() {
         };
         let fd = (shifted(eps) - shifted(-eps)) / (2.0 * eps);
         let rel = (fd - analytic).abs() / fd.abs();
-        eprintln!("newton implicit gradient {name}: analytic {analytic:.9e}, central difference {fd:.9e}, rel {rel:.2e}");
+        eprintln!(
+            "newton implicit gradient {name}: analytic {analytic:.9e}, central difference {fd:.9e}, rel {rel:.2e}"
+        );
         assert!(rel < 1e-5, "{name}: {analytic} vs {fd}");
     }
     // The same converged steps through the direct solver give the same gradient.
@@ -350,7 +372,10 @@ fn implicit_gradients_through_newton_match_finite_differences() {
     )
     .unwrap_err();
     assert!(matches!(e, DiffError::Unsupported(_)), "{e}");
-    assert!(e.to_string().contains("Newton") && e.to_string().contains("implicit"), "{e}");
+    assert!(
+        e.to_string().contains("Newton") && e.to_string().contains("implicit"),
+        "{e}"
+    );
 }
 
 /// What Newton does not support is refused at `Simulator::new`, naming the feature and
@@ -360,7 +385,10 @@ fn unsupported_scenes_are_refused_clearly() {
     let cube = || {
         BodySpec::new(
             "c",
-            BoxSpec::new([1, 1, 1], [0.1; 3]).origin([0.0, 0.2, 0.0]).build().unwrap(),
+            BoxSpec::new([1, 1, 1], [0.1; 3])
+                .origin([0.0, 0.2, 0.0])
+                .build()
+                .unwrap(),
             Material {
                 youngs_modulus: 1e5,
                 poisson_ratio: 0.3,
@@ -427,7 +455,10 @@ fn the_cli_runs_newton() {
     let out = Command::new(env!("CARGO_BIN_EXE_diffsoft"))
         .args([
             "simulate",
-            root().join("verification/paper/bridgesus/bridgesus.json").to_str().unwrap(),
+            root()
+                .join("verification/paper/bridgesus/bridgesus.json")
+                .to_str()
+                .unwrap(),
             "--steps",
             "3",
             "--every",

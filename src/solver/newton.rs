@@ -208,13 +208,7 @@ impl Newton {
 
     /// `grad E = A x - b - J p` at `x` (Eq. S3) from the last local step, gathered into
     /// `gathered` (every vertex).
-    fn gradient(
-        &mut self,
-        cx: &Ctx<'_>,
-        constraints: &Constraints,
-        x: &[Vector3<f64>],
-        gathered: &mut [Vector3<f64>],
-    ) {
+    fn gradient(&mut self, cx: &Ctx<'_>, constraints: &Constraints, x: &[Vector3<f64>], gathered: &mut [Vector3<f64>]) {
         constraints.gather(cx.model, gathered);
         cx.sys.apply(x, &mut self.grad);
         for (k, &v) in cx.sys.free.iter().enumerate() {
@@ -263,7 +257,7 @@ impl Newton {
         for it in 1..=self.control.max_iterations {
             self.apply_hessian(cx);
             let php = dot(&self.p, &self.hp);
-            if !(php > 0.0) {
+            if php.is_nan() || php <= 0.0 {
                 // H is positive definite by construction; only round-off gets here. Keep what
                 // was found, or the projective-dynamics step if nothing was.
                 if it == 1 {
