@@ -14,7 +14,8 @@
 //! coefficients. The projected Hessian clamps every negative eigenvalue to zero, which here is
 //! clamping every eigenvalue of `K_t` to at most `w`: `H_t = w I - K~_t` with `K~_t` the clamped
 //! linearization. The step Hessian is then `H = A - J K~ J^T` with `A = M/h^2 + L` the
-//! projective-dynamics matrix, positive definite since `M/h^2` is.
+//! projective-dynamics matrix, positive definite since `M/h^2` is. The same buffers also hold
+//! the unprojected `K_t` (Newton tries the exact Hessian first, see `newton.rs`).
 
 use nalgebra::{Matrix3, SymmetricEigen, Vector3};
 use rayon::prelude::*;
@@ -74,11 +75,12 @@ impl ElasticHessian {
         }
     }
 
-    /// Build every tet's clamped linearization from the decompositions `rec` of the local step
-    /// at the current iterate; returns the number of clamped modes. A tet where the projection
-    /// is not differentiable (two singular values summing to zero, a volume projection on a
-    /// branch point) gets `K~_t = 0`, i.e. the projective-dynamics block `w I`.
-    pub(crate) fn build(&mut self, model: &Model, rec: &[TetSvd]) -> usize {
+    /// Build every tet's linearization from the decompositions `rec` of the local step at the
+    /// current iterate, clamped (`project`: the projected Hessian) or not (the exact one);
+    /// returns the number of clamped modes. A tet where the projection is not differentiable
+    /// (two singular values summing to zero, a volume projection on a branch point) gets
+    /// `K~_t = 0`, i.e. the projective-dynamics block `w I`.
+    pub(crate) fn build(&mut self, model: &Model, rec: &[TetSvd], project: bool) -> usize {
         let (w_rot, w_vol) = (&model.w_rot, &model.w_vol);
         self.lins
             .par_iter_mut()
@@ -90,10 +92,11 @@ impl ElasticHessian {
                 let x = (w_vol[t] > 0.0).then_some(r.target);
                 *c = 0;
                 *lin = match TetLinearization::with_target(&r.svd, x, w_rot[t], w_vol[t]) {
-                    Ok(mut l) => {
+                    Ok(mut l) if project => {
                         *c = clamp_linearization(&mut l, w_rot[t] + w_vol[t]) as u8;
                         l
                     }
+                    Ok(l) => l,
                     Err(_) => TetLinearization::zero(),
                 };
             });

@@ -9,7 +9,9 @@
 //! 1. at the iterate: the local step (every tet's projection and decomposition), the energy and
 //!    `grad E = A x - b - J p` (the same quantities a local-global iteration computes);
 //! 2. `H d = -grad E` by conjugate gradients preconditioned with the factored `A` (the
-//!    [`Direct`] factor, per axis), stopped by an inexact-Newton forcing term (Eq. S5);
+//!    [`Direct`] factor, per axis), stopped by an inexact-Newton forcing term (Eq. S5); first
+//!    with the unprojected Hessian, which keeps Newton's quadratic convergence near the minimum,
+//!    and with the projected one if conjugate gradients meet non-positive curvature;
 //! 3. a backtracking (Armijo) line search on `E` along `d`; if it fails (it should not: `d` is a
 //!    descent direction of an `E` that is smooth where the projections are), one
 //!    projective-dynamics iteration from the same iterate, which never raises `E`;
@@ -145,6 +147,20 @@ fn rms(a: &[Vector3<f64>]) -> f64 {
     (dot(a, a) / a.len().max(1) as f64).sqrt()
 }
 
+/// What one direction solve did.
+#[derive(Debug, Clone, Copy)]
+struct Direction {
+    /// Conjugate-gradient iterations.
+    iterations: usize,
+    /// Whether the stopping rule was met before the cap.
+    met: bool,
+    /// `|A^-1 grad E|` (RMS): the length of the projective-dynamics step from this iterate.
+    z0: f64,
+    /// The Hessian showed non-positive curvature along a search direction (the unprojected
+    /// Hessian is indefinite there).
+    indefinite: bool,
+}
+
 /// What the Newton loop reads from the simulator besides its own buffers.
 struct Ctx<'a> {
     model: &'a Model,
@@ -231,10 +247,8 @@ impl Newton {
     /// `H d = -grad E` by conjugate gradients preconditioned with `A^-1` from `d = 0` (Eq. S5):
     /// stop when the preconditioned residual's RMS is below `max(eta |A^-1 grad E|, floor)`,
     /// with the forcing term `eta = min(FORCING_MAX, sqrt(|A^-1 grad E| / z_first))` (`z_first`:
-    /// that length at the step's first iterate, `NaN` there). Returns the iterations, whether
-    /// the stopping rule was met before the cap, and `|A^-1 grad E|` (RMS: the length of the
-    /// projective-dynamics step from this iterate).
-    fn direction(&mut self, cx: &Ctx<'_>, z_first: f64, floor: f64) -> Result<(usize, bool, f64), SolverError> {
+    /// that length at the step's first iterate, `NaN` there).
+    fn direction(&mut self, cx: &Ctx<'_>, z_first: f64, floor: f64) -> Result<Direction, SolverError> {
         for (r, g) in self.r.iter_mut().zip(&self.grad) {
             *r = -g;
         }
@@ -250,7 +264,12 @@ impl Newton {
         if z0 <= floor {
             // Already within the floor: the preconditioned gradient step is the direction.
             self.dir.copy_from_slice(&self.z);
-            return Ok((0, true, z0));
+            return Ok(Direction {
+                iterations: 0,
+                met: true,
+                z0,
+                indefinite: false,
+            });
         }
         self.p.copy_from_slice(&self.z);
         let mut rz = dot(&self.r, &self.z);
@@ -258,12 +277,18 @@ impl Newton {
             self.apply_hessian(cx);
             let php = dot(&self.p, &self.hp);
             if php.is_nan() || php <= 0.0 {
-                // H is positive definite by construction; only round-off gets here. Keep what
-                // was found, or the projective-dynamics step if nothing was.
+                // Only the unprojected Hessian can get here (the projected one is positive
+                // definite up to round-off): keep what was found, or the projective-dynamics
+                // step if nothing was, and tell the caller.
                 if it == 1 {
                     self.dir.copy_from_slice(&self.z);
                 }
-                return Ok((it, false, z0));
+                return Ok(Direction {
+                    iterations: it,
+                    met: false,
+                    z0,
+                    indefinite: true,
+                });
             }
             let alpha = rz / php;
             for k in 0..self.dir.len() {
@@ -272,7 +297,12 @@ impl Newton {
             }
             self.direct.solve_free(&self.r, &mut self.z)?;
             if rms(&self.z) <= stop {
-                return Ok((it, true, z0));
+                return Ok(Direction {
+                    iterations: it,
+                    met: true,
+                    z0,
+                    indefinite: false,
+                });
             }
             let rz_new = dot(&self.r, &self.z);
             let beta = rz_new / rz;
@@ -281,7 +311,12 @@ impl Newton {
                 *p = z + *p * beta;
             }
         }
-        Ok((self.control.max_iterations, false, z0))
+        Ok(Direction {
+            iterations: self.control.max_iterations,
+            met: false,
+            z0,
+            indefinite: false,
+        })
     }
 }
 
@@ -324,13 +359,20 @@ impl Simulator {
         for _ in 0..settings.max_iterations {
             // The projected Hessian at the iterate and the Newton direction.
             let tg = Instant::now();
-            nw.hessian.build(model, &nw.record);
-            let (its, met, z0) = nw.direction(&cx, z_first, floor)?;
-            if z_first.is_nan() {
-                z_first = z0;
+            // The exact Hessian first (quadratic convergence near the minimum); where it shows
+            // negative curvature, the projected one (Eq. S4).
+            nw.hessian.build(model, &nw.record, false);
+            let mut dir = nw.direction(&cx, z_first, floor)?;
+            if dir.indefinite {
+                stats.global_iterations += dir.iterations;
+                nw.hessian.build(model, &nw.record, true);
+                dir = nw.direction(&cx, z_first, floor)?;
             }
-            stats.global_iterations += its;
-            if !met {
+            if z_first.is_nan() {
+                z_first = dir.z0;
+            }
+            stats.global_iterations += dir.iterations;
+            if !dir.met {
                 stats.capped_solves += 1;
             }
             stats.global_ms += tg.elapsed().as_secs_f64() * 1e3;
