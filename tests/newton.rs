@@ -537,9 +537,9 @@ fn newton_converges_on_bridgesus_at_large_time_steps() {
     }
 }
 
-/// A soft box released squashed to 40 % of its height (every tet compressed: the corotated
-/// twist modes are negative, the projected Hessian and the line search do the work) reaches
-/// the same states under Newton as under the direct projective-dynamics solve.
+/// A soft box released squashed to 40 % of its height (every tet compressed, so that the
+/// corotated energy's twist modes are negative; large displacements for the line search)
+/// reaches the same states under Newton as under the direct projective-dynamics solve.
 #[test]
 fn newton_recovers_a_squashed_box_like_the_direct_solve() {
     let mesh = BoxSpec::new([3, 3, 3], [0.3; 3]).jitter(0.1, 5).build().unwrap();

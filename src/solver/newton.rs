@@ -382,7 +382,15 @@ impl Simulator {
             nw.x0.copy_from_slice(&w.x);
             let mut alpha = 1.0;
             let mut accepted = false;
-            if gd < 0.0 {
+            if rms(&nw.dir) <= floor {
+                // A direction below what the step resolves (the iterate is the minimiser up to
+                // round-off, e.g. a rigid motion with no elastic force): take it as it is.
+                for k in 0..nf {
+                    w.x[k] = nw.x0[k] + nw.dir[k];
+                }
+                (e, elastic) = nw.energy(&cx, constraints, &w.x, &mut w.full)?;
+                accepted = true;
+            } else if gd < 0.0 {
                 for _ in 0..MAX_HALVINGS {
                     for k in 0..nf {
                         w.x[k] = nw.x0[k] + nw.dir[k] * alpha;
