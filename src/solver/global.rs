@@ -32,8 +32,8 @@ pub enum SolverKind {
     Auto,
     /// Newton's method on the step's energy (docs/method.md Eqs. S3-S5) instead of local-global
     /// iterations: projected Hessian, conjugate gradients preconditioned with the factored
-    /// `M/h^2 + L`, Armijo line search. Tets, fixed vertices, attachments and gravity only;
-    /// never chosen by auto.
+    /// `M/h^2 + L`, Armijo line search. Tets, actuators, fixed vertices, attachments and
+    /// gravity only; never chosen by auto.
     Newton,
 }
 

@@ -21,8 +21,8 @@
 //! Newton iterations are reported in `StepStats::iterations`, conjugate-gradient iterations in
 //! `global_iterations`, direction solves that hit `inner_max_iterations` in `capped_solves`.
 //!
-//! Scope: tets (corotated elasticity and volume), fixed vertices, attachments, gravity. Scenes
-//! with anything else (obstacles, collisions between bodies, skeletons, cloth, actuators,
+//! Scope: tets (corotated elasticity and volume, actuators), fixed vertices, attachments,
+//! gravity. Scenes with anything else (obstacles, collisions between bodies, skeletons, cloth,
 //! Anderson acceleration) are refused at [`super::Simulator::new`] by [`check_supported`]. Every
 //! buffer is allocated in [`Newton::new`].
 
@@ -38,7 +38,7 @@ use super::hessian::ElasticHessian;
 use super::simulator::{GlobalStep, Simulator};
 use super::system::GlobalSystem;
 use super::{Settings, SolverError, StepStats};
-use crate::constraint::{Constraints, TetSvd};
+use crate::constraint::{Constraints, Linearize, ParamGrads, TetSvd};
 use crate::model::Model;
 
 /// Armijo's sufficient-decrease constant.
@@ -73,9 +73,6 @@ pub(crate) fn check_supported(model: &Model, settings: &Settings) -> Result<(), 
     }
     if model.cloth.is_some() {
         return unsupported("cloth");
-    }
-    if model.actuators.is_some() {
-        return unsupported("actuators (pneumatic or muscle)");
     }
     if settings.anderson > 0 {
         return unsupported("Anderson acceleration (anderson > 0; Newton needs none)");
@@ -125,6 +122,11 @@ pub(crate) struct Newton {
     /// Every vertex: a free vector scattered (zero at fixed vertices) and `J K~ J^T` of it.
     y_full: Vec<Vector3<f64>>,
     out_full: Vec<Vector3<f64>>,
+    /// With actuators: the exact `K` of every constraint set (the backward pass's linearization)
+    /// for the unprojected Hessian; `None` without (the elastic one serves).
+    exact: Option<Box<ExactK>>,
+    /// Whether the direction solve uses the unprojected Hessian.
+    unprojected: bool,
     /// Line searches that failed and were replaced by a projective-dynamics step (diagnostics).
     pub(crate) fallbacks: usize,
 }
@@ -145,6 +147,15 @@ fn dot(a: &[Vector3<f64>], b: &[Vector3<f64>]) -> f64 {
 /// RMS length of a free vector.
 fn rms(a: &[Vector3<f64>]) -> f64 {
     (dot(a, a) / a.len().max(1) as f64).sqrt()
+}
+
+/// Every constraint set's linearization `K` at the iterate (actuated models), with scratch for
+/// the parameter adjoints its application also produces (discarded).
+struct ExactK {
+    constraints: Constraints,
+    w_rot: Vec<f64>,
+    w_vol: Vec<f64>,
+    activations: Vec<f64>,
 }
 
 /// What one direction solve did.
@@ -194,6 +205,15 @@ impl Newton {
             x0: free(),
             y_full: vec![Vector3::zeros(); n],
             out_full: vec![Vector3::zeros(); n],
+            exact: model.actuators.as_ref().map(|a| {
+                Box::new(ExactK {
+                    constraints: Constraints::new(model),
+                    w_rot: vec![0.0; model.tets.len()],
+                    w_vol: vec![0.0; model.tets.len()],
+                    activations: vec![0.0; a.groups.len()],
+                })
+            }),
+            unprojected: true,
             fallbacks: 0,
         })
     }
@@ -232,23 +252,66 @@ impl Newton {
         }
     }
 
-    /// `hp = H p = A p - J K~ J^T p` (Eq. S4) for the search direction `p`.
-    fn apply_hessian(&mut self, cx: &Ctx<'_>) {
+    /// Prepare the Hessian at the iterate `q` (every vertex; `rec` its decompositions):
+    /// unprojected (`K~_t = K_t`; with actuators every set's `K`) or projected (Eq. S4; the
+    /// actuators' `K` is then left out, i.e. their blocks are the projective-dynamics
+    /// `w A^T A`). Returns whether the unprojected one could be linearized.
+    fn prepare(&mut self, model: &Model, q: &[Vector3<f64>], unprojected: bool) -> bool {
+        self.unprojected = unprojected;
+        self.hessian.build(model, &self.record, !unprojected);
+        if let (true, Some(ex)) = (unprojected, self.exact.as_mut()) {
+            return ex.constraints.linearize(model, q).is_ok();
+        }
+        true
+    }
+
+    /// `hp = H p = A p - J K~ J^T p` (Eq. S4) for the search direction `p` (`q`: the iterate,
+    /// every vertex). `false` where an actuator's projection is not differentiable.
+    fn apply_hessian(&mut self, cx: &Ctx<'_>, q: &[Vector3<f64>]) -> bool {
         cx.sys.apply(&self.p, &mut self.ap);
         for (k, &v) in cx.sys.free.iter().enumerate() {
             self.y_full[v] = self.p[k];
         }
-        self.hessian.apply(cx.model, &self.y_full, &mut self.out_full);
+        match (self.unprojected, self.exact.as_mut()) {
+            (true, Some(ex)) => {
+                let grads = ParamGrads {
+                    w_rot: &mut ex.w_rot,
+                    w_vol: &mut ex.w_vol,
+                    activations: &mut ex.activations,
+                };
+                let r = ex.constraints.adjoint(
+                    cx.model,
+                    q,
+                    &self.y_full,
+                    None,
+                    cx.activations,
+                    Linearize::Cached,
+                    &mut self.out_full,
+                    grads,
+                );
+                if r.is_err() {
+                    return false;
+                }
+            }
+            _ => self.hessian.apply(cx.model, &self.y_full, &mut self.out_full),
+        }
         for (k, &v) in cx.sys.free.iter().enumerate() {
             self.hp[k] = self.ap[k] - self.out_full[v];
         }
+        true
     }
 
     /// `H d = -grad E` by conjugate gradients preconditioned with `A^-1` from `d = 0` (Eq. S5):
     /// stop when the preconditioned residual's RMS is below `max(eta |A^-1 grad E|, floor)`,
     /// with the forcing term `eta = min(FORCING_MAX, sqrt(|A^-1 grad E| / z_first))` (`z_first`:
     /// that length at the step's first iterate, `NaN` there).
-    fn direction(&mut self, cx: &Ctx<'_>, z_first: f64, floor: f64) -> Result<Direction, SolverError> {
+    fn direction(
+        &mut self,
+        cx: &Ctx<'_>,
+        q: &[Vector3<f64>],
+        z_first: f64,
+        floor: f64,
+    ) -> Result<Direction, SolverError> {
         for (r, g) in self.r.iter_mut().zip(&self.grad) {
             *r = -g;
         }
@@ -274,9 +337,9 @@ impl Newton {
         self.p.copy_from_slice(&self.z);
         let mut rz = dot(&self.r, &self.z);
         for it in 1..=self.control.max_iterations {
-            self.apply_hessian(cx);
+            let ok = self.apply_hessian(cx, q);
             let php = dot(&self.p, &self.hp);
-            if php.is_nan() || php <= 0.0 {
+            if !ok || php.is_nan() || php <= 0.0 {
                 // Only the unprojected Hessian can get here (the projected one is positive
                 // definite up to round-off): keep what was found, or the projective-dynamics
                 // step if nothing was, and tell the caller.
@@ -361,12 +424,20 @@ impl Simulator {
             let tg = Instant::now();
             // The exact Hessian first (quadratic convergence near the minimum); where it shows
             // negative curvature, the projected one (Eq. S4).
-            nw.hessian.build(model, &nw.record, false);
-            let mut dir = nw.direction(&cx, z_first, floor)?;
+            let mut dir = if nw.prepare(model, &w.full, true) {
+                nw.direction(&cx, &w.full, z_first, floor)?
+            } else {
+                Direction {
+                    iterations: 0,
+                    met: false,
+                    z0: f64::NAN,
+                    indefinite: true,
+                }
+            };
             if dir.indefinite {
                 stats.global_iterations += dir.iterations;
-                nw.hessian.build(model, &nw.record, true);
-                dir = nw.direction(&cx, z_first, floor)?;
+                nw.prepare(model, &w.full, false);
+                dir = nw.direction(&cx, &w.full, z_first, floor)?;
             }
             if z_first.is_nan() {
                 z_first = dir.z0;
