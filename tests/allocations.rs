@@ -145,16 +145,26 @@ fn a_newton_step_allocates_nothing_once_warm() {
         .body(body)
         .build()
         .unwrap();
-    let mut sim = Simulator::new(model, settings(SolverKind::Newton)).unwrap();
-    for _ in 0..10 {
-        sim.step().unwrap();
+    // The actuated beam under Newton is not in this list: its unprojected Hessian applies the
+    // actuators' linearization (the backward pass's kernels), which allocates on rare cells
+    // (measured: 3 allocations over these 10 steps, one of them `volume::nearest_product`'s
+    // all-roots branch). The direct solve of the same beam allocates nothing.
+    let actuated = diffsoft::verify::gradients::actuated(1).unwrap().model;
+    for (name, model, solver) in [
+        ("pinned box", model, SolverKind::Newton),
+        ("actuated beam direct", actuated, SolverKind::Direct),
+    ] {
+        let mut sim = Simulator::new(model, settings(solver)).unwrap();
+        for _ in 0..10 {
+            sim.step().unwrap();
+        }
+        let before = count();
+        let mut iterations = 0;
+        for _ in 10..20 {
+            iterations += sim.step().unwrap().iterations;
+        }
+        let n = count() - before;
+        assert!(iterations > 10, "{name}: {iterations} iterations: it keeps moving");
+        assert_eq!(n, 0, "{name}: {n} allocations over steps 10-20");
     }
-    let before = count();
-    let mut iterations = 0;
-    for _ in 10..20 {
-        iterations += sim.step().unwrap().iterations;
-    }
-    let n = count() - before;
-    assert!(iterations > 10, "{iterations} Newton iterations: the box keeps moving");
-    assert_eq!(n, 0, "newton: {n} allocations over steps 10-20");
 }
