@@ -30,7 +30,7 @@ mod sets;
 
 pub use elasticity::TetSvd;
 pub use error::{ConstraintError, NotDifferentiable};
-pub(crate) use sets::Constraints;
+pub(crate) use sets::{gather_tets, Constraints};
 
 use nalgebra::{Matrix3, Vector3};
 

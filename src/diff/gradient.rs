@@ -31,6 +31,11 @@ fn check_supported(model: &Model, settings: &Settings, mode: Mode) -> Result<(),
             "unrolled gradients through Anderson acceleration; use anderson = 0 or --mode implicit".into(),
         ));
     }
+    if mode == Mode::Unrolled && settings.solver == SolverKind::Newton {
+        return Err(DiffError::Unsupported(
+            "unrolled gradients through Newton's method (they differentiate local-global iterations); use --mode implicit, which differentiates the converged step whichever solver found it, or solver: direct".into(),
+        ));
+    }
     if !model.obstacles.is_empty() && settings.solver != SolverKind::Direct {
         return Err(DiffError::Unsupported(
             "gradients with contact need the direct solver (solver: direct)".into(),

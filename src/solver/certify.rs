@@ -155,7 +155,7 @@ pub(crate) fn certify(
             cert.chebyshev_rho = Some(r);
             (r, "relaxed split iteration under Chebyshev acceleration")
         }
-        SolverKind::Direct | SolverKind::Auto => {
+        SolverKind::Direct | SolverKind::Auto | SolverKind::Newton => {
             return Err(SolverError::input(format!(
                 "{requested:?} has no iteration of its own to certify"
             )))

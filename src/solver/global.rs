@@ -30,6 +30,11 @@ pub enum SolverKind {
     /// The cheapest of direct, split and Chebyshev for this mesh and time step, predicted by
     /// certification.
     Auto,
+    /// Newton's method on the step's energy (docs/method.md Eqs. S3-S5) instead of local-global
+    /// iterations: projected Hessian, conjugate gradients preconditioned with the factored
+    /// `M/h^2 + L`, Armijo line search. Tets, actuators, fixed vertices, attachments and
+    /// gravity only; never chosen by auto.
+    Newton,
 }
 
 /// What one global solve did.
@@ -69,6 +74,11 @@ pub(crate) trait GlobalSolver: Send {
     /// The contact impulses the last solve ended with, one per contact in the order given
     /// (`None`: this solver projects contacts inside its iteration and keeps no impulses).
     fn impulses(&self) -> Option<&[Vector3<f64>]> {
+        None
+    }
+
+    /// The Newton solver, when this is one: its iterations replace the local-global ones.
+    fn as_newton(&mut self) -> Option<&mut super::newton::Newton> {
         None
     }
 

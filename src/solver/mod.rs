@@ -23,7 +23,8 @@
 //! global system (`system.rs`) and the global solvers behind one trait (`global.rs`:
 //! `direct.rs`, `stationary.rs`), the skeleton's reduced step (`skeletal.rs`); certification
 //! (`certify.rs`) and the default solver's choice (`choose.rs`), Anderson acceleration
-//! (`anderson.rs`), observers of a step (`observer.rs`).
+//! (`anderson.rs`), observers of a step (`observer.rs`); Newton's method on the step energy
+//! instead of local-global iterations (`newton.rs`, with its projected Hessian in `hessian.rs`).
 
 pub(crate) mod anderson;
 pub mod certify;
@@ -34,7 +35,9 @@ pub(crate) mod direct;
 mod error;
 pub(crate) mod free_contact;
 pub(crate) mod global;
+pub(crate) mod hessian;
 pub(crate) mod integrator;
+pub(crate) mod newton;
 pub(crate) mod observer;
 mod settings;
 mod simulator;

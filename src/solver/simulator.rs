@@ -167,6 +167,9 @@ fn build_global(
         tolerance: settings.inner_tolerance * model.length_scale,
         max_iterations: settings.inner_max_iterations,
     };
+    if settings.solver == SolverKind::Newton {
+        return super::newton::build(model, settings, system, control);
+    }
     let (cert, factored) = certify_global(model, settings, system, h, control)?;
     let global = match (&model.skeleton, cert.used) {
         (Some(sk), _) => {

@@ -112,6 +112,9 @@ impl Simulator {
     /// Phase 3: local-global iterations for the current contact set, until the RMS change of the
     /// free positions is below `tolerance x length scale` or the iteration cap.
     fn iterate(&mut self, stats: &mut StepStats, observer: &mut dyn StepObserver) -> Result<(), SolverError> {
+        if self.global.kind() == super::SolverKind::Newton {
+            return self.newton_iterate(stats);
+        }
         if let Some(aa) = self.anderson.as_mut() {
             aa.reset();
         }

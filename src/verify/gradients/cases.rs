@@ -697,6 +697,9 @@ pub fn builtin_cases(scenes: &CaseScenes, steps: usize) -> Result<Vec<Case>> {
 pub fn with_bdf2(mut case: Case) -> Case {
     case.settings.integrator = crate::solver::Integrator::Bdf2;
     case.name.push_str("_bdf2");
-    case.description = format!("{} Integrated with BDF2 (its first step implicit Euler).", case.description);
+    case.description = format!(
+        "{} Integrated with BDF2 (its first step implicit Euler).",
+        case.description
+    );
     case
 }

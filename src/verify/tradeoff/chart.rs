@@ -8,21 +8,23 @@ use plotters::prelude::*;
 use super::assess::{forward_cost, gradient_cost};
 use super::report::{Row, SceneTradeoff, Status};
 use super::{Family, Knob};
+use crate::solver::Integrator;
 
-const COLORS: [(Family, RGBColor); 5] = [
+const COLORS: [(Family, RGBColor); 6] = [
     (Family::Direct, RGBColor(31, 119, 180)),
     (Family::Split, RGBColor(214, 39, 40)),
     (Family::Chebyshev, RGBColor(44, 160, 44)),
     (Family::Certified, RGBColor(148, 103, 189)),
     (Family::Anderson, RGBColor(255, 127, 14)),
+    (Family::Newton, RGBColor(140, 86, 75)),
 ];
 
 struct Scatter<'a> {
     title: String,
     x_label: &'a str,
     y_label: &'a str,
-    /// (family, is cap, x, y)
-    points: Vec<(Family, bool, f64, f64)>,
+    /// (family, integrator, is cap, x, y)
+    points: Vec<(Family, Integrator, bool, f64, f64)>,
     front: Vec<(f64, f64)>,
 }
 
@@ -31,16 +33,16 @@ fn ok(v: f64) -> bool {
 }
 
 fn render(path: &Path, s: &Scatter<'_>) -> std::io::Result<()> {
-    let pts: Vec<_> = s.points.iter().filter(|p| ok(p.2) && ok(p.3)).collect();
+    let pts: Vec<_> = s.points.iter().filter(|p| ok(p.3) && ok(p.4)).collect();
     if pts.is_empty() {
         return Err(std::io::Error::other(format!("{}: nothing to plot", path.display())));
     }
     let (mut x0, mut x1, mut y0, mut y1) = (f64::INFINITY, 0.0f64, f64::INFINITY, 0.0f64);
     for p in &pts {
-        x0 = x0.min(p.2);
-        x1 = x1.max(p.2);
-        y0 = y0.min(p.3);
-        y1 = y1.max(p.3);
+        x0 = x0.min(p.3);
+        x1 = x1.max(p.3);
+        y0 = y0.min(p.4);
+        y1 = y1.max(p.4);
     }
     let draw = || -> Result<(), Box<dyn std::error::Error>> {
         let root = SVGBackend::new(path, (900, 600)).into_drawing_area();
@@ -57,23 +59,29 @@ fn render(path: &Path, s: &Scatter<'_>) -> std::io::Result<()> {
             .x_label_formatter(&|v| format!("{v:.0e}"))
             .y_label_formatter(&|v| format!("{v:.0e}"))
             .draw()?;
-        for (family, color) in COLORS {
-            let mine: Vec<_> = pts.iter().filter(|p| p.0 == family).collect();
-            if mine.is_empty() {
-                continue;
+        // Implicit Euler filled, other integrators hollow, in the family's colour.
+        for integrator in [Integrator::ImplicitEuler, Integrator::Bdf2] {
+            for (family, color) in COLORS {
+                let mine: Vec<_> = pts.iter().filter(|p| p.0 == family && p.1 == integrator).collect();
+                if mine.is_empty() {
+                    continue;
+                }
+                let filled = integrator == Integrator::ImplicitEuler;
+                let style = if filled { color.filled() } else { color.stroke_width(2) };
+                let name = if filled {
+                    family.name().to_string()
+                } else {
+                    format!("{}/{}", integrator.name(), family.name())
+                };
+                c.draw_series(mine.iter().filter(|p| p.2).map(|p| Circle::new((p.3, p.4), 4, style)))?
+                    .label(format!("{name} (circle: cap, triangle: tolerance)"))
+                    .legend(move |(x, y)| Circle::new((x + 10, y), 4, style));
+                c.draw_series(
+                    mine.iter()
+                        .filter(|p| !p.2)
+                        .map(|p| TriangleMarker::new((p.3, p.4), 5, style)),
+                )?;
             }
-            c.draw_series(
-                mine.iter()
-                    .filter(|p| p.1)
-                    .map(|p| Circle::new((p.2, p.3), 4, color.filled())),
-            )?
-            .label(format!("{} (circle: cap, triangle: tolerance)", family.name()))
-            .legend(move |(x, y)| Circle::new((x + 10, y), 4, color.filled()));
-            c.draw_series(
-                mine.iter()
-                    .filter(|p| !p.1)
-                    .map(|p| TriangleMarker::new((p.2, p.3), 5, color.filled())),
-            )?;
         }
         let front: Vec<(f64, f64)> = s.front.iter().copied().filter(|p| ok(p.0) && ok(p.1)).collect();
         c.draw_series(LineSeries::new(front, BLACK.stroke_width(2)))?
@@ -102,13 +110,14 @@ pub fn write(s: &SceneTradeoff, dir: &Path, slug: &str) -> std::io::Result<Vec<S
     std::fs::create_dir_all(dir)?;
     let mut names = Vec::new();
     let time = s.pareto.time_meaning.as_str();
-    let traj: Vec<(Family, bool, f64, f64)> = s
+    let traj: Vec<(Family, Integrator, bool, f64, f64)> = s
         .rows
         .iter()
         .filter(|r| r.status == Status::Ran)
         .filter_map(|r| {
             Some((
                 r.setting.family,
+                r.setting.integrator,
                 is_cap(r),
                 forward_cost(&s.inputs, r)?,
                 r.trajectory?.max_relative,
@@ -131,13 +140,14 @@ pub fn write(s: &SceneTradeoff, dir: &Path, slug: &str) -> std::io::Result<Vec<S
     )?;
     names.push(name);
     if !s.pareto.gradient_solver.is_empty() {
-        let grad: Vec<(Family, bool, f64, f64)> = s
+        let grad: Vec<(Family, Integrator, bool, f64, f64)> = s
             .rows
             .iter()
             .filter(|r| r.status == Status::Ran)
             .filter_map(|r| {
                 Some((
                     r.setting.family,
+                    r.setting.integrator,
                     is_cap(r),
                     gradient_cost(&s.inputs, r)?,
                     r.gradient.solver_error?,

@@ -61,6 +61,9 @@ pub enum Family {
     Certified,
     /// Cholesky with Anderson acceleration of the local-global iteration (memory 5).
     Anderson,
+    /// Newton's method on the step energy (docs/method.md Eqs. S3-S5) instead of local-global
+    /// iterations; caps and tolerances apply to its iterations.
+    Newton,
 }
 
 impl Family {
@@ -72,6 +75,7 @@ impl Family {
             Family::Chebyshev => "chebyshev",
             Family::Certified => "certified",
             Family::Anderson => "anderson",
+            Family::Newton => "newton",
         }
     }
 
@@ -83,6 +87,7 @@ impl Family {
             Family::Chebyshev => (SolverKind::Chebyshev, CertifyPolicy::Off, 0),
             Family::Certified => (SolverKind::Split, CertifyPolicy::Fallback, 0),
             Family::Anderson => (SolverKind::Direct, CertifyPolicy::Off, ANDERSON_MEMORY),
+            Family::Newton => (SolverKind::Newton, CertifyPolicy::Off, 0),
         };
         s.solver = solver;
         s.certify = certify;
@@ -94,6 +99,7 @@ impl Family {
         match used {
             SolverKind::Direct if anderson > 0 => Family::Anderson,
             SolverKind::Direct | SolverKind::Auto => Family::Direct,
+            SolverKind::Newton => Family::Newton,
             SolverKind::Split | SolverKind::Plain => Family::Split,
             SolverKind::Chebyshev => Family::Chebyshev,
         }

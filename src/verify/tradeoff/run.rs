@@ -18,7 +18,7 @@ use super::{
 use crate::diff::{self, loss::Loss, Controls, Mode, Options, Param};
 use crate::model::Model;
 use crate::report::{write_json, CRATE_VERSION};
-use crate::solver::{Integrator, Settings, Simulator};
+use crate::solver::{Integrator, Settings, Simulator, SolverKind};
 use crate::verify::pool::{self, Task};
 use crate::verify::shard::Shard;
 
@@ -101,10 +101,15 @@ fn gradient(ctx: &Ctx<'_>, settings: &Settings, steps: usize) -> GradientResult 
         steps,
         &Controls::default(),
         ctx.loss.as_ref(),
-        // The study measures gradients of unconverged settings too (their stats say so).
+        // The study measures gradients of unconverged settings too (their stats say so). Newton
+        // is differentiated at its converged step (implicit mode), the others unrolled.
         Options {
             allow_unconverged: true,
-            ..Options::mode(Mode::Unrolled)
+            ..Options::mode(if settings.solver == SolverKind::Newton {
+                Mode::Implicit
+            } else {
+                Mode::Unrolled
+            })
         },
     );
     let wall_s = Some(t0.elapsed().as_secs_f64());
