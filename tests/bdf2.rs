@@ -265,3 +265,35 @@ fn tradeoff_reports_bdf2_orders() {
     assert!(ratio.holds, "{:?}", ratio);
     assert!(s.rows.iter().any(|r| r.id == "bdf2/direct/tol=1e-10/h/4"));
 }
+
+/// Newton's method minimises the same step energy under BDF2 (Eq. T1 with `h_e`): it reaches
+/// the direct projective-dynamics fixed point of every step, the first (implicit Euler) included.
+#[test]
+fn newton_and_direct_agree_under_bdf2() {
+    let path = common::root().join("verification/paper/bridgesus/bridgesus.json");
+    let run = |solver| {
+        let sc = diffsoft::scene::load(&path, Default::default()).unwrap();
+        let settings = Settings {
+            integrator: Integrator::Bdf2,
+            solver,
+            tolerance: 1e-12,
+            max_iterations: 5000,
+            ..sc.settings
+        };
+        let mut sim = Simulator::new(sc.model, settings).unwrap();
+        let mut iterations = Vec::new();
+        for _ in 0..10 {
+            let s = sim.step().unwrap();
+            assert!(s.converged, "{solver:?} step {} did not converge", s.step);
+            iterations.push(s.iterations);
+        }
+        (sim.state().q.clone(), sim.model().rest().to_vec(), iterations)
+    };
+    let (qd, rest, it_d) = run(SolverKind::Direct);
+    let (qn, _, it_n) = run(SolverKind::Newton);
+    let moved = max_diff(&qd, &rest);
+    let diff = max_diff(&qd, &qn);
+    eprintln!("direct iterations {it_d:?}, newton {it_n:?}; difference {diff:e} of displacement {moved:e}");
+    assert!(diff <= 1e-6 * moved, "{diff:e} vs {moved:e}");
+    assert!(it_n.iter().max() < it_d.iter().max());
+}
