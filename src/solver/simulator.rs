@@ -401,7 +401,7 @@ impl Simulator {
 
     /// BDF2: the state one step before the current one, `(positions, velocities)`, once a step
     /// was taken (`None` under implicit Euler and at the start of a run).
-    pub fn previous_state(&self) -> Option<(&[Vector3<f64>], &[Vector3<f64>])> {
+    pub fn previous_state(&self) -> super::integrator::Previous<'_> {
         self.previous
             .valid
             .then_some((&self.previous.q[..], &self.previous.v[..]))

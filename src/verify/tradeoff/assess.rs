@@ -448,7 +448,8 @@ pub(super) fn verdicts(
         ));
     }
     let of = |i: Integrator| orders.iter().filter(move |o| o.integrator == i);
-    if let Some(o) = of(Integrator::ImplicitEuler).last() {
+    // (a DoubleEndedIterator: `next_back` is the finest pair)
+    if let Some(o) = of(Integrator::ImplicitEuler).next_back() {
         if let Some(p) = o.order {
             out.push(Verdict::new(
                 "Implicit Euler (Eq. 2) converges at first order in the time step (finest pair of grid steps)",
