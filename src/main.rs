@@ -308,6 +308,9 @@ struct TradeoffArgs {
     /// Families run with the integrators after the first (default: every one of --families).
     #[arg(long, value_enum, value_delimiter = ',')]
     integrator_families: Vec<diffsoft::verify::tradeoff::Family>,
+    /// Iteration caps of the newton family (default: --caps).
+    #[arg(long, value_delimiter = ',')]
+    newton_caps: Vec<usize>,
     /// Integrator of the h/R reference run (the total error of every setting).
     #[arg(long, value_enum, default_value = "implicit-euler")]
     reference_integrator: diffsoft::solver::Integrator,
@@ -763,6 +766,7 @@ fn tradeoff(args: TradeoffArgs) -> Result<()> {
         integrators,
         integrator_families,
         reference_integrator,
+        newton_caps,
         caps,
         tolerances,
         gradient_dt_divisors,
@@ -820,6 +824,7 @@ fn tradeoff(args: TradeoffArgs) -> Result<()> {
             s.integrators = integrators;
             s.integrator_families = integrator_families;
             s.reference_integrator = reference_integrator;
+            s.newton_caps = newton_caps;
             s.caps = caps.0;
             s.tolerances = tolerances.0;
             s.gradient_dt_divisors = gradient_dt_divisors;

@@ -230,6 +230,10 @@ pub struct TradeoffSpec {
     /// Iteration caps (tolerance 0).
     #[serde(default = "default_caps")]
     pub caps: Vec<usize>,
+    /// Iteration caps of the `newton` family (empty: `caps`). Newton converges in a few
+    /// iterations, so large caps only repeat converged steps at full cost.
+    #[serde(default)]
+    pub newton_caps: Vec<usize>,
     /// Tolerances (1: relative RMS change over the length scale).
     #[serde(default = "default_tolerances")]
     pub tolerances: Vec<f64>,
@@ -311,6 +315,7 @@ impl TradeoffSpec {
             integrator_families: Vec::new(),
             reference_integrator: Integrator::ImplicitEuler,
             caps: default_caps(),
+            newton_caps: Vec::new(),
             tolerances: default_tolerances(),
             tolerance_max_iterations: default_tolerance_max_iterations(),
             gradient_dt_divisors: Vec::new(),
@@ -365,7 +370,14 @@ impl TradeoffSpec {
                 "reference_divisor {r} must be a multiple of every dt divisor and larger than all (not of {d})"
             ));
         }
-        if self.caps.contains(&0) || self.tolerance_max_iterations == 0 || self.reference_max_iterations == 0 {
+        if !distinct(&self.newton_caps) {
+            return bad("newton_caps must not repeat".into());
+        }
+        if self.caps.contains(&0)
+            || self.newton_caps.contains(&0)
+            || self.tolerance_max_iterations == 0
+            || self.reference_max_iterations == 0
+        {
             return bad("iteration caps must be at least 1".into());
         }
         let positive = |v: f64| v.is_finite() && v > 0.0;
@@ -389,12 +401,17 @@ impl TradeoffSpec {
 
     /// The grid in report order: integrator, family, then caps and tolerances, then time steps.
     pub fn grid(&self) -> Vec<Setting> {
-        let knobs: Vec<Knob> = self
-            .caps
-            .iter()
-            .map(|&k| Knob::Cap(k))
-            .chain(self.tolerances.iter().map(|&t| Knob::Tolerance(t)))
-            .collect();
+        let knobs_of = |family: Family| -> Vec<Knob> {
+            let caps = if family == Family::Newton && !self.newton_caps.is_empty() {
+                &self.newton_caps
+            } else {
+                &self.caps
+            };
+            caps.iter()
+                .map(|&k| Knob::Cap(k))
+                .chain(self.tolerances.iter().map(|&t| Knob::Tolerance(t)))
+                .collect()
+        };
         let mut out = Vec::new();
         for (i, &integrator) in self.integrators.iter().enumerate() {
             let families = if i == 0 || self.integrator_families.is_empty() {
@@ -403,7 +420,7 @@ impl TradeoffSpec {
                 &self.integrator_families
             };
             for &family in families {
-                for &knob in &knobs {
+                for knob in knobs_of(family) {
                     for &dt_divisor in &self.dt_divisors {
                         out.push(Setting {
                             family,
@@ -520,6 +537,37 @@ mod tests {
             ids.iter().enumerate().all(|(i, a)| !ids[..i].contains(a)),
             "ids are unique"
         );
+    }
+
+    #[test]
+    fn newton_has_its_own_caps_and_bdf2_its_families() {
+        let mut s = spec();
+        s.families = vec![Family::Direct, Family::Newton];
+        s.caps = vec![1, 10, 100];
+        s.newton_caps = vec![1, 3];
+        s.tolerances = vec![1e-6];
+        s.dt_divisors = vec![1];
+        s.integrators = vec![Integrator::ImplicitEuler, Integrator::Bdf2];
+        s.integrator_families = vec![Family::Newton];
+        let ids: Vec<String> = s.grid().iter().map(Setting::id).collect();
+        assert_eq!(
+            ids,
+            [
+                "direct/cap=1/h",
+                "direct/cap=10/h",
+                "direct/cap=100/h",
+                "direct/tol=1e-6/h",
+                "newton/cap=1/h",
+                "newton/cap=3/h",
+                "newton/tol=1e-6/h",
+                "bdf2/newton/cap=1/h",
+                "bdf2/newton/cap=3/h",
+                "bdf2/newton/tol=1e-6/h",
+            ]
+        );
+        assert!(s.validate().is_ok());
+        s.newton_caps = vec![0];
+        assert!(s.validate().is_err());
     }
 
     #[test]
