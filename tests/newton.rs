@@ -642,3 +642,43 @@ fn newton_runs_actuated_bodies_like_the_direct_solve() {
     assert!(moved > 1e-4, "the beam moves: {moved}");
     assert!(diff <= 1e-6 * moved, "{diff} vs {moved}");
 }
+
+/// bridgesus: the implicit-mode gradient through a Newton forward of Young's modulus, the
+/// Poisson ratio and the density matches central differences of the loss, with implicit Euler
+/// and with BDF2.
+#[test]
+fn bridgesus_material_gradients_through_newton() {
+    use diffsoft::diff::Param;
+    use diffsoft::solver::Integrator;
+    let path = common::root().join("verification/paper/bridgesus/bridgesus.json");
+    for integrator in [Integrator::ImplicitEuler, Integrator::Bdf2] {
+        let mut case = diffsoft::verify::gradients::bridgesus(&path, 5).unwrap();
+        case.settings.solver = SolverKind::Newton;
+        case.settings.integrator = integrator;
+        case.settings.tolerance = 1e-13;
+        case.settings.max_iterations = 200;
+        let g = diff::gradient(
+            &case.model,
+            &case.settings,
+            case.steps,
+            &case.controls,
+            case.loss.as_ref(),
+            Options::mode(Mode::Implicit),
+        )
+        .unwrap();
+        for p in [Param::YoungsModulus, Param::PoissonRatio, Param::Density] {
+            let x = p.get(&case.model).unwrap();
+            let analytic = p.derivative(&case.model, &g) * x;
+            let loss = |v: f64| {
+                let mut m = case.model.clone();
+                p.set(&mut m, v).unwrap();
+                diff::loss_value(&m, &case.settings, case.steps, &case.controls, case.loss.as_ref()).unwrap()
+            };
+            let h = 1e-4 * x;
+            let fd = (loss(x + h) - loss(x - h)) / (2.0 * h) * x;
+            let rel = (fd - analytic).abs() / fd.abs();
+            eprintln!("{integrator:?} {p}: analytic {analytic:.9e}, central difference {fd:.9e}, rel {rel:.2e}");
+            assert!(rel < 1e-5, "{integrator:?} {p}: {analytic} vs {fd}");
+        }
+    }
+}
