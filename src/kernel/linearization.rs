@@ -114,11 +114,13 @@ impl TetLinearization {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::kernel::svd::svd3;
 
-    fn mat(seed: u64) -> Matrix3<f64> {
+    /// A reproducible pseudo-random matrix with entries in [-0.5, 0.5) (shared by the tests
+    /// of the kernels built on this linearization).
+    pub(crate) fn mat(seed: u64) -> Matrix3<f64> {
         let mut s = seed;
         Matrix3::from_fn(|_, _| {
             s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);

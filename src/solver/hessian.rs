@@ -118,15 +118,8 @@ impl ElasticHessian {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::kernel::linearization::tests::mat;
     use crate::kernel::svd::svd3;
-
-    fn mat(seed: u64) -> Matrix3<f64> {
-        let mut s = seed;
-        Matrix3::from_fn(|_, _| {
-            s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            ((s >> 11) as f64 / (1u64 << 53) as f64) - 0.5
-        })
-    }
 
     /// The tet energy `w_rot/2 |F - R|^2 + w_vol/2 |F - U X V^T|^2` at `f`.
     fn energy(f: &Matrix3<f64>, w_rot: f64, w_vol: f64) -> f64 {
