@@ -648,7 +648,10 @@ fn run(command: Command) -> Result<()> {
             say_raw!("{}", gradients::checks_table(&checks));
             let (failed, total) = (checks.iter().filter(|c| !c.passes).count(), checks.len());
             save(&json, &gradients::GradcheckReport::new(checks), &[])?;
-            say!("{} of {total} cases pass in unrolled mode", total - failed);
+            say!(
+                "{} of {total} cases pass (unrolled mode; implicit mode for Newton's method)",
+                total - failed
+            );
             if failed > 0 {
                 bail!("{failed} gradient check case(s) failed");
             }

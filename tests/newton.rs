@@ -413,7 +413,22 @@ fn unsupported_scenes_are_refused_clearly() {
         .obstacle(Obstacle::plane("ground", Vector3::zeros(), Vector3::y(), 0.5))
         .build()
         .unwrap();
-    expect(ground.clone(), &newton, "obstacle contacts");
+    // Ground contact runs (tests/newton_contact.rs); collisions between bodies are refused.
+    let mut sim = Simulator::new(ground, newton.clone()).unwrap();
+    assert!(sim.step().unwrap().converged);
+    let two = ModelBuilder::new()
+        .body(cube())
+        .body(BodySpec {
+            name: "d".into(),
+            ..cube()
+        })
+        .collisions(diffsoft::contact::pair::BodyCollision {
+            thickness: 1e-3,
+            friction: 0.3,
+        })
+        .build()
+        .unwrap();
+    expect(two, &newton, "collisions between bodies");
     // The same scene without the ground runs; with Anderson acceleration it is refused.
     let free = ModelBuilder::new().body(cube()).build().unwrap();
     let mut sim = Simulator::new(free.clone(), newton.clone()).unwrap();

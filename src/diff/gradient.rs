@@ -36,9 +36,11 @@ fn check_supported(model: &Model, settings: &Settings, mode: Mode) -> Result<(),
             "unrolled gradients through Newton's method (they differentiate local-global iterations); use --mode implicit, which differentiates the converged step whichever solver found it, or solver: direct".into(),
         ));
     }
-    if !model.obstacles.is_empty() && settings.solver != SolverKind::Direct {
+    // Newton's method records its contacts' impulses at the converged step as the direct
+    // solver does (implicit mode only, above).
+    if !model.obstacles.is_empty() && !matches!(settings.solver, SolverKind::Direct | SolverKind::Newton) {
         return Err(DiffError::Unsupported(
-            "gradients with contact need the direct solver (solver: direct)".into(),
+            "gradients with contact need the direct solver (solver: direct) or Newton's method in implicit mode (solver: newton)".into(),
         ));
     }
     Ok(())

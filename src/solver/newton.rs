@@ -21,10 +21,15 @@
 //! Newton iterations are reported in `StepStats::iterations`, conjugate-gradient iterations in
 //! `global_iterations`, direction solves that hit `inner_max_iterations` in `capped_solves`.
 //!
+//! Obstacle contacts (ground, obstacles) on free vertices are held as an active set
+//! ([`super::newton_contact`], Eq. S6): directions and gradients are projected onto the held
+//! contacts' constraints and the line search stops where a separated candidate meets its plane.
+//!
 //! Scope: tets (corotated elasticity and volume, actuators), fixed vertices, attachments,
-//! gravity. Scenes with anything else (obstacles, collisions between bodies, skeletons, cloth,
-//! Anderson acceleration) are refused at [`super::Simulator::new`] by [`check_supported`]. Every
-//! buffer is allocated in [`Newton::new`].
+//! gravity, obstacle contacts. Scenes with anything else (collisions between bodies, skeletons,
+//! cloth, Anderson acceleration) are refused at [`super::Simulator::new`] by
+//! [`check_supported`]. Every buffer is allocated in [`Newton::new`] (the contact set's grow to
+//! the largest set seen).
 
 use std::time::Instant;
 
@@ -35,6 +40,8 @@ use super::direct::Direct;
 use super::free_contact::FreeContact;
 use super::global::{GlobalSolver, GlobalStats, InnerControl, SolverKind};
 use super::hessian::ElasticHessian;
+use super::newton_contact::NewtonContacts;
+use super::observer::{SolveInfo, StepObserver};
 use super::simulator::{GlobalStep, Simulator};
 use super::system::GlobalSystem;
 use super::{Settings, SolverError, StepStats};
@@ -62,9 +69,6 @@ pub(crate) fn check_supported(model: &Model, settings: &Settings) -> Result<(), 
             "solver newton does not support {what}; use solver: direct (--solver direct)"
         )))
     };
-    if !model.obstacles.is_empty() {
-        return unsupported("obstacle contacts (ground or obstacles)");
-    }
     if model.collision.is_some() {
         return unsupported("collisions between bodies");
     }
@@ -127,6 +131,8 @@ pub(crate) struct Newton {
     exact: Option<Box<ExactK>>,
     /// Whether the direction solve uses the unprojected Hessian.
     unprojected: bool,
+    /// The active set of the step's obstacle contacts.
+    contacts: NewtonContacts,
     /// Line searches that failed and were replaced by a projective-dynamics step (diagnostics).
     pub(crate) fallbacks: usize,
 }
@@ -183,6 +189,8 @@ struct Ctx<'a> {
     ih2: f64,
     /// The right-hand side's constant part `M s / h^2 + fixed pull + attachments` (free).
     base: &'a [Vector3<f64>],
+    /// The step's contacts (obstacle contacts on free vertices).
+    contacts: &'a [FreeContact],
 }
 
 impl Newton {
@@ -214,13 +222,15 @@ impl Newton {
                 })
             }),
             unprojected: true,
+            contacts: NewtonContacts::default(),
             fallbacks: 0,
         })
     }
 
     /// The step energy `E` (Eq. S3) at the free iterate `x`, which is scattered into `full`:
     /// the local step (every tet decomposed into `record`), then inertia, constraints and
-    /// attachments. Returns `(E, constraint energy)`.
+    /// attachments, less the held friction forces' work (Eq. S6). Returns `(E, constraint
+    /// energy)`.
     fn energy(
         &mut self,
         cx: &Ctx<'_>,
@@ -239,16 +249,21 @@ impl Newton {
         for a in &cx.model.attachments {
             e += a.energy(&full[a.vertex]);
         }
+        e -= self.contacts.friction_work(cx.contacts, x);
         Ok((e, elastic))
     }
 
     /// `grad E = A x - b - J p` at `x` (Eq. S3) from the last local step, gathered into
-    /// `gathered` (every vertex).
+    /// `gathered` (every vertex); with contacts, their impulses are recorded and the gradient
+    /// becomes the held problem's, `P (grad E - f)` (Eq. S6).
     fn gradient(&mut self, cx: &Ctx<'_>, constraints: &Constraints, x: &[Vector3<f64>], gathered: &mut [Vector3<f64>]) {
         constraints.gather(cx.model, gathered);
         cx.sys.apply(x, &mut self.grad);
         for (k, &v) in cx.sys.free.iter().enumerate() {
             self.grad[k] -= cx.base[k] + gathered[v];
+        }
+        if !cx.contacts.is_empty() {
+            self.contacts.constrain_gradient(cx.contacts, &mut self.grad);
         }
     }
 
@@ -298,6 +313,7 @@ impl Newton {
         for (k, &v) in cx.sys.free.iter().enumerate() {
             self.hp[k] = self.ap[k] - self.out_full[v];
         }
+        self.contacts.project(cx.contacts, &mut self.hp);
         true
     }
 
@@ -317,6 +333,7 @@ impl Newton {
         }
         self.dir.iter_mut().for_each(|d| *d = Vector3::zeros());
         self.direct.solve_free(&self.r, &mut self.z)?;
+        self.contacts.project(cx.contacts, &mut self.z);
         let z0 = rms(&self.z);
         let eta = if z_first > 0.0 {
             FORCING_MAX.min((z0 / z_first).sqrt())
@@ -359,6 +376,7 @@ impl Newton {
                 self.r[k] -= self.hp[k] * alpha;
             }
             self.direct.solve_free(&self.r, &mut self.z)?;
+            self.contacts.project(cx.contacts, &mut self.z);
             if rms(&self.z) <= stop {
                 return Ok(Direction {
                     iterations: it,
@@ -386,8 +404,14 @@ impl Newton {
 impl Simulator {
     /// Phase 3 with `solver: newton`: Newton iterations (see the module docs) from the first
     /// iterate `begin_step` set, until the RMS change of the free positions is below
-    /// `tolerance x length scale` or `max_iterations`.
-    pub(super) fn newton_iterate(&mut self, stats: &mut StepStats) -> Result<(), SolverError> {
+    /// `tolerance x length scale` (with contacts: and no contact changed state, Eq. S6) or
+    /// `max_iterations`. With contacts, the first iteration is a projective-dynamics one, whose
+    /// impulses seed the contacts' states; the last iterate's impulses go to `observer`.
+    pub(super) fn newton_iterate(
+        &mut self,
+        stats: &mut StepStats,
+        observer: &mut dyn StepObserver,
+    ) -> Result<(), SolverError> {
         let Simulator {
             model,
             settings,
@@ -396,6 +420,7 @@ impl Simulator {
             global,
             constraints,
             activations,
+            contacts,
             work: w,
             ..
         } = self;
@@ -403,6 +428,7 @@ impl Simulator {
             unreachable!("Newton runs without a skeleton");
         };
         let nw = solver.as_newton().expect("solver newton holds the Newton solver");
+        let cs = &contacts.free[..];
         let cx = Ctx {
             model,
             sys: system,
@@ -410,16 +436,38 @@ impl Simulator {
             s: &w.s,
             ih2: integrator.inv_h2(),
             base: &w.base,
+            contacts: cs,
         };
         let tol = settings.tolerance * model.length_scale;
         let floor = ABSOLUTE_FRACTION * tol;
         let nf = system.n();
         let tl = Instant::now();
+        nw.contacts.seed(&[], &[]);
+        if !cs.is_empty() {
+            // One projective-dynamics iteration with the contacts: its impulses seed the
+            // states, and its iterate satisfies every contact.
+            nw.energy(&cx, constraints, &w.x, &mut w.full)?;
+            constraints.gather(model, &mut w.gathered);
+            for (k, &v) in system.free.iter().enumerate() {
+                w.rhs[k] = w.base[k] + w.gathered[v];
+            }
+            w.x_prev.copy_from_slice(&w.x);
+            let g = nw.direct.solve(system, &w.rhs, &mut w.x, cs)?;
+            stats.iterations += 1;
+            stats.global_iterations += g.iterations;
+            stats.contact_iterations += g.contact_iterations;
+            let impulses = GlobalSolver::impulses(&nw.direct).unwrap_or(&[]);
+            let mut contacts_state = std::mem::take(&mut nw.contacts);
+            contacts_state.seed(cs, impulses);
+            contacts_state.enforce(cs, &mut w.x);
+            nw.contacts = contacts_state;
+        }
         let (mut e, mut elastic) = nw.energy(&cx, constraints, &w.x, &mut w.full)?;
         nw.gradient(&cx, constraints, &w.x, &mut w.gathered);
         stats.local_ms += tl.elapsed().as_secs_f64() * 1e3;
         let mut z_first = f64::NAN;
-        for _ in 0..settings.max_iterations {
+        let iterations = settings.max_iterations.saturating_sub(stats.iterations);
+        for _ in 0..iterations {
             // The projected Hessian at the iterate and the Newton direction.
             let tg = Instant::now();
             // The exact Hessian first (quadratic convergence near the minimum); where it shows
@@ -447,13 +495,16 @@ impl Simulator {
                 stats.capped_solves += 1;
             }
             stats.global_ms += tg.elapsed().as_secs_f64() * 1e3;
-            // Backtracking line search on E (Armijo).
+            // Backtracking line search on E (Armijo), no further than where a separated
+            // contact meets its plane.
             let tl = Instant::now();
             let gd = dot(&nw.grad, &nw.dir);
             nw.x0.copy_from_slice(&w.x);
-            let mut alpha = 1.0;
+            let block = nw.contacts.blocking(cs, &nw.x0, &nw.dir);
+            let mut alpha = block.map_or(1.0, |(a, _)| a);
             let mut accepted = false;
-            if rms(&nw.dir) <= floor {
+            let mut state_changed = false;
+            if rms(&nw.dir) <= floor && block.is_none() {
                 // A direction below what the step resolves (the iterate is the minimiser up to
                 // round-off, e.g. a rigid motion with no elastic force): take it as it is.
                 for k in 0..nf {
@@ -461,8 +512,13 @@ impl Simulator {
                 }
                 (e, elastic) = nw.energy(&cx, constraints, &w.x, &mut w.full)?;
                 accepted = true;
+            } else if let Some((_, j)) = block.filter(|&(a, _)| a <= 0.0 && gd < 0.0) {
+                // A separated contact on its plane blocks the direction at once: it joins.
+                nw.contacts.activate(j);
+                accepted = true;
+                state_changed = true;
             } else if gd < 0.0 {
-                for _ in 0..MAX_HALVINGS {
+                for halving in 0..MAX_HALVINGS {
                     for k in 0..nf {
                         w.x[k] = nw.x0[k] + nw.dir[k] * alpha;
                     }
@@ -470,13 +526,19 @@ impl Simulator {
                     if et <= e + ARMIJO * alpha * gd + ENERGY_ROUNDOFF * e.abs() {
                         (e, elastic) = (et, el);
                         accepted = true;
+                        if let (0, Some((_, j))) = (halving, block) {
+                            // The step went as far as the blocking contact: it joins.
+                            nw.contacts.activate(j);
+                            state_changed = true;
+                        }
                         break;
                     }
                     alpha *= 0.5;
                 }
             }
             if !accepted {
-                // One projective-dynamics iteration from x0 instead: it never raises E.
+                // One projective-dynamics iteration from x0 instead: it never raises E (with
+                // contacts, it also takes their states again).
                 nw.fallbacks += 1;
                 w.x.copy_from_slice(&nw.x0);
                 nw.energy(&cx, constraints, &w.x, &mut w.full)?;
@@ -484,18 +546,46 @@ impl Simulator {
                 for (k, &v) in system.free.iter().enumerate() {
                     w.rhs[k] = w.base[k] + w.gathered[v];
                 }
-                nw.direct.solve_free(&w.rhs, &mut w.x)?;
+                if cs.is_empty() {
+                    nw.direct.solve_free(&w.rhs, &mut w.x)?;
+                } else {
+                    let g = nw.direct.solve(system, &w.rhs, &mut w.x, cs)?;
+                    stats.contact_iterations += g.contact_iterations;
+                    let impulses = GlobalSolver::impulses(&nw.direct).unwrap_or(&[]);
+                    let mut contacts_state = std::mem::take(&mut nw.contacts);
+                    contacts_state.seed(cs, impulses);
+                    nw.contacts = contacts_state;
+                    state_changed = true;
+                }
                 (e, elastic) = nw.energy(&cx, constraints, &w.x, &mut w.full)?;
             }
-            nw.gradient(&cx, constraints, &w.x, &mut w.gathered);
-            stats.local_ms += tl.elapsed().as_secs_f64() * 1e3;
-            stats.iterations += 1;
-            stats.elastic_energy = elastic;
             let mut sq = 0.0;
             for k in 0..nf {
                 sq += (w.x[k] - nw.x0[k]).norm_squared();
             }
             let change = (sq / nf.max(1) as f64).sqrt();
+            nw.gradient(&cx, constraints, &w.x, &mut w.gathered);
+            let mut friction_moved = 0.0;
+            if !cs.is_empty() {
+                // The contacts' states again from the impulses and the slip (Eq. S6).
+                let mut contacts_state = std::mem::take(&mut nw.contacts);
+                let direct = &mut nw.direct;
+                let settled = change <= tol;
+                let (changed, moved) = contacts_state.update(cs, &w.x, tol, settled, |v| direct.inverse_column(v)[v]);
+                let displaced = contacts_state.enforce(cs, &mut w.x);
+                nw.contacts = contacts_state;
+                state_changed |= changed;
+                friction_moved = moved;
+                if displaced || changed || moved > 0.0 {
+                    // New positions or held forces: the energy (its friction term) and the
+                    // gradient again.
+                    (e, elastic) = nw.energy(&cx, constraints, &w.x, &mut w.full)?;
+                    nw.gradient(&cx, constraints, &w.x, &mut w.gathered);
+                }
+            }
+            stats.local_ms += tl.elapsed().as_secs_f64() * 1e3;
+            stats.iterations += 1;
+            stats.elastic_energy = elastic;
             if !change.is_finite() || !e.is_finite() {
                 return Err(SolverError::NonFinite(format!(
                     "step {}: positions became non-finite in Newton iteration {}",
@@ -503,12 +593,17 @@ impl Simulator {
                 )));
             }
             stats.relative_change = change / model.length_scale;
-            if change <= tol {
+            if change <= tol && !state_changed && friction_moved <= tol {
                 stats.converged = true;
                 break;
             }
         }
         stats.elastic_energy = elastic;
+        observer.solved(SolveInfo {
+            contacts: cs,
+            impulses: Some(nw.contacts.impulses()),
+            skeletal: None,
+        });
         Ok(())
     }
 }
@@ -536,5 +631,10 @@ impl GlobalSolver for Newton {
 
     fn as_newton(&mut self) -> Option<&mut Newton> {
         Some(self)
+    }
+
+    /// The impulses of the step's contacts at Newton's last iterate.
+    fn impulses(&self) -> Option<&[Vector3<f64>]> {
+        Some(self.contacts.impulses())
     }
 }

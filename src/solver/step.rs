@@ -113,7 +113,7 @@ impl Simulator {
     /// free positions is below `tolerance x length scale` or the iteration cap.
     fn iterate(&mut self, stats: &mut StepStats, observer: &mut dyn StepObserver) -> Result<(), SolverError> {
         if self.global.kind() == super::SolverKind::Newton {
-            return self.newton_iterate(stats);
+            return self.newton_iterate(stats, observer);
         }
         if let Some(aa) = self.anderson.as_mut() {
             aa.reset();

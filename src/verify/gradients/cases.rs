@@ -670,7 +670,8 @@ impl CaseScenes {
 /// The built-in cases, in report order: free body, bridgesus, ground contact, actuated beam,
 /// Baymax with torques, Baymax on the ground, ball on cloth (built-in and the paper's), then the
 /// free body, bridgesus, ground contact and Baymax with torques again with BDF2 (docs/method.md
-/// Eqs. T1-T3; names ending in `_bdf2`).
+/// Eqs. T1-T3; names ending in `_bdf2`), then the free body, bridgesus and ground contact
+/// through Newton's method (section 6.5; names ending in `_newton`, implicit mode).
 pub fn builtin_cases(scenes: &CaseScenes, steps: usize) -> Result<Vec<Case>> {
     let mut cases = vec![
         free_body(steps)?,
@@ -690,7 +691,29 @@ pub fn builtin_cases(scenes: &CaseScenes, steps: usize) -> Result<Vec<Case>> {
     ] {
         cases.push(with_bdf2(case));
     }
+    for case in [
+        free_body(steps)?,
+        bridgesus(&scenes.bridgesus, steps)?,
+        ground_contact(steps)?,
+    ] {
+        cases.push(with_newton(case));
+    }
     Ok(cases)
+}
+
+/// `case` through Newton's method (docs/method.md section 6.5) converged to tolerance `1e-12`:
+/// its gradients are implicit-mode ones, exact at convergence, so the forward converges
+/// instead of running a fixed iteration count (names ending in `_newton`).
+pub fn with_newton(mut case: Case) -> Case {
+    case.settings.solver = SolverKind::Newton;
+    case.settings.tolerance = 1e-12;
+    case.settings.max_iterations = 200;
+    case.name.push_str("_newton");
+    case.description = format!(
+        "{} Solved by Newton's method to tolerance 1e-12 (implicit-mode gradients).",
+        case.description
+    );
+    case
 }
 
 /// `case` integrated with BDF2 instead of implicit Euler.
