@@ -111,13 +111,18 @@ fn newton_reaches_the_direct_fixed_point_with_ground_contact() {
 }
 
 /// The ground-contact gradient case (the box lands, slides and sticks) through a Newton
-/// forward: every parameter group's implicit-mode gradient matches central differences (the
-/// harness's step sweep and tolerances), and equals the implicit gradient through a direct
-/// forward converged to the same tolerance.
+/// forward, with implicit Euler and with BDF2: every parameter group's implicit-mode gradient
+/// matches central differences (the harness's step sweep and tolerances), and equals the
+/// implicit gradient through a direct forward converged to the same tolerance.
 #[test]
 fn implicit_gradients_through_newton_with_ground_contact_match_finite_differences() {
     let case = gradients::with_newton(gradients::ground_contact(25).unwrap());
-    let check = gradients::check_case(&case, 7);
+    check_against_direct(&case);
+    check_against_direct(&gradients::with_bdf2(case));
+}
+
+fn check_against_direct(case: &gradients::Case) {
+    let check = gradients::check_case(case, 7);
     eprint!("{}", gradients::checks_table(std::slice::from_ref(&check)));
     assert!(check.error.is_none(), "{:?}", check.error);
     assert_eq!(check.modes.len(), 1);
@@ -129,7 +134,7 @@ fn implicit_gradients_through_newton_with_ground_contact_match_finite_difference
             g.group, g.analytic, g.fd_best, g.rel_error_best
         );
     }
-    assert!(check.passes, "a group fails");
+    assert!(check.passes, "{}: a group fails", case.name);
     assert!(m.stats.contact_sweeps > 0, "the box must touch the ground");
     // The direct solver's converged forward gives the same gradient.
     let grad = |settings: &Settings| {
@@ -145,19 +150,14 @@ fn implicit_gradients_through_newton_with_ground_contact_match_finite_difference
     };
     let gn = grad(&case.settings);
     let gd = grad(&with(&case.settings, SolverKind::Direct, 1e-12, 100_000));
-    let diff_v0 = gn
-        .v0
-        .iter()
-        .zip(&gd.v0)
-        .map(|(a, b)| (a - b).norm())
-        .fold(0.0, f64::max);
+    let diff_v0 = gn.v0.iter().zip(&gd.v0).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max);
     let scale = gd.v0.iter().map(|a| a.norm()).fold(0.0, f64::max);
-    eprintln!("v0 gradient: Newton - direct {diff_v0:.3e} (largest {scale:.3e})");
+    eprintln!("{}: v0 gradient, Newton - direct {diff_v0:.3e} (largest {scale:.3e})", case.name);
     assert!(diff_v0 <= 1e-6 * scale, "{diff_v0} vs {scale}");
     let (en, ed): (f64, f64) = (
         gn.youngs_modulus(&case.model).iter().sum(),
         gd.youngs_modulus(&case.model).iter().sum(),
     );
-    eprintln!("Young's modulus gradient: Newton {en:.9e}, direct {ed:.9e}");
+    eprintln!("{}: Young's modulus gradient, Newton {en:.9e}, direct {ed:.9e}", case.name);
     assert!((en - ed).abs() <= 1e-6 * ed.abs(), "{en} vs {ed}");
 }

@@ -466,7 +466,8 @@ impl Simulator {
         nw.gradient(&cx, constraints, &w.x, &mut w.gathered);
         stats.local_ms += tl.elapsed().as_secs_f64() * 1e3;
         let mut z_first = f64::NAN;
-        let iterations = settings.max_iterations.saturating_sub(stats.iterations);
+        // This round's budget (the seeding iteration counts).
+        let iterations = settings.max_iterations.saturating_sub(usize::from(!cs.is_empty()));
         for _ in 0..iterations {
             // The projected Hessian at the iterate and the Newton direction.
             let tg = Instant::now();
