@@ -448,6 +448,65 @@ impl Skeleton {
         }
     }
 
+    /// `out[(l, k)] = sum_i g_i . dB_ik / dz_l` (`dofs x dofs`): the second derivatives of the
+    /// bone vertices' positions in the charts of [`Joint::transform_dual`] (as in
+    /// [`Skeleton::contract_jacobian_derivative`]) contracted with one vector `g` per bone
+    /// vertex (in [`Skeleton::rigid`] order). Newton's method with a skeleton adds its
+    /// symmetric part to the reduced Hessian (`g` the energy's gradient at the bone vertices).
+    pub fn jacobian_derivative_matrix(&self, g: &[Vector3<f64>], out: &mut DMatrix<f64>) {
+        let zero = Dual64::from(0.0);
+        let nb = self.bones.len();
+        let mut world: Vec<Matrix4<Dual64>> = Vec::with_capacity(nb);
+        let mut local: Vec<Matrix4<Dual64>> = Vec::with_capacity(nb);
+        let mut z = Vec::with_capacity(6);
+        out.fill(0.0);
+        for l in 0..self.dofs {
+            world.clear();
+            local.clear();
+            for b in &self.bones {
+                z.clear();
+                z.resize(b.joint.dofs(), zero);
+                if l >= b.dof_offset && l < b.dof_offset + b.joint.dofs() {
+                    z[l - b.dof_offset] = zero.derivative();
+                }
+                let a = b.joint.transform_dual(&z);
+                let parent = b.parent.map_or(Matrix4::identity(), |p| world[p]);
+                world.push(parent * a);
+                local.push(a);
+            }
+            let mut vertex0 = 0;
+            for (bi, b) in self.bones.iter().enumerate() {
+                let mut suffix: Matrix4<Dual64> = Matrix4::identity();
+                let mut v = bi;
+                loop {
+                    let joint = &self.bones[v];
+                    let prefix = joint.parent.map_or(Matrix4::identity(), |p| world[p]);
+                    z.clear();
+                    z.resize(joint.joint.dofs(), zero);
+                    if l >= joint.dof_offset && l < joint.dof_offset + joint.joint.dofs() {
+                        z[l - joint.dof_offset] = zero.derivative();
+                    }
+                    for k in 0..joint.joint.dofs() {
+                        let gm = prefix * joint.joint.derivative_dual(&z, k) * suffix;
+                        let mut acc = 0.0;
+                        for (j, x) in b.rest.iter().enumerate() {
+                            let d = gm * x.map(Dual64::from);
+                            let gj = g[vertex0 + j];
+                            acc += gj.x * d[0].eps + gj.y * d[1].eps + gj.z * d[2].eps;
+                        }
+                        out[(l, joint.dof_offset + k)] += acc;
+                    }
+                    suffix = local[v] * suffix;
+                    match joint.parent {
+                        Some(p) => v = p,
+                        None => break,
+                    }
+                }
+                vertex0 += b.rest.len();
+            }
+        }
+    }
+
     /// The adjoint of [`Skeleton::update`]: given the adjoint `after` of the state after the
     /// increment `dz` (in the charts of [`Joint::transform_dual`]), write the adjoint of the
     /// state before it into `before` and that of `dz` into `dz_bar` (both overwritten).

@@ -38,6 +38,7 @@ pub(crate) mod global;
 pub(crate) mod hessian;
 pub(crate) mod integrator;
 pub(crate) mod newton;
+pub(crate) mod newton_skeletal;
 pub(crate) mod observer;
 mod settings;
 mod simulator;

@@ -62,14 +62,14 @@ pub(crate) fn check_supported(model: &Model, settings: &Settings) -> Result<(), 
             "solver newton does not support {what}; use solver: direct (--solver direct)"
         )))
     };
+    if model.skeleton.is_some() && !model.obstacles.is_empty() {
+        return unsupported("obstacle contacts with a skeleton (contacts on bone vertices in the reduced step)");
+    }
     if !model.obstacles.is_empty() {
         return unsupported("obstacle contacts (ground or obstacles)");
     }
     if model.collision.is_some() {
         return unsupported("collisions between bodies");
-    }
-    if model.skeleton.is_some() {
-        return unsupported("skeletons (the reduced step of Eqs. 17-18)");
     }
     if model.cloth.is_some() {
         return unsupported("cloth");
@@ -89,6 +89,9 @@ pub(crate) fn build(
     control: InnerControl,
 ) -> Result<(GlobalStep, Certificate), SolverError> {
     check_supported(model, settings)?;
+    if model.skeleton.is_some() {
+        return super::newton_skeletal::build(model, settings, system, control);
+    }
     let t0 = Instant::now();
     let newton = Newton::new(model, system, control)?;
     let mut cert = Certificate::unchecked(SolverKind::Newton, settings.certify, settings.dt);

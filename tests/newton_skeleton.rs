@@ -1,0 +1,284 @@
+//! Newton's method with an embedded skeleton (`solver: newton`, docs/method.md Eqs. S6-S8): on
+//! the paper's Baymax skeleton it reaches the fixed point of the reduced projective-dynamics
+//! step, holds joint limits as the reduced step does, and gives implicit-mode gradients that
+//! match central differences and the ones through a converged direct forward (implicit Euler
+//! and BDF2).
+//!
+//! The tests print their measurements (`--nocapture`).
+
+mod common;
+
+use common::root;
+use diffsoft::diff::{self, Gradient, Mode, Options};
+use diffsoft::mesh::generate::BoxSpec;
+use diffsoft::skeleton::fixed::Fixed;
+use diffsoft::skeleton::rotational::Rotational;
+use diffsoft::skeleton::BoneSpec;
+use diffsoft::solver::StepStats;
+use diffsoft::verify::gradients::{self, Case};
+use diffsoft::solver::Integrator;
+use diffsoft::{BodySpec, MassSpec, Material, ModelBuilder, Settings, Simulator, SolverKind};
+use nalgebra::{Rotation3, Vector3};
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
+}
+
+/// The paper's Baymax skeleton scene without its ground (through the gradient case's loader).
+fn baymax(steps: usize) -> Case {
+    gradients::baymax_torques(&root().join("verification/paper/baymax/baymax_skeleton.json"), steps).unwrap()
+}
+
+/// The `baymax_torques` gradient case (the built-in Baymax scene: named bones, shoulder limits
+/// and torques; no ground).
+fn baymax_case(steps: usize) -> Case {
+    gradients::baymax_torques(&root().join("verification/scenes/baymax_skeleton.json"), steps).unwrap()
+}
+
+fn with(settings: &Settings, solver: SolverKind, tolerance: f64, max_iterations: usize) -> Settings {
+    Settings {
+        solver,
+        tolerance,
+        max_iterations,
+        ..settings.clone()
+    }
+}
+
+/// Baymax (no ground) with constant shoulder torques; `steps` steps' statistics and the final
+/// positions and joint coordinates.
+fn run_baymax(settings: &Settings, steps: usize) -> (Vec<StepStats>, Vec<Vector3<f64>>, Vec<(String, Vec<f64>)>) {
+    let case = baymax(steps);
+    let mut sim = Simulator::new(case.model.clone(), settings.clone()).unwrap();
+    // The shoulders (the last two hinges; the free torso has coordinates 0-5).
+    sim.set_torque_dof(8, Some(-40.0)).unwrap();
+    sim.set_torque_dof(9, Some(25.0)).unwrap();
+    let stats: Vec<StepStats> = (0..steps).map(|_| sim.step().unwrap()).collect();
+    let sk = sim.skeleton().unwrap().coordinates();
+    (stats, sim.state().q.clone(), sk)
+}
+
+fn summary(name: &str, stats: &[StepStats]) -> (f64, usize, f64) {
+    let its = median(stats.iter().map(|s| s.iterations as f64).collect());
+    let max = stats.iter().map(|s| s.iterations).max().unwrap_or(0);
+    let ms = median(stats.iter().map(|s| s.wall_ms).collect());
+    let cg: usize = stats.iter().map(|s| s.global_iterations).sum();
+    eprintln!(
+        "{name}: {} steps, median iterations {its}, max {max}, inner iterations {cg}, median {ms:.3} ms/step, capped solves {}, all converged {}",
+        stats.len(),
+        stats.iter().map(|s| s.capped_solves).sum::<usize>(),
+        stats.iter().all(|s| s.converged)
+    );
+    (its, max, ms)
+}
+
+/// On the paper's Baymax skeleton (free torso, four hinges, shoulder torques), Newton and the
+/// direct reduced step, both to 1e-12, end a few steps at the same positions and joints.
+#[test]
+fn newton_reaches_the_reduced_step_fixed_point_on_baymax() {
+    let steps = 5;
+    let base = baymax(steps).settings;
+    let q0 = baymax(steps).model.rest().to_vec();
+    let (sn, qn, jn) = run_baymax(&with(&base, SolverKind::Newton, 1e-12, 200), steps);
+    let (sd, qd, jd) = run_baymax(&with(&base, SolverKind::Direct, 1e-12, 100_000), steps);
+    summary("baymax newton 1e-12", &sn);
+    summary("baymax direct 1e-12", &sd);
+    assert!(sn.iter().chain(&sd).all(|s| s.converged));
+    let disp = qd.iter().zip(&q0).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max);
+    let diff = qn.iter().zip(&qd).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max);
+    eprintln!("baymax: max displacement {disp:.6e}, max Newton - direct {diff:.3e} (rel {:.2e})", diff / disp);
+    assert!(diff <= 1e-6 * disp, "{diff} vs displacement {disp}");
+    for ((name, a), (_, b)) in jn.iter().zip(&jd) {
+        for (x, y) in a.iter().zip(b) {
+            assert!((x - y).abs() <= 1e-6 * (1.0 + y.abs()), "{name}: {a:?} vs {b:?}");
+        }
+    }
+    assert!(sn.iter().all(|s| s.bone_length_error < 1e-12));
+}
+
+/// Newton against the direct reduced step per step on Baymax at tolerances 1e-8 and 1e-10
+/// (measurements; both must converge).
+#[test]
+fn measure_newton_against_direct_on_baymax() {
+    let steps = 20;
+    let base = baymax(steps).settings;
+    for tol in [1e-8, 1e-10] {
+        let (sn, qn, _) = run_baymax(&with(&base, SolverKind::Newton, tol, 200), steps);
+        let (sd, qd, _) = run_baymax(&with(&base, SolverKind::Direct, tol, 100_000), steps);
+        let (_, _, msn) = summary(&format!("baymax newton {tol:e}"), &sn);
+        let (_, _, msd) = summary(&format!("baymax direct {tol:e}"), &sd);
+        let diff = qn.iter().zip(&qd).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max);
+        eprintln!("tolerance {tol:e}: direct / Newton time per step {:.2}, max position difference {diff:.2e}", msd / msn);
+        assert!(sn.iter().chain(&sd).all(|s| s.converged));
+    }
+}
+
+const G: f64 = 9.81;
+const PIVOT: Vector3<f64> = Vector3::new(0.0, 0.1, 0.0);
+
+/// A stiff 0.1 m block whose top face is a bone on a hinge about `z` through [`PIVOT`], with
+/// the hinge's limits, displaced rigidly by `angle` and at rest.
+fn hinged_block(limits: (f64, f64), angle: f64, settings: Settings) -> Simulator {
+    let mesh = BoxSpec::new([2, 2, 2], [0.1; 3])
+        .origin([-0.05, -0.1, -0.05])
+        .build()
+        .unwrap();
+    let top: Vec<usize> = (0..mesh.num_vertices())
+        .filter(|&i| mesh.vertices[i].y > -1e-9)
+        .collect();
+    let mut body = BodySpec::new(
+        "bob",
+        mesh,
+        Material {
+            youngs_modulus: 1e6,
+            poisson_ratio: 0.3,
+        },
+        MassSpec::Density(1000.0),
+    );
+    let mut hinge = Rotational::new(PIVOT, Vector3::z());
+    hinge.limits = Some(limits);
+    body.bones = vec![
+        BoneSpec {
+            name: "base".into(),
+            parent: None,
+            joint: Box::new(Fixed),
+            vertices: vec![],
+            torque: None,
+        },
+        BoneSpec {
+            name: "hinge".into(),
+            parent: Some(0),
+            joint: Box::new(hinge),
+            vertices: top,
+            torque: None,
+        },
+    ];
+    let model = ModelBuilder::new()
+        .gravity(Vector3::new(0.0, -G, 0.0))
+        .body(body)
+        .build()
+        .unwrap();
+    let rot = Rotation3::from_axis_angle(&Vector3::z_axis(), angle);
+    let q0: Vec<_> = model.rest().iter().map(|x| PIVOT + rot * (x - PIVOT)).collect();
+    let n = model.n();
+    let mut sim = Simulator::new(model, settings).unwrap();
+    sim.set_state(q0, vec![Vector3::zeros(); n]).unwrap();
+    sim.set_joint_coordinates("hinge", &[angle]).unwrap();
+    sim
+}
+
+/// Released at 0.3 rad with limits [-0.2, 0.35], the hinge swings down to -0.2 and rests
+/// against it; Newton (the limit as an active set) follows the direct reduced step (the limit
+/// as a bound on the increment) step by step, to the same angles and positions.
+#[test]
+fn newton_holds_joint_limits_like_the_reduced_step() {
+    let settings = |solver, max_iterations| Settings {
+        dt: 1e-3,
+        solver,
+        tolerance: 1e-11,
+        max_iterations,
+        ..Settings::default()
+    };
+    let mut sn = hinged_block((-0.2, 0.35), 0.3, settings(SolverKind::Newton, 200));
+    let mut sd = hinged_block((-0.2, 0.35), 0.3, settings(SolverKind::Direct, 100_000));
+    let (mut lowest, mut worst, mut at_limit) = (f64::INFINITY, 0.0f64, 0);
+    let mut stats = Vec::new();
+    for _ in 0..400 {
+        let a = sn.step().unwrap();
+        let b = sd.step().unwrap();
+        assert!(a.converged && b.converged);
+        stats.push(a);
+        let an = sn.skeleton().unwrap().bones[1].joint.coordinates()[0];
+        let ad = sd.skeleton().unwrap().bones[1].joint.coordinates()[0];
+        assert!((-0.2 - 1e-12..=0.35 + 1e-12).contains(&an), "angle {an}");
+        lowest = lowest.min(an);
+        at_limit += usize::from(an == -0.2);
+        let dq = sn
+            .state()
+            .q
+            .iter()
+            .zip(&sd.state().q)
+            .map(|(x, y)| (x - y).norm())
+            .fold(0.0, f64::max);
+        worst = worst.max(dq).max((an - ad).abs() * 0.1);
+    }
+    summary("hinge with limits, newton 1e-11", &stats);
+    eprintln!("hinge: lowest angle {lowest}, steps at the limit {at_limit}, max Newton - direct {worst:.2e} m");
+    assert!((lowest + 0.2).abs() < 1e-9, "reached {lowest}");
+    assert!(at_limit > 10, "{at_limit} steps at the limit");
+    assert!(worst < 1e-7, "{worst}");
+}
+
+/// The implicit-mode gradient through a Newton forward of `case`, checked group by group
+/// against central differences (rtol 1e-5), and against the implicit gradient through a
+/// converged direct forward.
+fn gradients_through_newton(mut case: Case, label: &str) {
+    case.settings.solver = SolverKind::Newton;
+    case.settings.tolerance = 1e-12;
+    case.settings.max_iterations = 200;
+    let grad = |settings: &Settings| -> Gradient {
+        diff::gradient(
+            &case.model,
+            settings,
+            case.steps,
+            &case.controls,
+            case.loss.as_ref(),
+            Options::mode(Mode::Implicit),
+        )
+        .unwrap()
+    };
+    let g = grad(&case.settings);
+    for (k, group) in case.groups.iter().enumerate() {
+        let c = gradients::check_group(&case, group, &g, 7 + k as u64).unwrap();
+        eprintln!(
+            "{label} {}: analytic {:.9e}, central difference {:.9e} (step {:.0e}), rel {:.2e}",
+            c.group, c.analytic, c.fd_best, c.step_best, c.rel_error_best
+        );
+        assert!(c.rel_error_best <= 1e-5, "{}: {} vs {}", c.group, c.analytic, c.fd_best);
+    }
+    // The same converged steps through the direct reduced step give the same gradient.
+    let d = grad(&with(&case.settings, SolverKind::Direct, 1e-12, 100_000));
+    let rel = |a: &[f64], b: &[f64]| {
+        let scale = b.iter().fold(0.0f64, |m, x| m.max(x.abs())).max(f64::MIN_POSITIVE);
+        a.iter().zip(b).fold(0.0f64, |m, (x, y)| m.max((x - y).abs())) / scale
+    };
+    let flat3 = |v: &[Vector3<f64>]| v.iter().flat_map(|x| x.iter().copied()).collect::<Vec<f64>>();
+    let flat = |v: &[Vec<f64>]| v.iter().flatten().copied().collect::<Vec<f64>>();
+    let pairs = [
+        ("q0", rel(&flat3(&g.q0), &flat3(&d.q0))),
+        ("v0", rel(&flat3(&g.v0), &flat3(&d.v0))),
+        ("torques", rel(&flat(&g.torques), &flat(&d.torques))),
+        ("joints0", rel(&g.joints0, &d.joints0)),
+        ("w_rot", rel(&g.w_rot, &d.w_rot)),
+        ("w_vol", rel(&g.w_vol, &d.w_vol)),
+        ("mass", rel(&g.mass, &d.mass)),
+    ];
+    eprintln!(
+        "{label}: Newton forward {} iterations, direct forward {} iterations; loss {:.12e} vs {:.12e}",
+        g.stats.forward_iterations, d.stats.forward_iterations, g.loss, d.loss
+    );
+    for (name, r) in pairs {
+        eprintln!("{label}: implicit gradient through Newton vs direct, {name}: max difference / max {r:.2e}");
+        assert!(r <= 1e-6, "{name}: {r}");
+    }
+}
+
+/// Baymax with its skeleton and shoulder torques (the `baymax_torques` gradient case, 3 steps),
+/// implicit Euler.
+#[test]
+fn implicit_gradients_through_newton_with_a_skeleton_match_finite_differences() {
+    gradients_through_newton(baymax_case(3), "baymax_torques");
+}
+
+/// The same with BDF2 (its first step is implicit Euler).
+#[test]
+fn implicit_gradients_through_newton_with_a_skeleton_under_bdf2() {
+    let mut case = baymax_case(3);
+    case.settings.integrator = Integrator::Bdf2;
+    gradients_through_newton(case, "baymax_torques bdf2");
+}
