@@ -426,13 +426,21 @@ fn unsupported_scenes_are_refused_clearly() {
         },
         "Anderson",
     );
-    // A skeleton (Baymax's bones), cloth.
+    // A skeleton runs (Baymax's bones without its ground, tests/newton_skeleton.rs), but not
+    // with obstacles (contacts on bone vertices in the reduced step); cloth is refused.
     let baymax = scene::load(
         root().join("verification/paper/baymax/baymax_skeleton.json"),
         LoadOptions::default(),
     )
     .unwrap();
-    expect(baymax.model, &newton, "skeletons");
+    expect(baymax.model, &newton, "obstacle contacts with a skeleton");
+    let bones =
+        diffsoft::verify::gradients::baymax_torques(&root().join("verification/paper/baymax/baymax_skeleton.json"), 1)
+            .unwrap()
+            .model;
+    let mut sim = Simulator::new(bones, newton.clone()).unwrap();
+    assert_eq!(sim.certificate().used, SolverKind::Newton);
+    assert!(sim.step().unwrap().converged);
     let sheet = diffsoft::mesh::surface::parse_obj(
         "sheet.obj",
         "v 0 0 0\nv 1 0 0\nv 1 0 1\nv 0 0 1\nv 0.5 0.1 0.5\nf 1 2 5\nf 2 3 5\nf 3 4 5\nf 4 1 5\n",

@@ -22,8 +22,8 @@
 //! `global_iterations`, direction solves that hit `inner_max_iterations` in `capped_solves`.
 //!
 //! Scope: tets (corotated elasticity and volume, actuators), fixed vertices, attachments,
-//! gravity. Scenes with anything else (obstacles, collisions between bodies, skeletons, cloth,
-//! Anderson acceleration) are refused at [`super::Simulator::new`] by [`check_supported`]. Every
+//! gravity; skeletons in `newton_skeletal.rs`. Scenes with anything else (obstacles, collisions
+//! between bodies, cloth, Anderson acceleration) are refused at [`super::Simulator::new`] by [`check_supported`]. Every
 //! buffer is allocated in [`Newton::new`].
 
 use std::time::Instant;

@@ -392,16 +392,7 @@ impl NewtonSkeletal {
             full[v] = self.q_r[r];
         }
         let elastic = constraints.project(cx.model, full, cx.activations, Some(&mut self.record))?;
-        let e = step_objective(
-            cx.model,
-            full,
-            cx.s,
-            cx.ih2,
-            elastic,
-            Some(sk),
-            cx.coords0,
-            cx.torque,
-        );
+        let e = step_objective(cx.model, full, cx.s, cx.ih2, elastic, Some(sk), cx.coords0, cx.torque);
         Ok((e, elastic))
     }
 
