@@ -426,19 +426,22 @@ fn unsupported_scenes_are_refused_clearly() {
         },
         "Anderson",
     );
-    // A skeleton runs (Baymax's bones without its ground, tests/newton_skeleton.rs), but not
-    // with obstacles (contacts on bone vertices in the reduced step); cloth is refused.
+    // A skeleton runs (the paper's Baymax bones, tests/newton_skeleton.rs), but not with
+    // obstacles (Fig. 5b's Baymax on the ground: contacts on bone vertices in the reduced step);
+    // cloth is refused.
+    let grounded = scene::load(
+        root().join("verification/scenes/baymax_skeleton.json"),
+        LoadOptions::default(),
+    )
+    .unwrap();
+    assert!(!grounded.model.obstacles().is_empty());
+    expect(grounded.model, &newton, "obstacle contacts with a skeleton");
     let baymax = scene::load(
         root().join("verification/paper/baymax/baymax_skeleton.json"),
         LoadOptions::default(),
     )
     .unwrap();
-    expect(baymax.model, &newton, "obstacle contacts with a skeleton");
-    let bones =
-        diffsoft::verify::gradients::baymax_torques(&root().join("verification/paper/baymax/baymax_skeleton.json"), 1)
-            .unwrap()
-            .model;
-    let mut sim = Simulator::new(bones, newton.clone()).unwrap();
+    let mut sim = Simulator::new(baymax.model, newton.clone()).unwrap();
     assert_eq!(sim.certificate().used, SolverKind::Newton);
     assert!(sim.step().unwrap().converged);
     let sheet = diffsoft::mesh::surface::parse_obj(
