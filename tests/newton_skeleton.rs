@@ -9,14 +9,16 @@
 mod common;
 
 use common::root;
-use diffsoft::diff::{self, Gradient, Mode, Options};
+use diffsoft::diff::loss::CenterOfMass;
+use diffsoft::diff::params::Param;
+use diffsoft::diff::{self, Controls, Gradient, Mode, Options};
 use diffsoft::mesh::generate::BoxSpec;
 use diffsoft::skeleton::fixed::Fixed;
 use diffsoft::skeleton::rotational::Rotational;
 use diffsoft::skeleton::BoneSpec;
 use diffsoft::solver::Integrator;
 use diffsoft::solver::StepStats;
-use diffsoft::verify::gradients::{self, Case};
+use diffsoft::verify::gradients::{self, Case, Group};
 use diffsoft::{BodySpec, MassSpec, Material, ModelBuilder, Settings, Simulator, SolverKind};
 use nalgebra::{Rotation3, Vector3};
 
@@ -131,8 +133,9 @@ const G: f64 = 9.81;
 const PIVOT: Vector3<f64> = Vector3::new(0.0, 0.1, 0.0);
 
 /// A stiff 0.1 m block whose top face is a bone on a hinge about `z` through [`PIVOT`], with
-/// the hinge's limits, displaced rigidly by `angle` and at rest.
-fn hinged_block(limits: (f64, f64), angle: f64, settings: Settings) -> Simulator {
+/// the hinge's limits, displaced rigidly by `angle` (the hinge at that angle); the model and the
+/// displaced positions.
+fn hinge_model(limits: (f64, f64), angle: f64) -> (diffsoft::Model, Vec<Vector3<f64>>) {
     let mesh = BoxSpec::new([2, 2, 2], [0.1; 3])
         .origin([-0.05, -0.1, -0.05])
         .build()
@@ -151,6 +154,7 @@ fn hinged_block(limits: (f64, f64), angle: f64, settings: Settings) -> Simulator
     );
     let mut hinge = Rotational::new(PIVOT, Vector3::z());
     hinge.limits = Some(limits);
+    hinge.angle = angle;
     body.bones = vec![
         BoneSpec {
             name: "base".into(),
@@ -174,6 +178,12 @@ fn hinged_block(limits: (f64, f64), angle: f64, settings: Settings) -> Simulator
         .unwrap();
     let rot = Rotation3::from_axis_angle(&Vector3::z_axis(), angle);
     let q0: Vec<_> = model.rest().iter().map(|x| PIVOT + rot * (x - PIVOT)).collect();
+    (model, q0)
+}
+
+/// [`hinge_model`] at rest in a simulator.
+fn hinged_block(limits: (f64, f64), angle: f64, settings: Settings) -> Simulator {
+    let (model, q0) = hinge_model(limits, angle);
     let n = model.n();
     let mut sim = Simulator::new(model, settings).unwrap();
     sim.set_state(q0, vec![Vector3::zeros(); n]).unwrap();
@@ -371,4 +381,54 @@ fn a_hinge_at_a_large_time_step() {
     assert!(stn.iter().chain(&stdir).all(|s| s.converged));
     assert!(its <= 12.0, "median {its} Newton iterations");
     assert!(dq < 1e-8, "{dq}");
+}
+
+/// A hinge held at its limit by a torque pushing beyond it (the limit active in every step):
+/// the implicit gradient through Newton (the limit in its active set) matches central
+/// differences and the one through the direct reduced step (the limit as a bound).
+#[test]
+fn implicit_gradients_through_newton_at_an_active_joint_limit() {
+    let steps = 4;
+    let (model, q0) = hinge_model((-0.2, 0.35), -0.2);
+    let n = model.n();
+    let case = Case {
+        name: "hinge_at_limit".into(),
+        description: "a hinged block pushed against its limit".into(),
+        model,
+        settings: Settings {
+            dt: 0.01,
+            solver: SolverKind::Newton,
+            tolerance: 1e-12,
+            max_iterations: 200,
+            ..Settings::default()
+        },
+        steps,
+        loss: Box::new(CenterOfMass {
+            direction: Vector3::new(1.0, 0.3, 0.0),
+            time_average: false,
+            vertices: None,
+        }),
+        controls: Controls {
+            initial: Some((q0, vec![Vector3::new(0.05, 0.0, 0.02); n])),
+            torques: Some(vec![vec![-3.0]; steps]),
+            ..Controls::default()
+        },
+        groups: vec![
+            Group::InitialPositions,
+            Group::InitialVelocities,
+            Group::Scalar(Param::YoungsModulus),
+            Group::Scalar(Param::Density),
+            Group::Scalar(Param::Gravity(1)),
+        ],
+    };
+    // The limit holds the hinge in every step.
+    let mut sim = Simulator::new(case.model.clone(), case.settings.clone()).unwrap();
+    let (q, v) = case.controls.initial.clone().unwrap();
+    sim.set_state(q, v).unwrap();
+    for _ in 0..steps {
+        sim.set_torque_dof(0, Some(-3.0)).unwrap();
+        assert!(sim.step().unwrap().converged);
+        assert_eq!(sim.skeleton().unwrap().bones[1].joint.coordinates()[0], -0.2);
+    }
+    gradients_through_newton(case, "hinge at its limit");
 }
