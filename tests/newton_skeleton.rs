@@ -73,8 +73,10 @@ fn summary(name: &str, stats: &[StepStats]) -> (f64, usize, f64) {
     let max = stats.iter().map(|s| s.iterations).max().unwrap_or(0);
     let ms = median(stats.iter().map(|s| s.wall_ms).collect());
     let cg: usize = stats.iter().map(|s| s.global_iterations).sum();
+    let local: f64 = stats.iter().map(|s| s.local_ms).sum();
+    let global: f64 = stats.iter().map(|s| s.global_ms).sum();
     eprintln!(
-        "{name}: {} steps, median iterations {its}, max {max}, inner iterations {cg}, median {ms:.3} ms/step, capped solves {}, all converged {}",
+        "{name}: {} steps, median iterations {its}, max {max}, inner iterations {cg}, median {ms:.3} ms/step (local {local:.1} ms, global {global:.1} ms in all), capped solves {}, all converged {}",
         stats.len(),
         stats.iter().map(|s| s.capped_solves).sum::<usize>(),
         stats.iter().all(|s| s.converged)
