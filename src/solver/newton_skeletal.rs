@@ -29,7 +29,7 @@
 
 use std::time::Instant;
 
-use nalgebra::{DMatrix, Vector3};
+use nalgebra::{DMatrix, Matrix4, Vector3};
 
 use super::certify::Certificate;
 use super::direct::Direct;
@@ -43,7 +43,7 @@ use super::system::GlobalSystem;
 use super::{Settings, SolverError, StepStats};
 use crate::constraint::{Constraints, Linearize, ParamGrads, TetSvd};
 use crate::model::Model;
-use crate::skeleton::Skeleton;
+use crate::skeleton::{DualScratch, Skeleton};
 
 /// Armijo's sufficient-decrease constant.
 const ARMIJO: f64 = 1e-4;
@@ -184,6 +184,9 @@ pub(crate) struct NewtonSkeletal {
     /// Every vertex: a reduced vector expanded and `J K~ J^T` of it.
     y_full: Vec<Vector3<f64>>,
     out_full: Vec<Vector3<f64>>,
+    /// Scratch of the skeleton's transforms (world transforms; dual numbers for `G`).
+    world: Vec<Matrix4<f64>>,
+    dual: DualScratch,
     /// Line searches replaced by a projective-dynamics iteration (diagnostics).
     pub(crate) fallbacks: usize,
 }
@@ -347,6 +350,8 @@ impl NewtonSkeletal {
             held: vec![false; dofs],
             y_full: vec![Vector3::zeros(); n],
             out_full: vec![Vector3::zeros(); n],
+            world: Vec::with_capacity(sk.bones.len()),
+            dual: DualScratch::default(),
             fallbacks: 0,
         }
     }
@@ -387,7 +392,7 @@ impl NewtonSkeletal {
         for (k, &v) in cx.sys.free.iter().enumerate() {
             full[v] = x[k];
         }
-        sk.positions(&mut self.q_r);
+        sk.positions_with(&mut self.world, &mut self.q_r);
         for (r, &v) in cx.sys.rigid.iter().enumerate() {
             full[v] = self.q_r[r];
         }
@@ -414,7 +419,7 @@ impl NewtonSkeletal {
         for (r, &v) in cx.sys.rigid.iter().enumerate() {
             self.g_r[r] -= self.base_r[r] + gathered[v];
         }
-        sk.jacobian(&mut self.b_jac);
+        sk.jacobian_with(&mut self.world, &mut self.b_jac);
         bt_times(&self.b_jac, &self.g_r, &mut self.grad.z);
         for (g, t) in self.grad.z.iter_mut().zip(cx.torque) {
             *g -= t;
@@ -488,7 +493,7 @@ impl NewtonSkeletal {
                 "the reduced skeleton matrix B^T Sigma B is not positive definite".into(),
             ));
         }
-        sk.jacobian_derivative_matrix(&self.g_r, &mut self.geo);
+        sk.jacobian_derivative_matrix_with(&self.g_r, &mut self.geo, &mut self.dual);
         for k1 in 0..dofs {
             for k2 in k1 + 1..dofs {
                 let v = 0.5 * (self.geo[(k1, k2)] + self.geo[(k2, k1)]);
