@@ -434,3 +434,35 @@ fn implicit_gradients_through_newton_at_an_active_joint_limit() {
     }
     gradients_through_newton(case, "hinge at its limit");
 }
+
+/// The built-in Baymax without its ground (named bones, shoulder torques ramping to 20 N m,
+/// shoulder limits): over 80 steps the arms swing up to their limits and rest there; Newton
+/// and the direct reduced step, both to 1e-10, follow the same trajectory.
+#[test]
+fn shoulder_torques_lift_the_arms_to_their_limits_under_newton() {
+    let case = baymax_case(1);
+    let run = |solver, max_iterations| {
+        let settings = with(&case.settings, solver, 1e-10, max_iterations);
+        let mut sim = Simulator::new(case.model.clone(), settings).unwrap();
+        let mut stats = Vec::new();
+        let mut at_limit = 0;
+        for _ in 0..80 {
+            stats.push(sim.step().unwrap());
+            let sk = sim.skeleton().unwrap();
+            let angle = |name: &str| sk.bones.iter().find(|b| b.name == name).unwrap().joint.coordinates()[0];
+            at_limit +=
+                usize::from(angle("left_shoulder") < -1.2 + 1e-9) + usize::from(angle("right_shoulder") > 1.2 - 1e-9);
+            assert!(angle("left_shoulder") >= -1.2 && angle("right_shoulder") <= 1.2);
+        }
+        (stats, sim.state().q.clone(), at_limit)
+    };
+    let (sn, qn, ln) = run(SolverKind::Newton, 200);
+    let (sd, qd, ld) = run(SolverKind::Direct, 100_000);
+    summary("baymax arms, newton 1e-10", &sn);
+    summary("baymax arms, direct 1e-10", &sd);
+    let diff = qn.iter().zip(&qd).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max);
+    eprintln!("baymax arms: joint-steps at a limit {ln} (direct {ld}), max Newton - direct {diff:.2e}");
+    assert!(sn.iter().chain(&sd).all(|s| s.converged));
+    assert!(ln > 20 && ln == ld, "{ln} vs {ld}");
+    assert!(diff < 1e-6, "{diff}");
+}
