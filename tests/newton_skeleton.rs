@@ -1,4 +1,4 @@
-//! Newton's method with an embedded skeleton (`solver: newton`, docs/method.md Eqs. S6-S8): on
+//! Newton's method with an embedded skeleton (`solver: newton`, docs/method.md Eqs. S7-S9): on
 //! the paper's Baymax skeleton it reaches the fixed point of the reduced projective-dynamics
 //! step, holds joint limits as the reduced step does, and gives implicit-mode gradients that
 //! match central differences and the ones through a converged direct forward (implicit Euler

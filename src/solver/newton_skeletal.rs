@@ -1,5 +1,5 @@
 //! Newton's method on the step energy with an embedded skeleton (docs/method.md section 6.5,
-//! Eqs. S6-S8), selected with `solver: newton` on a model with bones.
+//! Eqs. S7-S9), selected with `solver: newton` on a model with bones.
 //!
 //! The unknowns are the free vertices `x_F` and the joint increments `dz` in the joints' tangent
 //! charts (the coordinates of the reduced step, [`super::skeletal`]); the bone vertices follow
@@ -74,7 +74,7 @@ pub(crate) fn build(
     let reduced = Box::new(Skeletal::new(system, &direct, sk));
     let newton = Box::new(NewtonSkeletal::new(model, system, sk, control));
     let mut cert = Certificate::unchecked(SolverKind::Newton, settings.certify, settings.dt);
-    cert.message = "Newton's method on the step energy in the skeleton's reduced coordinates (Eqs. S3-S8): free vertices and joint increments, projected Hessian with the bones' curvature, conjugate gradients preconditioned with the reduced M/h^2 + L through its Schur complement, Armijo line search with the joints' update rules; no spectral certification needed".into();
+    cert.message = "Newton's method on the step energy in the skeleton's reduced coordinates (Eqs. S3-S5, S7-S9): free vertices and joint increments, projected Hessian with the bones' curvature, conjugate gradients preconditioned with the reduced M/h^2 + L through its Schur complement, Armijo line search with the joints' update rules; no spectral certification needed".into();
     cert.elapsed_ms = t0.elapsed().as_secs_f64() * 1e3;
     Ok((
         GlobalStep::Skeletal {
