@@ -25,7 +25,9 @@
 //! converged iterate: Newton's fixed point is the reduced step's, so that iteration moves the
 //! state by round-off and gives the backward pass the data of a converged reduced solve.
 //!
-//! Obstacles with a skeleton are refused (`newton::check_supported`).
+//! Obstacles with a skeleton are refused (`newton::check_supported`). Every buffer is allocated
+//! in [`NewtonSkeletal::new`] (the skeleton's transforms go to scratch buffers too), so a step
+//! allocates nothing once warm (`tests/allocations.rs`).
 
 use std::time::Instant;
 
