@@ -441,13 +441,24 @@ fn unsupported_scenes_are_refused_clearly() {
         },
         "Anderson",
     );
-    // A skeleton (Baymax's bones), cloth.
+    // A skeleton runs (the paper's Baymax bones, tests/newton_skeleton.rs), but not with
+    // obstacles (Fig. 5b's Baymax on the ground: contacts on bone vertices in the reduced step);
+    // cloth is refused.
+    let grounded = scene::load(
+        root().join("verification/scenes/baymax_skeleton.json"),
+        LoadOptions::default(),
+    )
+    .unwrap();
+    assert!(!grounded.model.obstacles().is_empty());
+    expect(grounded.model, &newton, "obstacle contacts with a skeleton");
     let baymax = scene::load(
         root().join("verification/paper/baymax/baymax_skeleton.json"),
         LoadOptions::default(),
     )
     .unwrap();
-    expect(baymax.model, &newton, "skeletons");
+    let mut sim = Simulator::new(baymax.model, newton.clone()).unwrap();
+    assert_eq!(sim.certificate().used, SolverKind::Newton);
+    assert!(sim.step().unwrap().converged);
     let sheet = diffsoft::mesh::surface::parse_obj(
         "sheet.obj",
         "v 0 0 0\nv 1 0 0\nv 1 0 1\nv 0 0 1\nv 0.5 0.1 0.5\nf 1 2 5\nf 2 3 5\nf 3 4 5\nf 4 1 5\n",

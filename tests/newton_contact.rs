@@ -150,14 +150,25 @@ fn check_against_direct(case: &gradients::Case) {
     };
     let gn = grad(&case.settings);
     let gd = grad(&with(&case.settings, SolverKind::Direct, 1e-12, 100_000));
-    let diff_v0 = gn.v0.iter().zip(&gd.v0).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max);
+    let diff_v0 = gn
+        .v0
+        .iter()
+        .zip(&gd.v0)
+        .map(|(a, b)| (a - b).norm())
+        .fold(0.0, f64::max);
     let scale = gd.v0.iter().map(|a| a.norm()).fold(0.0, f64::max);
-    eprintln!("{}: v0 gradient, Newton - direct {diff_v0:.3e} (largest {scale:.3e})", case.name);
+    eprintln!(
+        "{}: v0 gradient, Newton - direct {diff_v0:.3e} (largest {scale:.3e})",
+        case.name
+    );
     assert!(diff_v0 <= 1e-6 * scale, "{diff_v0} vs {scale}");
     let (en, ed): (f64, f64) = (
         gn.youngs_modulus(&case.model).iter().sum(),
         gd.youngs_modulus(&case.model).iter().sum(),
     );
-    eprintln!("{}: Young's modulus gradient, Newton {en:.9e}, direct {ed:.9e}", case.name);
+    eprintln!(
+        "{}: Young's modulus gradient, Newton {en:.9e}, direct {ed:.9e}",
+        case.name
+    );
     assert!((en - ed).abs() <= 1e-6 * ed.abs(), "{en} vs {ed}");
 }

@@ -59,6 +59,47 @@ fn jacobian_derivative_contraction_matches_differences() {
     }
 }
 
+/// `Skeleton::jacobian_derivative_matrix` (the bones' curvature of Newton's reduced Hessian):
+/// entry `(l, k)` is the derivative along chart direction `l` of `g . B e_k`.
+#[test]
+fn jacobian_derivative_matrix_matches_differences() {
+    let mut rng = ChaCha8Rng::seed_from_u64(19);
+    for depth in [1, 3, 5] {
+        let sk = random_chain(depth, &mut rng, false, false);
+        let nr = sk.rigid.len();
+        let g: Vec<Vector3<f64>> = (0..nr)
+            .map(|_| {
+                Vector3::new(
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(-1.0..1.0),
+                )
+            })
+            .collect();
+        let mut an = DMatrix::zeros(sk.dofs, sk.dofs);
+        sk.jacobian_derivative_matrix(&g, &mut an);
+        let gb = |s: &Skeleton, k: usize| {
+            let mut b = DMatrix::zeros(3 * nr, s.dofs);
+            s.jacobian(&mut b);
+            (0..nr)
+                .map(|r| (0..3).map(|a| g[r][a] * b[(3 * r + a, k)]).sum::<f64>())
+                .sum::<f64>()
+        };
+        for l in 0..sk.dofs {
+            let e = 1e-6;
+            let (p, m) = (moved(&sk, l, e), moved(&sk, l, -e));
+            for k in 0..sk.dofs {
+                let fd = (gb(&p, k) - gb(&m, k)) / (2.0 * e);
+                assert!(
+                    (an[(l, k)] - fd).abs() <= 1e-7 * (1.0 + fd.abs()),
+                    "depth {depth}, ({l}, {k}): analytic {}, fd {fd}",
+                    an[(l, k)]
+                );
+            }
+        }
+    }
+}
+
 /// `sum_r J[r, j] dA/dz_r` at the state after the update, for comparison with a difference of
 /// the transforms.
 fn chart_to_transform(j: &Skeleton, bone: usize, col: &[f64]) -> Matrix4<f64> {

@@ -261,6 +261,10 @@ impl StepObserver for Recording {
         self.svds.last_mut()
     }
 
+    fn records_iterations(&self) -> bool {
+        self.keep_iterates
+    }
+
     fn solved(&mut self, info: SolveInfo<'_>) {
         if !self.keep_iterates {
             self.solve_sets.clear();

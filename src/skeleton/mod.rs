@@ -76,6 +76,15 @@ impl Clone for Bone {
     }
 }
 
+/// Scratch of [`Skeleton::jacobian_derivative_matrix_with`]: per-bone dual-number transforms
+/// and a chart increment.
+#[derive(Debug, Clone, Default)]
+pub struct DualScratch {
+    world: Vec<Matrix4<Dual64>>,
+    local: Vec<Matrix4<Dual64>>,
+    z: Vec<Dual64>,
+}
+
 /// A skeleton (a forest of bones: several roots are allowed).
 #[derive(Debug, Clone)]
 pub struct Skeleton {
@@ -184,19 +193,31 @@ impl Skeleton {
 
     /// World transform `T_b` of every bone (Eq. 11).
     pub fn world_transforms(&self) -> Vec<Matrix4<f64>> {
-        let mut w: Vec<Matrix4<f64>> = Vec::with_capacity(self.bones.len());
+        let mut w = Vec::with_capacity(self.bones.len());
+        self.world_transforms_into(&mut w);
+        w
+    }
+
+    /// [`Skeleton::world_transforms`] into `w` (no allocation once `w` has the capacity).
+    pub fn world_transforms_into(&self, w: &mut Vec<Matrix4<f64>>) {
+        w.clear();
         for b in &self.bones {
             let parent = b.parent.map_or(Matrix4::identity(), |p| w[p]);
             w.push(parent * b.joint.transform());
         }
-        w
     }
 
     /// Positions of the bone vertices (in [`Skeleton::rigid`] order): `q_u = Q T_b V_u` (Eq. 6).
     pub fn positions(&self, out: &mut [Vector3<f64>]) {
-        let w = self.world_transforms();
+        self.positions_with(&mut Vec::with_capacity(self.bones.len()), out);
+    }
+
+    /// [`Skeleton::positions`] with the world transforms in the scratch `w` (no allocation once
+    /// `w` has the capacity).
+    pub fn positions_with(&self, w: &mut Vec<Matrix4<f64>>, out: &mut [Vector3<f64>]) {
+        self.world_transforms_into(w);
         let mut k = 0;
-        for (b, t) in self.bones.iter().zip(&w) {
+        for (b, t) in self.bones.iter().zip(w.iter()) {
             for v in &b.rest {
                 out[k] = (t * v).xyz();
                 k += 1;
@@ -208,7 +229,13 @@ impl Skeleton {
     /// up its chain accumulating the suffix `S`, with the prefix `P_v` the parent's world
     /// transform.
     pub fn jacobian(&self, out: &mut DMatrix<f64>) {
-        let w = self.world_transforms();
+        self.jacobian_with(&mut Vec::with_capacity(self.bones.len()), out);
+    }
+
+    /// [`Skeleton::jacobian`] with the world transforms in the scratch `w` (no allocation once
+    /// `w` has the capacity).
+    pub fn jacobian_with(&self, w: &mut Vec<Matrix4<f64>>, out: &mut DMatrix<f64>) {
+        self.world_transforms_into(w);
         out.fill(0.0);
         let mut row0 = 0;
         for (bi, b) in self.bones.iter().enumerate() {
@@ -445,6 +472,73 @@ impl Skeleton {
                 row0 += 3 * b.rest.len();
             }
             out[l] += acc;
+        }
+    }
+
+    /// `out[(l, k)] = sum_i g_i . dB_ik / dz_l` (`dofs x dofs`): the second derivatives of the
+    /// bone vertices' positions in the charts of [`Joint::transform_dual`] (as in
+    /// [`Skeleton::contract_jacobian_derivative`]) contracted with one vector `g` per bone
+    /// vertex (in [`Skeleton::rigid`] order). Newton's method with a skeleton adds its
+    /// symmetric part to the reduced Hessian (`g` the energy's gradient at the bone vertices).
+    pub fn jacobian_derivative_matrix(&self, g: &[Vector3<f64>], out: &mut DMatrix<f64>) {
+        self.jacobian_derivative_matrix_with(g, out, &mut DualScratch::default());
+    }
+
+    /// [`Skeleton::jacobian_derivative_matrix`] in the buffers of `scratch` (no allocation once
+    /// they have the capacity).
+    pub fn jacobian_derivative_matrix_with(
+        &self,
+        g: &[Vector3<f64>],
+        out: &mut DMatrix<f64>,
+        scratch: &mut DualScratch,
+    ) {
+        let zero = Dual64::from(0.0);
+        let DualScratch { world, local, z } = scratch;
+        out.fill(0.0);
+        for l in 0..self.dofs {
+            world.clear();
+            local.clear();
+            for b in &self.bones {
+                z.clear();
+                z.resize(b.joint.dofs(), zero);
+                if l >= b.dof_offset && l < b.dof_offset + b.joint.dofs() {
+                    z[l - b.dof_offset] = zero.derivative();
+                }
+                let a = b.joint.transform_dual(z);
+                let parent = b.parent.map_or(Matrix4::identity(), |p| world[p]);
+                world.push(parent * a);
+                local.push(a);
+            }
+            let mut vertex0 = 0;
+            for (bi, b) in self.bones.iter().enumerate() {
+                let mut suffix: Matrix4<Dual64> = Matrix4::identity();
+                let mut v = bi;
+                loop {
+                    let joint = &self.bones[v];
+                    let prefix = joint.parent.map_or(Matrix4::identity(), |p| world[p]);
+                    z.clear();
+                    z.resize(joint.joint.dofs(), zero);
+                    if l >= joint.dof_offset && l < joint.dof_offset + joint.joint.dofs() {
+                        z[l - joint.dof_offset] = zero.derivative();
+                    }
+                    for k in 0..joint.joint.dofs() {
+                        let gm = prefix * joint.joint.derivative_dual(z, k) * suffix;
+                        let mut acc = 0.0;
+                        for (j, x) in b.rest.iter().enumerate() {
+                            let d = gm * x.map(Dual64::from);
+                            let gj = g[vertex0 + j];
+                            acc += gj.x * d[0].eps + gj.y * d[1].eps + gj.z * d[2].eps;
+                        }
+                        out[(l, joint.dof_offset + k)] += acc;
+                    }
+                    suffix = local[v] * suffix;
+                    match joint.parent {
+                        Some(p) => v = p,
+                        None => break,
+                    }
+                }
+                vertex0 += b.rest.len();
+            }
         }
     }
 

@@ -24,7 +24,8 @@
 //! `direct.rs`, `stationary.rs`), the skeleton's reduced step (`skeletal.rs`); certification
 //! (`certify.rs`) and the default solver's choice (`choose.rs`), Anderson acceleration
 //! (`anderson.rs`), observers of a step (`observer.rs`); Newton's method on the step energy
-//! instead of local-global iterations (`newton.rs`, with its projected Hessian in `hessian.rs`).
+//! instead of local-global iterations (`newton.rs`, with its projected Hessian in `hessian.rs`;
+//! with a skeleton `newton_skeletal.rs`).
 
 pub(crate) mod anderson;
 pub mod certify;
@@ -39,6 +40,7 @@ pub(crate) mod hessian;
 pub(crate) mod integrator;
 pub(crate) mod newton;
 pub(crate) mod newton_contact;
+pub(crate) mod newton_skeletal;
 pub(crate) mod observer;
 mod settings;
 mod simulator;

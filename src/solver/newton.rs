@@ -26,10 +26,11 @@
 //! contacts' constraints and the line search stops where a separated candidate meets its plane.
 //!
 //! Scope: tets (corotated elasticity and volume, actuators), fixed vertices, attachments,
-//! gravity, obstacle contacts. Scenes with anything else (collisions between bodies, skeletons,
-//! cloth, Anderson acceleration) are refused at [`super::Simulator::new`] by
-//! [`check_supported`]. Every buffer is allocated in [`Newton::new`] (the contact set's grow to
-//! the largest set seen).
+//! gravity, obstacle contacts; skeletons in [`super::newton_skeletal`] (without obstacles).
+//! Scenes with anything else (obstacles with a skeleton, collisions between bodies, cloth,
+//! Anderson acceleration) are refused at [`super::Simulator::new`] by [`check_supported`].
+//! Every buffer is allocated in [`Newton::new`] (the contact set's grow to the largest set
+//! seen).
 
 use std::time::Instant;
 
@@ -69,11 +70,11 @@ pub(crate) fn check_supported(model: &Model, settings: &Settings) -> Result<(), 
             "solver newton does not support {what}; use solver: direct (--solver direct)"
         )))
     };
+    if model.skeleton.is_some() && !model.obstacles.is_empty() {
+        return unsupported("obstacle contacts with a skeleton (contacts on bone vertices in the reduced step)");
+    }
     if model.collision.is_some() {
         return unsupported("collisions between bodies");
-    }
-    if model.skeleton.is_some() {
-        return unsupported("skeletons (the reduced step of Eqs. 17-18)");
     }
     if model.cloth.is_some() {
         return unsupported("cloth");
@@ -93,6 +94,9 @@ pub(crate) fn build(
     control: InnerControl,
 ) -> Result<(GlobalStep, Certificate), SolverError> {
     check_supported(model, settings)?;
+    if model.skeleton.is_some() {
+        return super::newton_skeletal::build(model, settings, system, control);
+    }
     let t0 = Instant::now();
     let newton = Newton::new(model, system, control)?;
     let mut cert = Certificate::unchecked(SolverKind::Newton, settings.certify, settings.dt);

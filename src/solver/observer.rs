@@ -39,6 +39,12 @@ pub(crate) trait StepObserver {
         None
     }
 
+    /// Whether it records the iterations (the backward pass linearizes the last one): Newton's
+    /// method then ends with one local-global iteration at its converged iterate, observed.
+    fn records_iterations(&self) -> bool {
+        false
+    }
+
     /// A global solve ended.
     fn solved(&mut self, _info: SolveInfo<'_>) {}
 

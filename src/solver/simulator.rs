@@ -30,6 +30,9 @@ pub(crate) enum GlobalStep {
         direct: Box<Direct>,
         /// Schur complement and buffers of the reduced step.
         reduced: Box<Skeletal>,
+        /// With `solver: newton`: Newton's method in the reduced coordinates
+        /// (`newton_skeletal.rs`); `None`: local-global iterations.
+        newton: Option<Box<super::newton_skeletal::NewtonSkeletal>>,
     },
 }
 
@@ -38,6 +41,7 @@ impl GlobalStep {
     pub(crate) fn kind(&self) -> SolverKind {
         match self {
             GlobalStep::Free(s) => s.kind(),
+            GlobalStep::Skeletal { newton: Some(_), .. } => SolverKind::Newton,
             GlobalStep::Skeletal { .. } => SolverKind::Direct,
         }
     }
@@ -175,7 +179,11 @@ fn build_global(
         (Some(sk), _) => {
             let direct = Box::new(Direct::new(system, control)?);
             let reduced = Box::new(Skeletal::new(system, &direct, sk));
-            GlobalStep::Skeletal { direct, reduced }
+            GlobalStep::Skeletal {
+                direct,
+                reduced,
+                newton: None,
+            }
         }
         (None, SolverKind::Direct) => GlobalStep::Free(Box::new(match factored {
             Some(d) => d,

@@ -64,6 +64,8 @@ pub(crate) struct Skeletal {
     limits: Vec<(usize, f64, f64)>,
     /// Their multipliers.
     c_mu: Vec<f64>,
+    /// The bones' world transforms (scratch).
+    world: Vec<nalgebra::Matrix4<f64>>,
 }
 
 impl Skeletal {
@@ -113,6 +115,7 @@ impl Skeletal {
             c_prev: Vec::new(),
             limits: Vec::new(),
             c_mu: Vec::new(),
+            world: Vec::with_capacity(skeleton.bones.len()),
         }
     }
 
@@ -193,8 +196,8 @@ impl Skeletal {
             }
             *g = v;
         }
-        skeleton.positions(&mut self.q_r);
-        skeleton.jacobian(&mut self.b_jac);
+        skeleton.positions_with(&mut self.world, &mut self.q_r);
+        skeleton.jacobian_with(&mut self.world, &mut self.b_jac);
         skeleton.torques(time, &mut self.torque);
         let dofs = skeleton.dofs;
         if dofs > 0 {
@@ -271,7 +274,7 @@ impl Skeletal {
                 ));
             }
             skeleton.update(self.dz.as_slice());
-            skeleton.positions(&mut self.q_r);
+            skeleton.positions_with(&mut self.world, &mut self.q_r);
         }
         // Free vertices given the bones: q_F = A_FF^-1 b_F - W q_R (W column by column).
         x_f.copy_from_slice(&self.y0);

@@ -113,6 +113,9 @@ impl Simulator {
     /// free positions is below `tolerance x length scale` or the iteration cap.
     fn iterate(&mut self, stats: &mut StepStats, observer: &mut dyn StepObserver) -> Result<(), SolverError> {
         if self.global.kind() == super::SolverKind::Newton {
+            if self.skeleton.is_some() {
+                return self.newton_skeletal_iterate(stats, observer);
+            }
             return self.newton_iterate(stats, observer);
         }
         if let Some(aa) = self.anderson.as_mut() {
@@ -168,7 +171,7 @@ impl Simulator {
     /// The local step (Eq. 3) at the current iterate and the gather of `J p`; with Anderson
     /// acceleration, an accelerated iterate that raises the step's objective is replaced by the
     /// plain one (and the history forgotten).
-    fn local_phase(
+    pub(super) fn local_phase(
         &mut self,
         stats: &mut StepStats,
         observer: &mut dyn StepObserver,
@@ -222,7 +225,7 @@ impl Simulator {
 
     /// The global step (Eq. 5) from the gathered local step, with the step's contacts; with a
     /// skeleton the reduced step (Eqs. 17-18), which also moves the bone vertices.
-    fn global_phase(&mut self, observer: &mut dyn StepObserver) -> Result<super::GlobalStats, SolverError> {
+    pub(super) fn global_phase(&mut self, observer: &mut dyn StepObserver) -> Result<super::GlobalStats, SolverError> {
         let (model, sys, w, contacts) = (&self.model, &self.system, &mut self.work, &self.contacts);
         for (k, &v) in sys.free.iter().enumerate() {
             w.rhs[k] = w.base[k] + w.gathered[v];
@@ -247,7 +250,7 @@ impl Simulator {
                     solve()?
                 }
             }
-            GlobalStep::Skeletal { direct, reduced } => {
+            GlobalStep::Skeletal { direct, reduced, .. } => {
                 let sk = skeleton.as_mut().expect("a skeletal step has a skeleton");
                 let parallel = direct.parallel_inside();
                 warm::keep_warm_unless(parallel, || -> Result<_, SolverError> {
@@ -341,7 +344,7 @@ impl Simulator {
     }
 
     /// Copy the free iterate into the full positions.
-    fn scatter_iterate(&mut self) {
+    pub(super) fn scatter_iterate(&mut self) {
         let w = &mut self.work;
         for (k, &v) in self.system.free.iter().enumerate() {
             w.full[v] = w.x[k];
@@ -361,7 +364,7 @@ fn joint_scalars(sk: &Skeleton, c: &mut [f64]) {
 /// The objective the local-global iteration of one step minimises:
 /// `1/(2h^2) |q - s|_M^2 + E_constraints(q) + attachments - tau . (z - z_start)`.
 #[allow(clippy::too_many_arguments)]
-fn step_objective(
+pub(super) fn step_objective(
     model: &Model,
     q: &[Vector3<f64>],
     s: &[Vector3<f64>],

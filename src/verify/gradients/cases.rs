@@ -670,8 +670,9 @@ impl CaseScenes {
 /// The built-in cases, in report order: free body, bridgesus, ground contact, actuated beam,
 /// Baymax with torques, Baymax on the ground, ball on cloth (built-in and the paper's), then the
 /// free body, bridgesus, ground contact and Baymax with torques again with BDF2 (docs/method.md
-/// Eqs. T1-T3; names ending in `_bdf2`), then the free body, bridgesus and ground contact
-/// through Newton's method (section 6.5; names ending in `_newton`, implicit mode).
+/// Eqs. T1-T3; names ending in `_bdf2`), then the free body, bridgesus, ground contact and
+/// Baymax with torques through Newton's method (section 6.5; names ending in `_newton`,
+/// implicit mode).
 pub fn builtin_cases(scenes: &CaseScenes, steps: usize) -> Result<Vec<Case>> {
     let mut cases = vec![
         free_body(steps)?,
@@ -695,6 +696,7 @@ pub fn builtin_cases(scenes: &CaseScenes, steps: usize) -> Result<Vec<Case>> {
         free_body(steps)?,
         bridgesus(&scenes.bridgesus, steps)?,
         ground_contact(steps)?,
+        baymax_torques(&scenes.baymax_skeleton, steps)?,
     ] {
         cases.push(with_newton(case));
     }

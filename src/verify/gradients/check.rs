@@ -67,7 +67,10 @@ pub fn steps_sweep() -> Vec<f64> {
     (1..=10).map(|k| 10f64.powi(-k)).collect()
 }
 
-fn check_group(case: &Case, group: &Group, g: &Gradient, seed: u64) -> Result<GroupCheck, DiffError> {
+/// One parameter group of `case` checked against central differences of its loss (a V-curve
+/// over [`steps_sweep`] along a random direction, or the scalar itself), given the gradient `g`
+/// of a run with the case's settings.
+pub fn check_group(case: &Case, group: &Group, g: &Gradient, seed: u64) -> Result<GroupCheck, DiffError> {
     let d = case.direction(group, seed);
     let a = case.analytic(group, g, &d);
     let mut curve = Vec::new();
