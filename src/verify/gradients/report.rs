@@ -209,8 +209,12 @@ pub fn study(inp: &Inputs<'_>, out: &Path) -> Result<GradientsReport> {
     for c in &checks {
         verdicts.push(Verdict::new(
             format!(
-                "{}: unrolled gradients match central differences within atol {ATOL:e} + rtol {RTOL:e} |fd| at the best step, every group",
-                c.name
+                "{}: {} gradients match central differences within atol {ATOL:e} + rtol {RTOL:e} |fd| at the best step, every group",
+                c.name,
+                match c.modes.first().map(|m| m.mode) {
+                    Some(Mode::Implicit) => "implicit-mode (Newton's converged steps)",
+                    _ => "unrolled",
+                }
             ),
             c.passes,
             c.modes.first().and_then(|m| m.worst_rel_error),
