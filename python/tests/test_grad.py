@@ -172,3 +172,24 @@ def test_bdf2_differs_from_implicit_euler_from_the_second_step(beam):
     assert np.abs(bdf2[2] - euler[2]).max() > 1e-9
     with pytest.raises(ValueError):
         beam.configure(integrator="rk4")
+
+
+def test_newton_grads_with_contact(ground):
+    """Newton's method (solver newton) with ground contact: implicit-mode gradients match central
+    differences and the direct solver's converged gradient; unrolled mode is refused."""
+    ground.configure(solver="newton", tolerance=1e-12, max_iterations=200)
+    _, grads = ground.grad(10, loss="final_com.x", params=["initial_velocity.x", "youngs_modulus"], mode="implicit")
+
+    def f(v):
+        s = ground.copy()
+        s.set("initial_velocity.x", v)
+        return s.grad(10, loss="final_com.x", mode="implicit")[0]
+
+    assert grads["initial_velocity.x"] == pytest.approx(central(f, 0.5, 1e-5), rel=1e-5)
+    direct = ground.copy()
+    direct.configure(solver="direct", max_iterations=100000)
+    _, ref = direct.grad(10, loss="final_com.x", params=["initial_velocity.x", "youngs_modulus"], mode="implicit")
+    assert grads["initial_velocity.x"] == pytest.approx(ref["initial_velocity.x"], rel=1e-7)
+    assert grads["youngs_modulus"] == pytest.approx(ref["youngs_modulus"], rel=1e-6)
+    with pytest.raises(Exception, match="Newton"):
+        ground.grad(10, loss="final_com.x", mode="unrolled")
