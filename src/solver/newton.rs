@@ -62,6 +62,13 @@ const ABSOLUTE_FRACTION: f64 = 1e-2;
 /// fall below the precision of `E`'s sum and a Newton step that changes `E` by less than this is
 /// accepted.
 const ENERGY_ROUNDOFF: f64 = 1e-13;
+/// Near the minimum, where the first-order decrease `-grad E . d` of a full Newton step is below
+/// this fraction of `|E|`, the energy cannot rank the step against the iterate (its sum's
+/// round-off is larger than the decrease): a full step that does not raise `E` by more than
+/// this fraction is taken. Backtracking there would shorten correct steps at random and stop
+/// the iteration short of the minimum by round-off-driven amounts (a loss that is noisy at
+/// `1e-11` instead of `1e-14`).
+pub(super) const UNRESOLVED: f64 = 1e-10;
 
 /// Why Newton's method cannot run a model, or `Ok` (see the module docs' scope).
 pub(crate) fn check_supported(model: &Model, settings: &Settings) -> Result<(), SolverError> {
@@ -508,6 +515,9 @@ impl Simulator {
             let block = nw.contacts.blocking(cs, &nw.x0, &nw.dir);
             let mut alpha = block.map_or(1.0, |(a, _)| a);
             let mut accepted = false;
+            // Only a full Newton step can end the iteration: a step shortened by the line
+            // search says nothing about the distance to the minimum.
+            let mut full_step = true;
             let mut state_changed = false;
             if rms(&nw.dir) <= floor && block.is_none() {
                 // A direction below what the step resolves (the iterate is the minimiser up to
@@ -528,9 +538,11 @@ impl Simulator {
                         w.x[k] = nw.x0[k] + nw.dir[k] * alpha;
                     }
                     let (et, el) = nw.energy(&cx, constraints, &w.x, &mut w.full)?;
-                    if et <= e + ARMIJO * alpha * gd + ENERGY_ROUNDOFF * e.abs() {
+                    let unresolved = alpha == 1.0 && -gd <= UNRESOLVED * e.abs() && et <= e + UNRESOLVED * e.abs();
+                    if unresolved || et <= e + ARMIJO * alpha * gd + ENERGY_ROUNDOFF * e.abs() {
                         (e, elastic) = (et, el);
                         accepted = true;
+                        full_step = alpha == 1.0;
                         if let (0, Some((_, j))) = (halving, block) {
                             // The step went as far as the blocking contact: it joins.
                             nw.contacts.activate(j);
@@ -542,6 +554,7 @@ impl Simulator {
                 }
             }
             if !accepted {
+                full_step = false;
                 // One projective-dynamics iteration from x0 instead: it never raises E (with
                 // contacts, it also takes their states again).
                 nw.fallbacks += 1;
@@ -598,7 +611,7 @@ impl Simulator {
                 )));
             }
             stats.relative_change = change / model.length_scale;
-            if change <= tol && !state_changed && friction_moved <= tol {
+            if change <= tol && full_step && !state_changed && friction_moved <= tol {
                 stats.converged = true;
                 break;
             }

@@ -59,6 +59,8 @@ const FORCING_MAX: f64 = 0.1;
 const ABSOLUTE_FRACTION: f64 = 1e-2;
 /// Relative round-off allowance on `E` in the line search (see `newton.rs`).
 const ENERGY_ROUNDOFF: f64 = 1e-13;
+/// See `newton.rs`.
+use super::newton::UNRESOLVED;
 
 /// Build the reduced step's factor and Schur complement and Newton's buffers.
 pub(crate) fn build(
@@ -822,6 +824,8 @@ impl Simulator {
                 s
             };
             let mut accepted = false;
+            // Only a full Newton step can end the iteration (see `newton.rs`).
+            let mut full_step = true;
             if dir_size <= floor {
                 nw.try_step(sk, &mut w.x, 1.0)?;
                 (e, elastic) = nw.energy(&cx, constraints, sk, &w.x, &mut w.full)?;
@@ -831,15 +835,18 @@ impl Simulator {
                 for _ in 0..MAX_HALVINGS {
                     nw.try_step(sk, &mut w.x, alpha)?;
                     let (et, el) = nw.energy(&cx, constraints, sk, &w.x, &mut w.full)?;
-                    if et <= e + ARMIJO * alpha * gd + ENERGY_ROUNDOFF * e.abs() {
+                    let unresolved = alpha == 1.0 && -gd <= UNRESOLVED * e.abs() && et <= e + UNRESOLVED * e.abs();
+                    if unresolved || et <= e + ARMIJO * alpha * gd + ENERGY_ROUNDOFF * e.abs() {
                         (e, elastic) = (et, el);
                         accepted = true;
+                        full_step = alpha == 1.0;
                         break;
                     }
                     alpha *= 0.5;
                 }
             }
             if !accepted {
+                full_step = false;
                 // One reduced projective-dynamics iteration from the start point instead.
                 nw.fallbacks += 1;
                 w.x.copy_from_slice(&nw.x0);
@@ -887,7 +894,7 @@ impl Simulator {
                 )));
             }
             stats.relative_change = change / model.length_scale;
-            if change <= tol {
+            if change <= tol && full_step {
                 stats.converged = true;
                 break;
             }
