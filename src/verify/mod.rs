@@ -753,7 +753,7 @@ pub fn run_suite(suite_path: &Path, out: &Path) -> Result<SuiteBoundsReport> {
     write_json(out.join("actuators.json"), &act)?;
     print!("{}", actuators::table(&act));
     println!(
-        "\ngradient checks (unrolled reverse mode vs central differences, rtol {:e}):",
+        "\ngradient checks (unrolled reverse mode, implicit mode for Newton cases, vs central differences, rtol {:e}):",
         gradients::RTOL
     );
     let gs = &suite.gradients;
