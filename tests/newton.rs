@@ -11,7 +11,7 @@ mod common;
 use std::f64::consts::PI;
 use std::process::Command;
 
-use common::{root, tmp_dir};
+use common::{median, root, tmp_dir, with_solver};
 use diffsoft::contact::Obstacle;
 use diffsoft::diff::{self, Controls, DiffError, Mode, Options};
 use diffsoft::mesh::generate::BoxSpec;
@@ -26,25 +26,6 @@ fn bridgesus() -> scene::Scene {
         LoadOptions::default(),
     )
     .unwrap()
-}
-
-fn with(settings: &Settings, solver: SolverKind, tolerance: f64, max_iterations: usize) -> Settings {
-    Settings {
-        solver,
-        tolerance,
-        max_iterations,
-        ..settings.clone()
-    }
-}
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
-    }
 }
 
 /// Run `steps` steps; the per-step statistics.
@@ -72,8 +53,16 @@ fn summary(name: &str, stats: &[StepStats]) -> (f64, f64) {
 #[test]
 fn newton_reaches_the_direct_fixed_point_on_bridgesus() {
     let sc = bridgesus();
-    let mut newton = Simulator::new(sc.model.clone(), with(&sc.settings, SolverKind::Newton, 1e-12, 200)).unwrap();
-    let mut direct = Simulator::new(sc.model.clone(), with(&sc.settings, SolverKind::Direct, 1e-12, 100_000)).unwrap();
+    let mut newton = Simulator::new(
+        sc.model.clone(),
+        with_solver(&sc.settings, SolverKind::Newton, 1e-12, 200),
+    )
+    .unwrap();
+    let mut direct = Simulator::new(
+        sc.model.clone(),
+        with_solver(&sc.settings, SolverKind::Direct, 1e-12, 100_000),
+    )
+    .unwrap();
     assert_eq!(newton.certificate().used, SolverKind::Newton);
     assert!(newton.certificate().message.contains("Newton"));
     let sn = run(&mut newton, 5);
@@ -107,10 +96,18 @@ fn newton_reaches_the_direct_fixed_point_on_bridgesus() {
 fn newton_converges_on_bridgesus_in_few_iterations() {
     let sc = bridgesus();
     let steps = 40;
-    let mut newton = Simulator::new(sc.model.clone(), with(&sc.settings, SolverKind::Newton, 1e-10, 100)).unwrap();
+    let mut newton = Simulator::new(
+        sc.model.clone(),
+        with_solver(&sc.settings, SolverKind::Newton, 1e-10, 100),
+    )
+    .unwrap();
     let sn = run(&mut newton, steps);
     let (its, _) = summary("bridgesus newton tol 1e-10", &sn);
-    let mut direct = Simulator::new(sc.model.clone(), with(&sc.settings, SolverKind::Direct, 1e-10, 100_000)).unwrap();
+    let mut direct = Simulator::new(
+        sc.model.clone(),
+        with_solver(&sc.settings, SolverKind::Direct, 1e-10, 100_000),
+    )
+    .unwrap();
     let sd = run(&mut direct, steps);
     summary("bridgesus direct tol 1e-10", &sd);
     assert!(sn.iter().all(|s| s.converged && s.capped_solves == 0), "{sn:?}");
@@ -359,7 +356,7 @@ fn implicit_gradients_through_newton_match_finite_differences() {
         assert!(rel < 1e-5, "{name}: {analytic} vs {fd}");
     }
     // The same converged steps through the direct solver give the same gradient.
-    let d = grad(&with(&case.settings, SolverKind::Direct, 1e-13, 100_000));
+    let d = grad(&with_solver(&case.settings, SolverKind::Direct, 1e-13, 100_000));
     let gd: f64 = g.v0.iter().zip(&d.v0).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max);
     let scale = d.v0.iter().map(|a| a.norm()).fold(0.0, f64::max);
     assert!(gd <= 1e-6 * scale, "{gd} vs {scale}");
@@ -530,7 +527,7 @@ fn measure_newton_against_direct_on_bridgesus() {
     );
     for tol in [sc.settings.tolerance, 1e-8, 1e-10, 1e-12] {
         for (solver, cap) in [(SolverKind::Newton, 200), (SolverKind::Direct, 100_000)] {
-            let mut sim = Simulator::new(sc.model.clone(), with(&sc.settings, solver, tol, cap)).unwrap();
+            let mut sim = Simulator::new(sc.model.clone(), with_solver(&sc.settings, solver, tol, cap)).unwrap();
             let stats = run(&mut sim, 100);
             summary(&format!("bridgesus {solver:?} tol {tol:e}"), &stats);
         }
@@ -544,14 +541,14 @@ fn newton_converges_on_bridgesus_at_large_time_steps() {
     for factor in [10.0, 100.0] {
         let settings = Settings {
             dt: sc.settings.dt * factor,
-            ..with(&sc.settings, SolverKind::Newton, 1e-10, 100)
+            ..with_solver(&sc.settings, SolverKind::Newton, 1e-10, 100)
         };
         let mut sim = Simulator::new(sc.model.clone(), settings).unwrap();
         let stats = run(&mut sim, 20);
         let (its, _) = summary(&format!("bridgesus newton dt x{factor}"), &stats);
         let pd_settings = Settings {
             dt: sc.settings.dt * factor,
-            ..with(&sc.settings, SolverKind::Direct, 1e-10, 100_000)
+            ..with_solver(&sc.settings, SolverKind::Direct, 1e-10, 100_000)
         };
         let mut pd = Simulator::new(sc.model.clone(), pd_settings).unwrap();
         let pd_stats = run(&mut pd, 20);

@@ -5,6 +5,9 @@
 //!
 //! The tests print their measurements (`--nocapture`).
 
+mod common;
+
+use common::{median, with_solver};
 use diffsoft::contact::Obstacle;
 use diffsoft::diff::{self, Mode, Options};
 use diffsoft::mesh::generate::BoxSpec;
@@ -39,28 +42,14 @@ fn ground_box(mu: f64) -> Model {
         .unwrap()
 }
 
-fn with(settings: &Settings, solver: SolverKind, tolerance: f64, max_iterations: usize) -> Settings {
-    Settings {
-        solver,
-        tolerance,
-        max_iterations,
-        ..settings.clone()
-    }
-}
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
-}
-
 /// The ground-contact case's box with friction `mu`, run `steps` steps by Newton and by the
 /// direct solver at tolerance 1e-12: the largest position difference over the run against the
 /// largest displacement, and Newton's and the direct solver's statistics.
 fn compare(mu: f64, steps: usize) -> (f64, f64, Vec<StepStats>, Vec<StepStats>) {
     let settings = gradients::gradcheck_settings(0.01, 10);
     let model = ground_box(mu);
-    let mut newton = Simulator::new(model.clone(), with(&settings, SolverKind::Newton, 1e-12, 200)).unwrap();
-    let mut direct = Simulator::new(model, with(&settings, SolverKind::Direct, 1e-12, 100_000)).unwrap();
+    let mut newton = Simulator::new(model.clone(), with_solver(&settings, SolverKind::Newton, 1e-12, 200)).unwrap();
+    let mut direct = Simulator::new(model, with_solver(&settings, SolverKind::Direct, 1e-12, 100_000)).unwrap();
     let q0 = newton.state().q.clone();
     let (mut diff, mut disp) = (0.0f64, 0.0f64);
     let (mut sn, mut sd) = (Vec::new(), Vec::new());
@@ -154,7 +143,7 @@ fn check_against_direct(case: &gradients::Case, require_fd: bool) {
         .unwrap()
     };
     let gn = grad(&case.settings);
-    let gd = grad(&with(&case.settings, SolverKind::Direct, 1e-12, 100_000));
+    let gd = grad(&with_solver(&case.settings, SolverKind::Direct, 1e-12, 100_000));
     let diff_v0 = gn
         .v0
         .iter()

@@ -8,7 +8,7 @@
 
 mod common;
 
-use common::root;
+use common::{median, root, with_solver};
 use diffsoft::diff::loss::CenterOfMass;
 use diffsoft::diff::params::Param;
 use diffsoft::diff::{self, Controls, Gradient, Mode, Options};
@@ -22,16 +22,6 @@ use diffsoft::verify::gradients::{self, Case, Group};
 use diffsoft::{BodySpec, MassSpec, Material, ModelBuilder, Settings, Simulator, SolverKind};
 use nalgebra::{Rotation3, Vector3};
 
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
-    }
-}
-
 /// The paper's Baymax skeleton scene without its ground (through the gradient case's loader).
 fn baymax(steps: usize) -> Case {
     gradients::baymax_torques(&root().join("verification/paper/baymax/baymax_skeleton.json"), steps).unwrap()
@@ -41,15 +31,6 @@ fn baymax(steps: usize) -> Case {
 /// and torques; no ground).
 fn baymax_case(steps: usize) -> Case {
     gradients::baymax_torques(&root().join("verification/scenes/baymax_skeleton.json"), steps).unwrap()
-}
-
-fn with(settings: &Settings, solver: SolverKind, tolerance: f64, max_iterations: usize) -> Settings {
-    Settings {
-        solver,
-        tolerance,
-        max_iterations,
-        ..settings.clone()
-    }
 }
 
 /// Every joint's coordinates by bone name.
@@ -91,8 +72,8 @@ fn newton_reaches_the_reduced_step_fixed_point_on_baymax() {
     let steps = 5;
     let base = baymax(steps).settings;
     let q0 = baymax(steps).model.rest().to_vec();
-    let (sn, qn, jn) = run_baymax(&with(&base, SolverKind::Newton, 1e-12, 200), steps);
-    let (sd, qd, jd) = run_baymax(&with(&base, SolverKind::Direct, 1e-12, 100_000), steps);
+    let (sn, qn, jn) = run_baymax(&with_solver(&base, SolverKind::Newton, 1e-12, 200), steps);
+    let (sd, qd, jd) = run_baymax(&with_solver(&base, SolverKind::Direct, 1e-12, 100_000), steps);
     summary("baymax newton 1e-12", &sn);
     summary("baymax direct 1e-12", &sd);
     assert!(sn.iter().chain(&sd).all(|s| s.converged));
@@ -118,8 +99,8 @@ fn measure_newton_against_direct_on_baymax() {
     let steps = 20;
     let base = baymax(steps).settings;
     for tol in [1e-8, 1e-10] {
-        let (sn, qn, _) = run_baymax(&with(&base, SolverKind::Newton, tol, 200), steps);
-        let (sd, qd, _) = run_baymax(&with(&base, SolverKind::Direct, tol, 100_000), steps);
+        let (sn, qn, _) = run_baymax(&with_solver(&base, SolverKind::Newton, tol, 200), steps);
+        let (sd, qd, _) = run_baymax(&with_solver(&base, SolverKind::Direct, tol, 100_000), steps);
         let (_, _, msn) = summary(&format!("baymax newton {tol:e}"), &sn);
         let (_, _, msd) = summary(&format!("baymax direct {tol:e}"), &sd);
         let diff = qn.iter().zip(&qd).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max);
@@ -284,7 +265,7 @@ fn gradients_through_newton(mut case: Case, label: &str) {
         assert!(c.rel_error_best <= 1e-5, "{}: {} vs {}", c.group, c.analytic, c.fd_best);
     }
     // The same converged steps through the direct reduced step give the same gradient.
-    let d = grad(&with(&case.settings, SolverKind::Direct, 1e-12, 100_000));
+    let d = grad(&with_solver(&case.settings, SolverKind::Direct, 1e-12, 100_000));
     let rel = |a: &[f64], b: &[f64]| {
         let scale = b.iter().fold(0.0f64, |m, x| m.max(x.abs())).max(f64::MIN_POSITIVE);
         a.iter().zip(b).fold(0.0f64, |m, (x, y)| m.max((x - y).abs())) / scale
@@ -332,9 +313,9 @@ fn implicit_gradients_through_newton_with_a_skeleton_under_bdf2() {
 fn newton_with_a_skeleton_converges_superlinearly() {
     let base = baymax(3).settings;
     let at = |max_iterations: usize| -> Vec<Vector3<f64>> {
-        let s = with(&base, SolverKind::Newton, 1e-15, max_iterations);
+        let s = with_solver(&base, SolverKind::Newton, 1e-15, max_iterations);
         let case = baymax(3);
-        let mut sim = Simulator::new(case.model.clone(), with(&base, SolverKind::Newton, 1e-13, 200)).unwrap();
+        let mut sim = Simulator::new(case.model.clone(), with_solver(&base, SolverKind::Newton, 1e-13, 200)).unwrap();
         sim.set_torque_dof(8, Some(-40.0)).unwrap();
         sim.set_torque_dof(9, Some(25.0)).unwrap();
         sim.step().unwrap();
@@ -463,7 +444,7 @@ fn implicit_gradients_through_newton_at_an_active_joint_limit() {
 fn shoulder_torques_lift_the_arms_to_their_limits_under_newton() {
     let case = baymax_case(1);
     let run = |solver, max_iterations| {
-        let settings = with(&case.settings, solver, 1e-10, max_iterations);
+        let settings = with_solver(&case.settings, solver, 1e-10, max_iterations);
         let mut sim = Simulator::new(case.model.clone(), settings).unwrap();
         let mut stats = Vec::new();
         let mut at_limit = 0;

@@ -421,58 +421,10 @@ impl Skeleton {
     /// (Eqs. 12-16), by forward-mode dual numbers along each chart direction `l` (the increment
     /// of [`Joint::transform_dual`]). `b_bar` has the layout of [`Skeleton::jacobian`].
     pub fn contract_jacobian_derivative(&self, b_bar: &DMatrix<f64>, out: &mut [f64]) {
-        let zero = Dual64::from(0.0);
-        let nb = self.bones.len();
-        let mut world: Vec<Matrix4<Dual64>> = Vec::with_capacity(nb);
-        let mut local: Vec<Matrix4<Dual64>> = Vec::with_capacity(nb);
-        let mut z = Vec::with_capacity(6);
-        for l in 0..self.dofs {
-            world.clear();
-            local.clear();
-            for b in &self.bones {
-                z.clear();
-                z.resize(b.joint.dofs(), zero);
-                if l >= b.dof_offset && l < b.dof_offset + b.joint.dofs() {
-                    z[l - b.dof_offset] = zero.derivative();
-                }
-                let a = b.joint.transform_dual(&z);
-                let parent = b.parent.map_or(Matrix4::identity(), |p| world[p]);
-                world.push(parent * a);
-                local.push(a);
-            }
-            let mut acc = 0.0;
-            let mut row0 = 0;
-            for (bi, b) in self.bones.iter().enumerate() {
-                let mut suffix: Matrix4<Dual64> = Matrix4::identity();
-                let mut v = bi;
-                loop {
-                    let joint = &self.bones[v];
-                    let prefix = joint.parent.map_or(Matrix4::identity(), |p| world[p]);
-                    z.clear();
-                    z.resize(joint.joint.dofs(), zero);
-                    if l >= joint.dof_offset && l < joint.dof_offset + joint.joint.dofs() {
-                        z[l - joint.dof_offset] = zero.derivative();
-                    }
-                    for k in 0..joint.joint.dofs() {
-                        let g = prefix * joint.joint.derivative_dual(&z, k) * suffix;
-                        let col = joint.dof_offset + k;
-                        for (j, x) in b.rest.iter().enumerate() {
-                            let d = g * x.map(Dual64::from);
-                            for a in 0..3 {
-                                acc += b_bar[(row0 + 3 * j + a, col)] * d[a].eps;
-                            }
-                        }
-                    }
-                    suffix = local[v] * suffix;
-                    match joint.parent {
-                        Some(p) => v = p,
-                        None => break,
-                    }
-                }
-                row0 += 3 * b.rest.len();
-            }
-            out[l] += acc;
-        }
+        self.for_each_jacobian_derivative(&mut DualScratch::default(), |l, col, vertex, d| {
+            let row = 3 * vertex;
+            out[l] += b_bar[(row, col)] * d.x + b_bar[(row + 1, col)] * d.y + b_bar[(row + 2, col)] * d.z;
+        });
     }
 
     /// `out[(l, k)] = sum_i g_i . dB_ik / dz_l` (`dofs x dofs`): the second derivatives of the
@@ -492,9 +444,22 @@ impl Skeleton {
         out: &mut DMatrix<f64>,
         scratch: &mut DualScratch,
     ) {
+        out.fill(0.0);
+        self.for_each_jacobian_derivative(scratch, |l, col, vertex, d| {
+            out[(l, col)] += g[vertex].dot(&d);
+        });
+    }
+
+    /// Visit every entry of `dB / dz_l` by forward-mode dual numbers along each chart direction
+    /// `l`: `visit(l, column, bone vertex, d)` with `d` the derivative of that vertex's rows of
+    /// column `column` of [`Skeleton::jacobian`] (bone vertices in [`Skeleton::rigid`] order).
+    fn for_each_jacobian_derivative(
+        &self,
+        scratch: &mut DualScratch,
+        mut visit: impl FnMut(usize, usize, usize, Vector3<f64>),
+    ) {
         let zero = Dual64::from(0.0);
         let DualScratch { world, local, z } = scratch;
-        out.fill(0.0);
         for l in 0..self.dofs {
             world.clear();
             local.clear();
@@ -523,13 +488,15 @@ impl Skeleton {
                     }
                     for k in 0..joint.joint.dofs() {
                         let gm = prefix * joint.joint.derivative_dual(z, k) * suffix;
-                        let mut acc = 0.0;
                         for (j, x) in b.rest.iter().enumerate() {
                             let d = gm * x.map(Dual64::from);
-                            let gj = g[vertex0 + j];
-                            acc += gj.x * d[0].eps + gj.y * d[1].eps + gj.z * d[2].eps;
+                            visit(
+                                l,
+                                joint.dof_offset + k,
+                                vertex0 + j,
+                                Vector3::new(d[0].eps, d[1].eps, d[2].eps),
+                            );
                         }
-                        out[(l, joint.dof_offset + k)] += acc;
                     }
                     suffix = local[v] * suffix;
                     match joint.parent {

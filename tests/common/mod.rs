@@ -107,3 +107,29 @@ pub fn json_difference(a: &serde_json::Value, b: &serde_json::Value, path: &str)
         _ => (a != b).then(|| format!("{path}: {a} vs {b}")),
     }
 }
+
+/// `settings` with another solver, tolerance and iteration cap.
+pub fn with_solver(
+    settings: &diffsoft::Settings,
+    solver: diffsoft::SolverKind,
+    tolerance: f64,
+    max_iterations: usize,
+) -> diffsoft::Settings {
+    diffsoft::Settings {
+        solver,
+        tolerance,
+        max_iterations,
+        ..settings.clone()
+    }
+}
+
+/// The median (the mean of the middle two for an even count).
+pub fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
+}
