@@ -493,3 +493,43 @@ fn grad_cli_implicit_tolerance_takes_effect() {
     assert!(!bad.status.success());
     assert!(String::from_utf8_lossy(&bad.stderr).contains("--implicit-tolerance"));
 }
+
+/// A box that starts undeformed meets the tolerance in its first step's first iteration (its
+/// first iterate is the fixed point). The forward counts such steps, because unrolled mode
+/// differentiates the iterations run: through that one iteration its derivative with respect to
+/// the initial shape is off by percents, while implicit mode and a fixed iteration count agree
+/// with each other.
+#[test]
+fn steps_converged_in_one_iteration_are_counted() {
+    let case = gradients::ground_contact(25).unwrap();
+    let u: Vec<f64> = (0..case.model.n() * 3)
+        .map(|i| ((i * 7919) % 13) as f64 - 6.0)
+        .collect();
+    let run = |tolerance: f64, max_iterations: usize, mode: Mode| {
+        let mut s = case.settings.clone();
+        s.tolerance = tolerance;
+        s.max_iterations = max_iterations;
+        let g = diff::gradient(
+            &case.model,
+            &s,
+            case.steps,
+            &Controls::default(),
+            case.loss.as_ref(),
+            Options::mode(mode),
+        )
+        .unwrap();
+        let d: f64 = g.q0.iter().flat_map(|v| v.iter()).zip(&u).map(|(a, b)| a * b).sum();
+        (g.stats.one_iteration_steps, d)
+    };
+    let (n_tol, unrolled_tol) = run(1e-13, 2000, Mode::Unrolled);
+    let (_, implicit_tol) = run(1e-13, 2000, Mode::Implicit);
+    let (n_fixed, unrolled_fixed) = run(0.0, 100, Mode::Unrolled);
+    eprintln!("initial-shape derivative: unrolled (tolerance) {unrolled_tol:e}, implicit {implicit_tol:e}, unrolled (100 iterations) {unrolled_fixed:e}");
+    assert_eq!(n_tol, 1, "the first step converges in its first iteration");
+    assert_eq!(n_fixed, 0, "with tolerance 0 no step is counted");
+    assert!((implicit_tol - unrolled_fixed).abs() <= 1e-6 * implicit_tol.abs());
+    assert!(
+        (unrolled_tol - implicit_tol).abs() >= 1e-3 * implicit_tol.abs(),
+        "the counted step does change the unrolled derivative"
+    );
+}

@@ -169,6 +169,8 @@ pub(crate) struct Forward {
     pub stored_bytes: usize,
     pub iterations: usize,
     pub unconverged: usize,
+    /// Steps that met the tolerance in their first iteration.
+    pub one_iteration: usize,
 }
 
 impl Forward {
@@ -333,6 +335,7 @@ pub(crate) fn forward(
         stored_bytes: 0,
         iterations: 0,
         unconverged: 0,
+        one_iteration: 0,
     };
     f.q.push(&sim.state().q);
     f.v.push(&sim.state().v);
@@ -355,6 +358,7 @@ pub(crate) fn forward(
         };
         f.iterations += st.iterations;
         f.unconverged += usize::from(!st.converged);
+        f.one_iteration += usize::from(st.converged && st.iterations == 1 && settings.tolerance > 0.0);
         if let Some(sk) = sim.skeleton() {
             joints.iter_mut().for_each(|j| *j = 0.0);
             sk.scalars(&mut joints);

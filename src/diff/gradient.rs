@@ -131,6 +131,7 @@ pub fn gradient_with(
             forward_ms,
             forward_iterations: fwd.iterations,
             unconverged_steps: fwd.unconverged,
+            one_iteration_steps: fwd.one_iteration,
             ..Default::default()
         },
     };

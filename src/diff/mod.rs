@@ -208,6 +208,12 @@ pub struct DiffStats {
     pub backward_iterations: usize,
     /// Forward steps that stopped at the iteration cap.
     pub unconverged_steps: usize,
+    /// Forward steps that met the tolerance in their first local-global iteration (their first
+    /// iterate was already the fixed point, e.g. a body at rest or moving rigidly). Unrolled
+    /// mode differentiates the iterations run, so through such a step it returns one
+    /// iteration's derivative, not the converged step's (docs/gradients.md); implicit mode and
+    /// fixed iteration counts (tolerance 0) are unaffected.
+    pub one_iteration_steps: usize,
     /// Implicit mode: largest final relative change of an adjoint fixed point (1).
     pub implicit_residual: f64,
     /// Gauss-Seidel sweeps of the linearized contact systems.

@@ -5,7 +5,9 @@
 //! `u` for large parameter vectors (comparing `g . u` with the difference quotient along `u`,
 //! as PyTorch's fast gradcheck and JAX's `check_grads` do); and a dual-number check of the local
 //! step's linearization on the states of a step. Pass/fail under `|a - n| <= atol + rtol |n|`
-//! at the best step, with the worst entry and both values.
+//! with `n` the central difference at the best step or, where it is closer, the Richardson
+//! extrapolation of two neighbouring steps at or above it; the worst entry is named with both
+//! values.
 
 mod cases;
 mod check;
