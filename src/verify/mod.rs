@@ -677,6 +677,12 @@ pub fn run_suite(suite_path: &Path, out: &Path) -> Result<SuiteBoundsReport> {
         );
         meshes.push(r);
     }
+    let mut sections = vec![("bounds and sweeps", t0.elapsed().as_secs_f64())];
+    let mut lap = Instant::now();
+    let mut section = |name: &'static str, lap: &mut Instant| {
+        sections.push((name, lap.elapsed().as_secs_f64()));
+        *lap = Instant::now();
+    };
     let paper_arithmetic = appendix::paper_arithmetic()?;
     let ts = &suite.t_scaling;
     let t_scaling = t_scaling(ts.cell_size, ts.rho, ts.mu, &ts.cells_per_axis)?;
@@ -717,16 +723,19 @@ pub fn run_suite(suite_path: &Path, out: &Path) -> Result<SuiteBoundsReport> {
     // The table as printed, for the documentation that quotes it (tests/doc_numbers.rs).
     crate::output::write_atomic(&out.join("bounds_table.txt"), table.as_bytes())?;
     print!("{table}");
+    section("t-scaling and paper arithmetic", &mut lap);
     println!("\nJacobian checks of the skeleton:");
     let jac = jacobians::run(2021);
     write_json(out.join("jacobians.json"), &jac)?;
     for v in &jac.verdicts {
         println!("  [{}] {}", if v.holds { "holds" } else { "FAILS" }, v.claim);
     }
+    section("Jacobian checks", &mut lap);
     println!("\nphysics checks of the forward solver:");
     let phys = run_physics(base, out, &suite.physics)?;
     write_json(out.join("physics.json"), &phys)?;
     print!("{}", summary::physics_table(&phys));
+    section("physics checks", &mut lap);
     println!("\nskeleton study ({}):", suite.skeleton.scene.display());
     let sk = skeleton::study(
         &base.join(&suite.skeleton.scene),
@@ -736,6 +745,7 @@ pub fn run_suite(suite_path: &Path, out: &Path) -> Result<SuiteBoundsReport> {
     )?;
     write_json(out.join("skeleton.json"), &sk)?;
     print!("{}", summary::skeleton_table(&sk));
+    section("skeleton study", &mut lap);
     println!("\nactuator study:");
     let ac = &suite.actuators;
     let act = actuators::study(
@@ -752,6 +762,7 @@ pub fn run_suite(suite_path: &Path, out: &Path) -> Result<SuiteBoundsReport> {
     )?;
     write_json(out.join("actuators.json"), &act)?;
     print!("{}", actuators::table(&act));
+    section("actuator study", &mut lap);
     println!(
         "\ngradient checks (unrolled reverse mode, implicit mode for Newton cases, vs central differences, rtol {:e}):",
         gradients::RTOL
@@ -773,16 +784,19 @@ pub fn run_suite(suite_path: &Path, out: &Path) -> Result<SuiteBoundsReport> {
     for v in &grad.verdicts {
         println!("  [{}] {}", if v.holds { "holds" } else { "FAILS" }, v.claim);
     }
+    section("gradient study", &mut lap);
     if let Some(t) = &suite.tradeoff {
         println!("\ntrade-off of solver settings (accuracy against cost):");
         tradeoff::suite_section(base, out, &t.scenes)?;
     }
+    section("trade-off study", &mut lap);
     if let Some(x) = &suite.extremes {
         println!("\nextremes ({:?} subset):", x.subset);
         let ex = extremes::run(x.subset, true);
         write_json(out.join("extremes.json"), &ex)?;
         print!("{}", extremes::table(&ex));
     }
+    section("extremes", &mut lap);
     if let Some(c) = &suite.cloth {
         println!("\ncloth study:");
         let scenes: Vec<(std::path::PathBuf, usize)> =
@@ -793,6 +807,11 @@ pub fn run_suite(suite_path: &Path, out: &Path) -> Result<SuiteBoundsReport> {
         for e in &cl.plot_errors {
             eprintln!("warning: cloth plot not drawn: {e}");
         }
+    }
+    section("cloth study", &mut lap);
+    println!("\nwall time per section:");
+    for (name, s) in &sections {
+        println!("  {name:<32} {s:>7.1} s");
     }
     println!(
         "wrote {}, {}, {}, {}, {}, gradients.json, tradeoff.json, extremes.json, cloth.json, t_scaling.svg, cantilever.svg, skeleton_*.svg, gradient_cost.svg, tradeoff_*.svg, cloth_*.svg, actuator and cloth frames and {} sweep plots in {:.1} s",

@@ -9,6 +9,8 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
 
+use indicatif::ProgressBar;
+
 use super::cases::{Case, Group};
 use super::{ATOL, RTOL};
 use crate::diff::{self, DiffError, DiffStats, Gradient, Mode, Options};
@@ -16,6 +18,7 @@ use crate::kernel::actuator::tet_target_dual;
 use crate::kernel::linearization::TetLinearization;
 use crate::kernel::svd::svd3;
 use crate::model::Model;
+use crate::verify::pool;
 
 /// One point of a V-curve.
 #[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
@@ -80,10 +83,28 @@ pub fn steps_sweep() -> Vec<f64> {
 pub fn check_group(case: &Case, group: &Group, g: &Gradient, seed: u64) -> Result<GroupCheck, DiffError> {
     let d = case.direction(group, seed);
     let a = case.analytic(group, g, &d);
+    // The sweep's forward runs are independent: they run on every core, each on one thread
+    // (their results do not depend on how many run at once).
+    let sweep = steps_sweep();
+    let tasks: Vec<pool::Task<'_, Result<f64, DiffError>>> = sweep
+        .iter()
+        .flat_map(|&e| [e, -e])
+        .map(|step| -> pool::Task<'_, Result<f64, DiffError>> {
+            let d = &d;
+            Box::new(move || case.loss_at(group, d, step))
+        })
+        .collect();
+    let mut losses = pool::run(tasks, rayon::current_num_threads(), &ProgressBar::hidden()).into_iter();
+    let mut next = || -> Result<f64, DiffError> {
+        losses
+            .next()
+            .unwrap_or_else(|| Err("task did not run".into()))
+            .map_err(|panic| DiffError::Unsupported(format!("a finite-difference run panicked: {panic}")))?
+    };
     let mut curve = Vec::new();
-    for e in steps_sweep() {
+    for e in sweep {
         // Steps that leave the parameter's valid range (e.g. nu >= 0.5) are skipped.
-        let (p, m) = match (case.loss_at(group, &d, e), case.loss_at(group, &d, -e)) {
+        let (p, m) = match (next(), next()) {
             (Ok(p), Ok(m)) => (p, m),
             (Err(DiffError::Input(_)), _) | (_, Err(DiffError::Input(_))) => continue,
             (Err(err), _) | (_, Err(err)) => return Err(err),

@@ -20,6 +20,7 @@ use crate::diff::{Controls, Mode, Options};
 use crate::report::{Header, Verdict};
 use crate::scene::{self, LoadOptions};
 use crate::solver::SolverKind;
+use crate::verify::pool;
 
 /// `reports/gradients.json`.
 #[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
@@ -106,6 +107,7 @@ pub fn study(inp: &Inputs<'_>, out: &Path) -> Result<GradientsReport> {
         },
         inp.steps,
     )?;
+    let mut lap = Instant::now();
     let checks = check_all(&cases, 2021);
     for c in &checks {
         println!(
@@ -125,12 +127,25 @@ pub fn study(inp: &Inputs<'_>, out: &Path) -> Result<GradientsReport> {
             }
         );
     }
+    let took = |what: &str, lap: &mut Instant| {
+        println!("  ({what}: {:.1} s)", lap.elapsed().as_secs_f64());
+        *lap = Instant::now();
+    };
+    took("checks", &mut lap);
     let mut sys_case = bridgesus(inp.bridgesus, inp.sysid_steps)?;
     sys_case.settings.max_iterations = 30;
     sys_case.settings.damping = 0.9;
     let mut ids = Vec::new();
-    for factor in [0.1, 10.0] {
-        let s = sysid(&sys_case, factor)?;
+    // The two identifications are independent: one thread each, at once.
+    let sys_case = &sys_case;
+    let tasks: Vec<pool::Task<'_, Result<SysId, crate::diff::DiffError>>> = [0.1, 10.0]
+        .into_iter()
+        .map(|factor| -> pool::Task<'_, Result<SysId, crate::diff::DiffError>> {
+            Box::new(move || sysid(sys_case, factor))
+        })
+        .collect();
+    for r in pool::run(tasks, rayon::current_num_threads(), &indicatif::ProgressBar::hidden()) {
+        let s = r.map_err(|panic| anyhow::anyhow!("system identification panicked: {panic}"))??;
         println!(
             "  sys-id bridgesus: E {:.4e} -> {:.6e} (true {:.4e}), {} L-BFGS iterations, {} evaluations, relative error {:.1e}, {:.1} s",
             s.initial_youngs_modulus,
@@ -143,12 +158,14 @@ pub fn study(inp: &Inputs<'_>, out: &Path) -> Result<GradientsReport> {
         );
         ids.push(s);
     }
+    took("system identification", &mut lap);
     let caps = [1, 2, 3, 5, 10, 20, 30, 50, 100];
     let mut costs = Vec::new();
     for c in [&cases[1], &cases[2]] {
         costs.push(accuracy_vs_cost(c, &caps)?);
     }
     write_cost_svg(&out.join("gradient_cost.svg"), &costs)?;
+    took("accuracy against cost", &mut lap);
     let mem_scene = scene::load(inp.memory_scene, LoadOptions::default())?;
     let mut mem_settings = mem_scene.settings.clone();
     // Gradients with contact need the direct solver.
@@ -205,6 +222,7 @@ pub fn study(inp: &Inputs<'_>, out: &Path) -> Result<GradientsReport> {
             m.peak_heap_bytes.unwrap_or(0) as f64 / 1e6
         );
     }
+    took("memory", &mut lap);
     let mut verdicts = Vec::new();
     for c in &checks {
         verdicts.push(Verdict::new(
