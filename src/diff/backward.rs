@@ -13,6 +13,7 @@ use super::skeletal::SkeletalAdjoint;
 use super::{DiffError, Gradient, Mode, Options};
 use crate::constraint::{Constraints, Linearize, ParamGrads};
 use crate::model::Model;
+use crate::solver::anderson::Anderson;
 use crate::solver::direct::Direct;
 use crate::solver::free_contact::FreeContact;
 use crate::solver::global::InnerControl;
@@ -53,6 +54,8 @@ pub(crate) struct Backward<'a> {
     /// Whether `implicit`'s conjugate-gradient slot holds the adjoint of the previous
     /// (later) step, the next solve's warm start.
     pub(super) implicit_warm: bool,
+    /// Implicit mode: Anderson mixing of the adjoint fixed point (empty in unrolled mode).
+    pub(super) accel: Anderson,
     /// The step's activation adjoints (swapped with the gradient's row).
     pub(super) act_grad: Vec<f64>,
     /// The skeleton's backward buffers (`None` without a skeleton).
@@ -122,6 +125,7 @@ impl<'a> Backward<'a> {
                 }
             }),
             implicit_warm: false,
+            accel: Anderson::new(opts.implicit_anderson, if opts.mode == Mode::Implicit { nf } else { 0 }),
             act_grad: vec![0.0; groups],
             model,
             sys,

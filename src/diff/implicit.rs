@@ -3,7 +3,8 @@
 //! step's linearization (symmetric). Without contacts it is solved by conjugate gradients
 //! preconditioned with the prefactored `A` (DiffPD's approach); with contacts, or where `A - K`
 //! is not positive definite along a search direction, by the fixed point
-//! `r = A^-T (x_bar + K r)` with the contact correction. Exact where the forward converged.
+//! `r = A^-T (x_bar + K r)` with the contact correction, accelerated by Anderson mixing. Exact
+//! where the forward converged.
 
 use nalgebra::Vector3;
 
@@ -11,9 +12,13 @@ use super::backward::{Backward, StepInputs};
 use super::{DiffError, Gradient};
 use crate::constraint::{Linearize, ParamGrads};
 use crate::model::Model;
+use crate::solver::anderson::Anderson;
 
 /// An implicit adjoint's fixed point that ends with a relative change above this has diverged.
 const DIVERGED_CHANGE: f64 = 0.1;
+
+/// A residual this many times the best so far restarts the mixing.
+const RESTART_GROWTH: f64 = 100.0;
 
 /// Refuse the result of an implicit adjoint fixed point that diverged (the linearized step is
 /// not contractive there, e.g. far from convergence or where the contact set is switching).
@@ -128,14 +133,33 @@ impl Backward<'_> {
         step: usize,
     ) -> Result<(), DiffError> {
         let model = self.model;
-        w[PREV].iter_mut().for_each(|p| *p = Vector3::zeros());
+        // The iterate `u` (in `w[PREV]`) whose right-hand side `x_bar0 + K u` the solve sees;
+        // the solve returns `G(u)` in `z`. The map is linear, so Anderson's mixing of the last
+        // iterates (type II, a restarted GMRES in effect) converges in far fewer solves than the
+        // plain iteration, whose rate is the forward's own.
+        // Warm start from the adjoint of the step after this one, as conjugate gradients do.
+        if self.implicit_warm {
+            let [_, _, prev, cg_x, ..] = &mut *w;
+            prev.copy_from_slice(cg_x);
+            self.apply_k(model, inp.q_next, inp.activations, &w[PREV])?;
+            for (k, &v) in self.sys.free.iter().enumerate() {
+                self.xbar[k] = w[XBAR0][k] + self.out_full[v];
+            }
+        } else {
+            w[PREV].iter_mut().for_each(|p| *p = Vector3::zeros());
+        }
+        let mut accel = std::mem::replace(&mut self.accel, Anderson::new(0, 0));
+        accel.reset();
         let mut it = 0;
-        loop {
+        let mut best = f64::INFINITY;
+        let result = loop {
             self.anchor_scratch.iter_mut().for_each(|a| *a = Vector3::zeros());
             let mut anchors = std::mem::take(&mut self.anchor_scratch);
             let r = self.solve_adjoint(contacts, impulses, &w[X_STAR], None, &mut anchors, inp.q_n);
             self.anchor_scratch = anchors;
-            r?;
+            if let Err(e) = r {
+                break Err(e);
+            }
             it += 1;
             let (mut d, mut s) = (0.0f64, 0.0f64);
             for (a, b) in self.z.iter().zip(&w[PREV]) {
@@ -143,20 +167,39 @@ impl Backward<'_> {
                 s = s.max(a.amax());
             }
             let residual = if s > 0.0 { d / s } else { 0.0 };
-            w[PREV].copy_from_slice(&self.z);
             if residual <= self.opts.implicit_tolerance || it >= self.opts.implicit_max_iterations {
                 g.stats.backward_iterations += it;
                 g.stats.implicit_residual = g.stats.implicit_residual.max(residual);
-                return fixed_point_converged(residual, it, step);
+                break fixed_point_converged(residual, it, step);
             }
-            let z = std::mem::take(&mut self.z);
-            let r = self.apply_k(model, inp.q_next, inp.activations, &z);
-            self.z = z;
-            r?;
+            // A mixed iterate that made the residual much worse: forget the history (the
+            // next update is the plain one).
+            if residual > RESTART_GROWTH * best {
+                accel.reset();
+            }
+            best = best.min(residual);
+            let [_, _, prev, _, mixed, ..] = &mut *w;
+            if self.opts.implicit_anderson > 0 {
+                accel.mix(prev, &self.z, mixed);
+                prev.copy_from_slice(mixed);
+            } else {
+                prev.copy_from_slice(&self.z);
+            }
+            let r = self.apply_k(model, inp.q_next, inp.activations, &w[PREV]);
+            if let Err(e) = r {
+                break Err(e);
+            }
             for (k, &v) in self.sys.free.iter().enumerate() {
                 self.xbar[k] = w[XBAR0][k] + self.out_full[v];
             }
+        };
+        self.accel = accel;
+        // The next (earlier) step's solve, either kind, starts from this adjoint.
+        self.implicit_warm = result.is_ok();
+        if self.implicit_warm {
+            w[CG_X].copy_from_slice(&self.z);
         }
+        result
     }
 
     /// `out_full = K y` (all vertices) for free-numbered `y`, with the linearization cached at

@@ -133,6 +133,9 @@ pub struct Options {
     pub implicit_tolerance: f64,
     /// Implicit mode: iteration cap of the adjoint fixed point.
     pub implicit_max_iterations: usize,
+    /// Implicit mode with contacts: memory of the Anderson mixing that accelerates the adjoint
+    /// fixed point (0: the plain iteration, which converges at the forward's own rate).
+    pub implicit_anderson: usize,
     /// Relative tolerance of the linearized contact systems.
     pub contact_tolerance: f64,
     /// Sweep cap of the linearized contact systems.
@@ -156,6 +159,7 @@ impl Default for Options {
             mode: Mode::Unrolled,
             implicit_tolerance: 1e-12,
             implicit_max_iterations: 300,
+            implicit_anderson: 8,
             contact_tolerance: 1e-14,
             contact_max_sweeps: 100_000,
             store_bytes: 0,
