@@ -5,9 +5,10 @@
 //! of `G` values, the next iterate is `G(x_k) - dG gamma` with
 //! `gamma = argmin |f_k - dF gamma|`. The caller guards it with the step's energy (which the
 //! next local step computes anyway) and calls [`Anderson::reset`] when an accelerated iterate
-//! raised it. Buffers are allocated once.
+//! raised it. Buffers are allocated once (the small least-squares system too: `mix` does not
+//! allocate).
 
-use nalgebra::{DMatrix, DVector, Vector3};
+use nalgebra::Vector3;
 
 /// Anderson acceleration state.
 #[derive(Debug, Clone)]
@@ -18,6 +19,10 @@ pub struct Anderson {
     f_prev: Vec<Vector3<f64>>,
     g_prev: Vec<Vector3<f64>>,
     f: Vec<Vector3<f64>>,
+    /// The normal equations of the least-squares problem, `m x m` row-major, and their
+    /// right-hand side (then the solution).
+    gram: Vec<f64>,
+    gamma: Vec<f64>,
     count: usize,
     next: usize,
     has_prev: bool,
@@ -33,6 +38,8 @@ impl Anderson {
             f_prev: vec![Vector3::zeros(); n],
             g_prev: vec![Vector3::zeros(); n],
             f: vec![Vector3::zeros(); n],
+            gram: vec![0.0; m * m],
+            gamma: vec![0.0; m],
             count: 0,
             next: 0,
             has_prev: false,
@@ -75,31 +82,86 @@ impl Anderson {
             return;
         }
         let dot = |a: &[Vector3<f64>], b: &[Vector3<f64>]| -> f64 { a.iter().zip(b).map(|(x, y)| x.dot(y)).sum() };
-        let mut gram = DMatrix::<f64>::zeros(k, k);
-        let mut rhs = DVector::<f64>::zeros(k);
+        let (gram, gamma) = (&mut self.gram[..k * k], &mut self.gamma[..k]);
         for i in 0..k {
-            rhs[i] = dot(&self.df[i], &self.f);
+            gamma[i] = dot(&self.df[i], &self.f);
             for j in i..k {
                 let v = dot(&self.df[i], &self.df[j]);
-                gram[(i, j)] = v;
-                gram[(j, i)] = v;
+                gram[i * k + j] = v;
+                gram[j * k + i] = v;
             }
         }
-        let trace = (0..k).map(|i| gram[(i, i)]).sum::<f64>().max(f64::MIN_POSITIVE);
+        let trace = (0..k).map(|i| gram[i * k + i]).sum::<f64>().max(f64::MIN_POSITIVE);
         for i in 0..k {
-            gram[(i, i)] += 1e-10 * trace;
+            gram[i * k + i] += 1e-10 * trace;
         }
-        let Some(chol) = gram.cholesky() else {
-            return;
-        };
-        let gamma = chol.solve(&rhs);
-        if !gamma.iter().all(|v| v.is_finite()) {
+        if !cholesky_solve(gram, gamma, k) || !gamma.iter().all(|v| v.is_finite()) {
             return;
         }
+        let gamma = &self.gamma[..k];
         for (j, c) in gamma.iter().enumerate() {
             for (o, d) in out.iter_mut().zip(&self.dg[j]) {
                 *o -= d * *c;
             }
         }
+    }
+}
+
+/// Solve the symmetric positive definite `k x k` system `a x = b` in place (`a` row-major, its
+/// lower triangle overwritten by the Cholesky factor; `b` becomes `x`); `false` if `a` is not
+/// positive definite.
+fn cholesky_solve(a: &mut [f64], b: &mut [f64], k: usize) -> bool {
+    for j in 0..k {
+        let mut d = a[j * k + j];
+        for p in 0..j {
+            d -= a[j * k + p] * a[j * k + p];
+        }
+        if d.is_nan() || d <= 0.0 {
+            return false;
+        }
+        let d = d.sqrt();
+        a[j * k + j] = d;
+        for i in j + 1..k {
+            let mut v = a[i * k + j];
+            for p in 0..j {
+                v -= a[i * k + p] * a[j * k + p];
+            }
+            a[i * k + j] = v / d;
+        }
+    }
+    for i in 0..k {
+        let mut v = b[i];
+        for p in 0..i {
+            v -= a[i * k + p] * b[p];
+        }
+        b[i] = v / a[i * k + i];
+    }
+    for i in (0..k).rev() {
+        let mut v = b[i];
+        for p in i + 1..k {
+            v -= a[p * k + i] * b[p];
+        }
+        b[i] = v / a[i * k + i];
+    }
+    true
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The in-place Cholesky solve against a hand-made SPD system.
+    #[test]
+    fn cholesky_solve_matches_a_known_solution() {
+        let x = [1.0, -2.0, 0.5];
+        let a = [4.0, 2.0, 0.6, 2.0, 5.0, 1.0, 0.6, 1.0, 3.0];
+        let mut b: Vec<f64> = (0..3).map(|i| (0..3).map(|j| a[i * 3 + j] * x[j]).sum()).collect();
+        let mut f = a;
+        assert!(cholesky_solve(&mut f, &mut b, 3));
+        for (got, want) in b.iter().zip(x) {
+            assert!((got - want).abs() < 1e-14, "{got} vs {want}");
+        }
+        let mut indefinite = [1.0, 2.0, 2.0, 1.0];
+        assert!(!cholesky_solve(&mut indefinite, &mut [1.0, 1.0], 2));
     }
 }
