@@ -174,6 +174,14 @@ fn shards_merge_into_the_unsharded_report() {
         .any(|r| r["gradient"]["solver_error"].is_number()));
     let refs = expected["scenes"][0]["dt_references"].as_array().unwrap();
     assert!(refs.iter().any(|r| r["integrator"] == "bdf2"));
+    // Every reference gradient of this smooth scene is checked against central differences of
+    // its own loss and kept.
+    let grefs = expected["scenes"][0]["gradient_references"].as_array().unwrap();
+    assert!(!grefs.is_empty());
+    for g in grefs {
+        assert_eq!(g["fd_check"]["agrees"], true, "{g}");
+        assert!(g["gradient"]["values"].is_array(), "{g}");
+    }
 
     // Missing, duplicate and foreign shards are refused with a message.
     let e = tradeoff::merge(parts[..2].to_vec(), &names[..2])

@@ -170,6 +170,25 @@ pub struct GradientReference {
     pub integrator: Integrator,
     /// The gradient, or why there is none.
     pub gradient: GradientResult,
+    /// The check of its first parameter (Young's modulus) against central differences of the
+    /// same loss: a reference that disagrees is withdrawn (`gradient.values` is `null`, and its
+    /// `message` says why), since no error can be measured against it.
+    #[serde(default)]
+    pub fd_check: Option<ReferenceCheck>,
+}
+
+/// A reference gradient's first component against central differences of its own loss.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
+pub struct ReferenceCheck {
+    /// `p dL/dp` of the reference gradient (the loss unit).
+    pub analytic: f64,
+    /// `(L(p (1 + e)) - L(p (1 - e))) / 2e` at each relative step `e` of `steps` (the loss
+    /// unit).
+    pub central_differences: Vec<f64>,
+    /// The relative steps (1).
+    pub steps: Vec<f64>,
+    /// Whether the analytic value is within 10% of the closest central difference.
+    pub agrees: bool,
 }
 
 /// A shard's part of a sweep (`diffsoft tradeoff --shard K/N`).

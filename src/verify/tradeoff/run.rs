@@ -9,7 +9,9 @@ use std::time::Instant;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use nalgebra::Vector3;
 
-use super::report::{GradientReference, GradientResult, Reference, Row, Status, Timing, TrajectoryErrors};
+use super::report::{
+    GradientReference, GradientResult, Reference, ReferenceCheck, Row, Status, Timing, TrajectoryErrors,
+};
 use super::trajectory::{self, advance, ErrorAcc};
 use super::{
     reference_settings, scene, Family, SceneSummary, Setting, TradeoffError, TradeoffPartial, TradeoffSpec,
@@ -139,13 +141,61 @@ fn gradient(ctx: &Ctx<'_>, settings: &Settings, steps: usize) -> GradientResult 
     out
 }
 
+/// Relative steps of a reference gradient's finite-difference check.
+const REFERENCE_CHECK_STEPS: [f64; 2] = [1e-3, 1e-4];
+
+/// Largest relative disagreement of a reference gradient with its closest central difference.
+const REFERENCE_CHECK_RTOL: f64 = 0.1;
+
 fn gradient_reference(ctx: &Ctx<'_>, (integrator, divisor): RefKey) -> GradientReference {
     let settings = reference_settings(ctx.base, ctx.spec, divisor, 0, integrator);
+    let steps = ctx.spec.steps * divisor;
+    let mut gradient = gradient(ctx, &settings, steps);
+    // A loss that jumps at this resolution (contacts or joint limits switching within a step)
+    // has a derivative that means nothing: measured errors against it would all be about 1.
+    let fd_check = gradient
+        .values
+        .as_ref()
+        .and_then(|v| v.first().copied())
+        .and_then(|analytic| reference_check(ctx, &settings, steps, analytic));
+    if let Some(c) = fd_check.as_ref().filter(|c| !c.agrees) {
+        gradient.message = Some(format!(
+            "withdrawn: the reference's E dL/dE = {:.3e} disagrees with central differences of its own loss ({:?} at relative steps {:?}); the loss is not differentiable at this resolution",
+            c.analytic, c.central_differences, c.steps
+        ));
+        gradient.values = None;
+    }
     GradientReference {
         dt_divisor: divisor,
         integrator,
-        gradient: gradient(ctx, &settings, ctx.spec.steps * divisor),
+        gradient,
+        fd_check,
     }
+}
+
+/// The reference gradient's first component (`p dL/dp`, Young's modulus) against central
+/// differences of the same loss; `None` when a forward run fails.
+fn reference_check(ctx: &Ctx<'_>, settings: &Settings, steps: usize, analytic: f64) -> Option<ReferenceCheck> {
+    let p = PARAMETERS[0];
+    let x = p.get(ctx.model).ok()?;
+    let loss_at = |value: f64| -> Option<f64> {
+        let mut model = ctx.model.clone();
+        p.set(&mut model, value).ok()?;
+        diff::loss_value(&model, settings, steps, &Controls::default(), ctx.loss.as_ref()).ok()
+    };
+    let mut central = Vec::new();
+    for e in REFERENCE_CHECK_STEPS {
+        central.push((loss_at(x * (1.0 + e))? - loss_at(x * (1.0 - e))?) / (2.0 * e));
+    }
+    let agrees = central
+        .iter()
+        .any(|fd| (analytic - fd).abs() <= REFERENCE_CHECK_RTOL * fd.abs().max(1e-12));
+    Some(ReferenceCheck {
+        analytic,
+        central_differences: central,
+        steps: REFERENCE_CHECK_STEPS.to_vec(),
+        agrees,
+    })
 }
 
 fn median(v: &mut [f64]) -> f64 {
@@ -425,6 +475,7 @@ pub fn run_shard(
                     message: Some(format!("panicked: {panic}")),
                     ..Default::default()
                 },
+                fd_check: None,
             }),
         }
     }
