@@ -25,7 +25,8 @@
 //! (`certify.rs`) and the default solver's choice (`choose.rs`), Anderson acceleration
 //! (`anderson.rs`), observers of a step (`observer.rs`); Newton's method on the step energy
 //! instead of local-global iterations (`newton.rs`, with its projected Hessian in `hessian.rs`;
-//! with a skeleton `newton_skeletal.rs`).
+//! with a skeleton `newton_skeletal.rs`; the rules both share, forcing term and line-search
+//! test, in `newton_rules.rs`).
 
 pub(crate) mod anderson;
 pub mod certify;
@@ -40,6 +41,7 @@ pub(crate) mod hessian;
 pub(crate) mod integrator;
 pub(crate) mod newton;
 pub(crate) mod newton_contact;
+mod newton_rules;
 pub(crate) mod newton_skeletal;
 pub(crate) mod observer;
 mod settings;

@@ -49,26 +49,7 @@ use super::{Settings, SolverError, StepStats};
 use crate::constraint::{Constraints, Linearize, ParamGrads, TetSvd};
 use crate::model::Model;
 
-/// Armijo's sufficient-decrease constant.
-const ARMIJO: f64 = 1e-4;
-/// Step halvings of the line search before it gives up (then one projective-dynamics step).
-const MAX_HALVINGS: usize = 30;
-/// Largest forcing term of the direction solve (Eq. S5).
-const FORCING_MAX: f64 = 0.1;
-/// The direction solve also stops once the preconditioned residual is this fraction of the
-/// convergence tolerance (the rest of the correction is below what the step resolves).
-const ABSOLUTE_FRACTION: f64 = 1e-2;
-/// Relative round-off allowance on `E` in the line search: near the minimum, energy differences
-/// fall below the precision of `E`'s sum and a Newton step that changes `E` by less than this is
-/// accepted.
-const ENERGY_ROUNDOFF: f64 = 1e-13;
-/// Near the minimum, where the first-order decrease `-grad E . d` of a full Newton step is below
-/// this fraction of `|E|`, the energy cannot rank the step against the iterate (its sum's
-/// round-off is larger than the decrease): a full step that does not raise `E` by more than
-/// this fraction is taken. Backtracking there would shorten correct steps at random and stop
-/// the iteration short of the minimum by round-off-driven amounts (a loss that is noisy at
-/// `1e-11` instead of `1e-14`).
-pub(super) const UNRESOLVED: f64 = 1e-10;
+use super::newton_rules::{accepts, forcing, ABSOLUTE_FRACTION, MAX_HALVINGS};
 
 /// Why Newton's method cannot run a model, or `Ok` (see the module docs' scope).
 pub(crate) fn check_supported(model: &Model, settings: &Settings) -> Result<(), SolverError> {
@@ -330,7 +311,7 @@ impl Newton {
 
     /// `H d = -grad E` by conjugate gradients preconditioned with `A^-1` from `d = 0` (Eq. S5):
     /// stop when the preconditioned residual's RMS is below `max(eta |A^-1 grad E|, floor)`,
-    /// with the forcing term `eta = min(FORCING_MAX, sqrt(|A^-1 grad E| / z_first))` (`z_first`:
+    /// with the forcing term `eta` of [`forcing`] (`min(0.1, sqrt(|A^-1 grad E| / z_first))`, `z_first`:
     /// that length at the step's first iterate, `NaN` there).
     fn direction(
         &mut self,
@@ -346,11 +327,7 @@ impl Newton {
         self.direct.solve_free(&self.r, &mut self.z)?;
         self.contacts.project(cx.contacts, &mut self.z);
         let z0 = rms(&self.z);
-        let eta = if z_first > 0.0 {
-            FORCING_MAX.min((z0 / z_first).sqrt())
-        } else {
-            FORCING_MAX
-        };
+        let eta = forcing(z0, z_first);
         let stop = (eta * z0).max(floor);
         if z0 <= floor {
             // Already within the floor: the preconditioned gradient step is the direction.
@@ -538,8 +515,7 @@ impl Simulator {
                         w.x[k] = nw.x0[k] + nw.dir[k] * alpha;
                     }
                     let (et, el) = nw.energy(&cx, constraints, &w.x, &mut w.full)?;
-                    let unresolved = alpha == 1.0 && -gd <= UNRESOLVED * e.abs() && et <= e + UNRESOLVED * e.abs();
-                    if unresolved || et <= e + ARMIJO * alpha * gd + ENERGY_ROUNDOFF * e.abs() {
+                    if accepts(alpha, gd, e, et) {
                         (e, elastic) = (et, el);
                         accepted = true;
                         full_step = alpha == 1.0;

@@ -47,20 +47,7 @@ use crate::constraint::{Constraints, Linearize, ParamGrads, TetSvd};
 use crate::model::Model;
 use crate::skeleton::{DualScratch, Skeleton};
 
-/// Armijo's sufficient-decrease constant.
-const ARMIJO: f64 = 1e-4;
-/// Step halvings of the line search before it gives up (then one reduced projective-dynamics
-/// iteration).
-const MAX_HALVINGS: usize = 30;
-/// Largest forcing term of the direction solve (Eq. S5).
-const FORCING_MAX: f64 = 0.1;
-/// The direction solve also stops once the preconditioned residual is this fraction of the
-/// convergence tolerance.
-const ABSOLUTE_FRACTION: f64 = 1e-2;
-/// Relative round-off allowance on `E` in the line search (see `newton.rs`).
-const ENERGY_ROUNDOFF: f64 = 1e-13;
-/// See `newton.rs`.
-use super::newton::UNRESOLVED;
+use super::newton_rules::{accepts, forcing, ABSOLUTE_FRACTION, MAX_HALVINGS};
 
 /// Build the reduced step's factor and Schur complement and Newton's buffers.
 pub(crate) fn build(
@@ -631,11 +618,7 @@ impl NewtonSkeletal {
         let zz = std::mem::replace(&mut self.zz, Red::new(0, 0));
         let z0 = self.pos_rms(&zz);
         self.zz = zz;
-        let eta = if z_first > 0.0 {
-            FORCING_MAX.min((z0 / z_first).sqrt())
-        } else {
-            FORCING_MAX
-        };
+        let eta = forcing(z0, z_first);
         let stop = (eta * z0).max(floor);
         if z0 <= floor {
             self.dir.copy_from(&self.zz);
@@ -835,8 +818,7 @@ impl Simulator {
                 for _ in 0..MAX_HALVINGS {
                     nw.try_step(sk, &mut w.x, alpha)?;
                     let (et, el) = nw.energy(&cx, constraints, sk, &w.x, &mut w.full)?;
-                    let unresolved = alpha == 1.0 && -gd <= UNRESOLVED * e.abs() && et <= e + UNRESOLVED * e.abs();
-                    if unresolved || et <= e + ARMIJO * alpha * gd + ENERGY_ROUNDOFF * e.abs() {
+                    if accepts(alpha, gd, e, et) {
                         (e, elastic) = (et, el);
                         accepted = true;
                         full_step = alpha == 1.0;
