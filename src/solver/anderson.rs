@@ -10,6 +10,8 @@
 
 use nalgebra::Vector3;
 
+use super::cholesky;
+
 /// Anderson acceleration state.
 #[derive(Debug, Clone)]
 pub struct Anderson {
@@ -95,7 +97,11 @@ impl Anderson {
         for i in 0..k {
             gram[i * k + i] += 1e-10 * trace;
         }
-        if !cholesky_solve(gram, gamma, k) || !gamma.iter().all(|v| v.is_finite()) {
+        if !cholesky::factor(gram, k) {
+            return;
+        }
+        cholesky::solve(gram, gamma, k);
+        if !gamma.iter().all(|v| v.is_finite()) {
             return;
         }
         let gamma = &self.gamma[..k];
@@ -104,64 +110,5 @@ impl Anderson {
                 *o -= d * *c;
             }
         }
-    }
-}
-
-/// Solve the symmetric positive definite `k x k` system `a x = b` in place (`a` row-major, its
-/// lower triangle overwritten by the Cholesky factor; `b` becomes `x`); `false` if `a` is not
-/// positive definite.
-fn cholesky_solve(a: &mut [f64], b: &mut [f64], k: usize) -> bool {
-    for j in 0..k {
-        let mut d = a[j * k + j];
-        for p in 0..j {
-            d -= a[j * k + p] * a[j * k + p];
-        }
-        if d.is_nan() || d <= 0.0 {
-            return false;
-        }
-        let d = d.sqrt();
-        a[j * k + j] = d;
-        for i in j + 1..k {
-            let mut v = a[i * k + j];
-            for p in 0..j {
-                v -= a[i * k + p] * a[j * k + p];
-            }
-            a[i * k + j] = v / d;
-        }
-    }
-    for i in 0..k {
-        let mut v = b[i];
-        for p in 0..i {
-            v -= a[i * k + p] * b[p];
-        }
-        b[i] = v / a[i * k + i];
-    }
-    for i in (0..k).rev() {
-        let mut v = b[i];
-        for p in i + 1..k {
-            v -= a[p * k + i] * b[p];
-        }
-        b[i] = v / a[i * k + i];
-    }
-    true
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// The in-place Cholesky solve against a hand-made SPD system.
-    #[test]
-    fn cholesky_solve_matches_a_known_solution() {
-        let x = [1.0, -2.0, 0.5];
-        let a = [4.0, 2.0, 0.6, 2.0, 5.0, 1.0, 0.6, 1.0, 3.0];
-        let mut b: Vec<f64> = (0..3).map(|i| (0..3).map(|j| a[i * 3 + j] * x[j]).sum()).collect();
-        let mut f = a;
-        assert!(cholesky_solve(&mut f, &mut b, 3));
-        for (got, want) in b.iter().zip(x) {
-            assert!((got - want).abs() < 1e-14, "{got} vs {want}");
-        }
-        let mut indefinite = [1.0, 2.0, 2.0, 1.0];
-        assert!(!cholesky_solve(&mut indefinite, &mut [1.0, 1.0], 2));
     }
 }

@@ -18,18 +18,19 @@
 //! [`Simulator::new`]. Non-finite values, exploding energy and divergent iterations end the run
 //! with a [`SolverError`] that says what happened.
 //!
-//! Files: [`Simulator`] (`simulator.rs`) and its step as named phases (`step.rs`); the
-//! integrator's explicit phases (`integrator.rs`); the contact phase (`contacts.rs`); the
-//! global system (`system.rs`) and the global solvers behind one trait (`global.rs`:
-//! `direct.rs`, `stationary.rs`), the skeleton's reduced step (`skeletal.rs`); certification
-//! (`certify.rs`) and the default solver's choice (`choose.rs`), Anderson acceleration
-//! (`anderson.rs`), observers of a step (`observer.rs`); Newton's method on the step energy
-//! instead of local-global iterations (`newton.rs`, with its projected Hessian in `hessian.rs`;
-//! with a skeleton `newton_skeletal.rs`; the rules both share, forcing term and line-search
-//! test, in `newton_rules.rs`).
+//! Files: [`Simulator`] (`simulator.rs`) and its step as named phases (`step.rs`); the integrator's
+//! explicit phases (`integrator.rs`); the contact phase (`contacts.rs`); the global system
+//! (`system.rs`) and the global solvers behind one trait (`global.rs`: `direct.rs`,
+//! `stationary.rs`), the skeleton's reduced step (`skeletal.rs`); certification (`certify.rs`) and
+//! the default solver's choice (`choose.rs`), Anderson acceleration (`anderson.rs`), small dense
+//! Cholesky solves in place (`cholesky.rs`), observers of a step (`observer.rs`); Newton's method
+//! on the step energy instead of local-global iterations (`newton.rs`, with its projected Hessian
+//! in `hessian.rs`; with a skeleton `newton_skeletal.rs`; the rules both share, forcing term and
+//! line-search test, in `newton_rules.rs`).
 
 pub(crate) mod anderson;
 pub mod certify;
+mod cholesky;
 pub mod choose;
 pub(crate) mod contact_space;
 pub(crate) mod contacts;

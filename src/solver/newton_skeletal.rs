@@ -47,6 +47,7 @@ use crate::constraint::{Constraints, Linearize, ParamGrads, TetSvd};
 use crate::model::Model;
 use crate::skeleton::{DualScratch, Skeleton};
 
+use super::cholesky;
 use super::newton_rules::{accepts, forcing, ABSOLUTE_FRACTION, MAX_HALVINGS};
 
 /// Build the reduced step's factor and Schur complement and Newton's buffers.
@@ -258,49 +259,6 @@ fn bt_times(b: &DMatrix<f64>, v: &[Vector3<f64>], out: &mut [f64]) {
     }
 }
 
-/// In-place Cholesky `S = L L^T` (lower triangle); `false` if not positive definite.
-fn cholesky(s: &mut DMatrix<f64>) -> bool {
-    let n = s.nrows();
-    for j in 0..n {
-        let mut d = s[(j, j)];
-        for k in 0..j {
-            d -= s[(j, k)] * s[(j, k)];
-        }
-        if d.is_nan() || d <= 0.0 {
-            return false;
-        }
-        let d = d.sqrt();
-        s[(j, j)] = d;
-        for i in j + 1..n {
-            let mut v = s[(i, j)];
-            for k in 0..j {
-                v -= s[(i, k)] * s[(j, k)];
-            }
-            s[(i, j)] = v / d;
-        }
-    }
-    true
-}
-
-/// Solve `L L^T x = b` in place with the factor of [`cholesky`].
-fn cholesky_solve(l: &DMatrix<f64>, b: &mut [f64]) {
-    let n = b.len();
-    for i in 0..n {
-        let mut v = b[i];
-        for k in 0..i {
-            v -= l[(i, k)] * b[k];
-        }
-        b[i] = v / l[(i, i)];
-    }
-    for i in (0..n).rev() {
-        let mut v = b[i];
-        for k in i + 1..n {
-            v -= l[(k, i)] * b[k];
-        }
-        b[i] = v / l[(i, i)];
-    }
-}
-
 impl NewtonSkeletal {
     fn new(model: &Model, sys: &GlobalSystem, sk: &Skeleton, control: InnerControl) -> Self {
         let (n, nf, nr, dofs) = (model.n(), sys.n(), sys.rigid.len(), sk.dofs);
@@ -479,7 +437,8 @@ impl NewtonSkeletal {
                 self.s[(k, k)] = 1.0;
             }
         }
-        if !cholesky(&mut self.s) {
+        let n = self.s.nrows();
+        if !cholesky::factor(self.s.as_mut_slice(), n) {
             return Err(SolverError::Factorization(
                 "the reduced skeleton matrix B^T Sigma B is not positive definite".into(),
             ));
@@ -521,7 +480,7 @@ impl NewtonSkeletal {
         for (k, z) in self.zz.z.iter_mut().enumerate() {
             *z = if self.held[k] { 0.0 } else { self.r.z[k] - *z };
         }
-        cholesky_solve(&self.s, &mut self.zz.z);
+        cholesky::solve(self.s.as_slice(), &mut self.zz.z, self.s.nrows());
         for (k, z) in self.zz.z.iter_mut().enumerate() {
             if self.held[k] {
                 *z = 0.0;
