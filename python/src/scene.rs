@@ -266,6 +266,7 @@ impl Scene {
         names(&params)?;
         let m = self::mode(mode)?;
         let g = py.detach(|| self.gradient(steps, loss, m, allow_unconverged))?;
+        warn_one_iteration(py, m, &g, steps)?;
         let d = grads(py, &self.inner.model, &g, &params)?;
         PyTuple::new(py, [g.loss.into_pyobject(py)?.into_any(), d.into_any()])
     }
@@ -321,6 +322,7 @@ impl Scene {
                 )
             })
             .map_err(errors::diff)?;
+        warn_one_iteration(py, m, &g, steps)?;
         grads(py, &self.inner.model, &g, &params)
     }
 
@@ -333,4 +335,20 @@ impl Scene {
             self.inner.settings.dt
         )
     }
+}
+
+/// A `UserWarning` when unrolled mode went through steps that met the tolerance in their first
+/// iteration (their derivative is that one iteration's, not the converged step's; see
+/// `DiffStats::one_iteration_steps`).
+fn warn_one_iteration(py: Python<'_>, mode: Mode, g: &diffsoft::Gradient, steps: usize) -> PyResult<()> {
+    if mode != Mode::Unrolled || g.stats.one_iteration_steps == 0 {
+        return Ok(());
+    }
+    let message = format!(
+        "{} of {steps} forward steps met the tolerance in their first iteration; unrolled mode differentiates that one iteration, not the converged step (use mode='implicit', or a tolerance of 0 with a fixed iteration count)",
+        g.stats.one_iteration_steps
+    );
+    let message = std::ffi::CString::new(message).map_err(|e| errors::value(e.to_string()))?;
+    let category = py.get_type::<pyo3::exceptions::PyUserWarning>();
+    PyErr::warn(py, category.as_any(), &message, 1)
 }

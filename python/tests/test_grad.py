@@ -193,3 +193,19 @@ def test_newton_grads_with_contact(ground):
     assert grads["youngs_modulus"] == pytest.approx(ref["youngs_modulus"], rel=1e-6)
     with pytest.raises(Exception, match="Newton"):
         ground.grad(10, loss="final_com.x", mode="unrolled")
+
+
+def test_unrolled_mode_warns_about_steps_converged_in_one_iteration(ground):
+    """The box starts undeformed: with a tolerance its first step converges in one iteration, so
+    unrolled mode's derivative through it is one iteration's; implicit mode and a fixed count
+    do not warn."""
+    ground.configure(tolerance=1e-10, max_iterations=2000)
+    with pytest.warns(UserWarning, match="first iteration"):
+        ground.grad(5, params=["youngs_modulus"], mode="unrolled")
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        ground.grad(5, params=["youngs_modulus"], mode="implicit")
+        ground.configure(tolerance=0.0, max_iterations=30)
+        ground.grad(5, params=["youngs_modulus"], mode="unrolled")
