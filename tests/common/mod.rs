@@ -133,3 +133,25 @@ pub fn median(mut v: Vec<f64>) -> f64 {
         0.5 * (v[n / 2 - 1] + v[n / 2])
     }
 }
+
+/// Assert that two gradients of `model` agree on each of `params` to `rtol` (relative to the
+/// larger magnitude); `what` names the two in the message.
+#[allow(dead_code)]
+pub fn assert_params_agree(
+    model: &diffsoft::Model,
+    a: &diffsoft::Gradient,
+    b: &diffsoft::Gradient,
+    params: &[diffsoft::diff::Param],
+    rtol: f64,
+    what: (&str, &str),
+) {
+    for p in params {
+        let (x, y) = (p.derivative(model, a), p.derivative(model, b));
+        assert!(
+            (x - y).abs() <= rtol * x.abs().max(y.abs()),
+            "{p}: {} {x:e}, {} {y:e}",
+            what.0,
+            what.1
+        );
+    }
+}
