@@ -389,29 +389,61 @@ pub fn run_shard(
         &spec.name,
         show_progress,
     );
-    // Phase 1: reference trajectories.
-    let ref_tasks: Vec<Task<'_, Result<(Reference, RefStates), String>>> = divisors
+    // Phase 1: reference trajectories and, alongside (they need no trajectory), the reference
+    // gradients; the longest tasks first.
+    enum First {
+        Ref(Result<(Reference, RefStates), String>),
+        Grad(GradientReference),
+    }
+    let mut first: Vec<Task<'_, First>> = Vec::new();
+    for &d in &grad_divisors {
+        let ctx = &ctx;
+        first.push(Box::new(move || First::Grad(gradient_reference(ctx, d))));
+    }
+    for &d in &divisors {
+        let ctx = &ctx;
+        first.push(Box::new(move || First::Ref(reference_run(ctx, d))));
+    }
+    let keys: Vec<(bool, RefKey)> = grad_divisors
         .iter()
-        .map(|&d| -> Task<'_, _> {
-            let ctx = &ctx;
-            Box::new(move || reference_run(ctx, d))
-        })
+        .map(|&d| (true, d))
+        .chain(divisors.iter().map(|&d| (false, d)))
         .collect();
     let mut refs = HashMap::new();
     let mut reference = None;
     let mut dt_references = Vec::new();
-    for (key, r) in divisors.iter().zip(pool::run(ref_tasks, workers, &bar)) {
-        let (info, states) = r.and_then(|x| x).map_err(|message| TradeoffError::Reference {
-            name: spec.name.clone(),
-            divisor: key.1,
-            message,
-        })?;
-        if *key == total_key {
-            reference = Some(info);
-        } else {
-            dt_references.push(info);
+    let mut gradient_references = Vec::new();
+    for (&(is_grad, key), r) in keys.iter().zip(pool::run(first, workers, &bar)) {
+        match (r, is_grad) {
+            (Ok(First::Grad(g)), _) => gradient_references.push(g),
+            (Err(panic), true) => gradient_references.push(GradientReference {
+                dt_divisor: key.1,
+                integrator: key.0,
+                gradient: GradientResult {
+                    message: Some(format!("panicked: {panic}")),
+                    ..Default::default()
+                },
+                fd_check: None,
+            }),
+            (r, _) => {
+                let r = match r {
+                    Ok(First::Ref(x)) => x,
+                    Ok(First::Grad(_)) => Err("a gradient task in a reference slot".into()),
+                    Err(panic) => Err(panic),
+                };
+                let (info, states) = r.map_err(|message| TradeoffError::Reference {
+                    name: spec.name.clone(),
+                    divisor: key.1,
+                    message,
+                })?;
+                if key == total_key {
+                    reference = Some(info);
+                } else {
+                    dt_references.push(info);
+                }
+                refs.insert(key, states);
+            }
         }
-        refs.insert(*key, states);
     }
     dt_references.sort_by_key(|r| (r.integrator, r.dt_divisor));
     let reference = reference.ok_or_else(|| TradeoffError::Reference {
@@ -419,40 +451,19 @@ pub fn run_shard(
         divisor: spec.reference_divisor,
         message: "missing".into(),
     })?;
-    // Phase 2: reference gradients (the longest tasks first) and settings, larger steps
-    // counts first so the last tasks are short.
-    enum Out {
-        Grad(GradientReference),
-        Row(Box<Row>),
-    }
+    // Phase 2: the settings, larger step counts first so the last tasks are short.
     let mut order: Vec<(usize, Setting)> = owned.clone();
     order.sort_by_key(|(i, s)| (std::cmp::Reverse(s.dt_divisor), *i));
-    let mut tasks: Vec<Task<'_, Out>> = Vec::new();
-    for &d in &grad_divisors {
-        let ctx = &ctx;
-        tasks.push(Box::new(move || Out::Grad(gradient_reference(ctx, d))));
-    }
+    let mut tasks: Vec<Task<'_, Row>> = Vec::new();
     for &(i, s) in &order {
         let (ctx, refs) = (&ctx, &refs);
-        tasks.push(Box::new(move || Out::Row(Box::new(run_row(ctx, refs, i, s)))));
+        tasks.push(Box::new(move || run_row(ctx, refs, i, s)));
     }
-    let kinds: Vec<Option<(usize, Setting)>> = grad_divisors
-        .iter()
-        .map(|_| None)
-        .chain(order.iter().map(|&x| Some(x)))
-        .collect();
-    let mut gradient_references = Vec::new();
     let mut rows = Vec::new();
-    for ((kind, r), d) in kinds.into_iter().zip(pool::run(tasks, workers, &bar)).zip(
-        grad_divisors
-            .iter()
-            .copied()
-            .chain(std::iter::repeat((Integrator::ImplicitEuler, 0))),
-    ) {
-        match (r, kind) {
-            (Ok(Out::Grad(g)), _) => gradient_references.push(g),
-            (Ok(Out::Row(row)), _) => rows.push(*row),
-            (Err(panic), Some((i, s))) => rows.push(Row {
+    for ((i, s), r) in order.iter().copied().zip(pool::run(tasks, workers, &bar)) {
+        match r {
+            Ok(row) => rows.push(row),
+            Err(panic) => rows.push(Row {
                 index: i,
                 id: s.id(),
                 setting: s,
@@ -467,15 +478,6 @@ pub fn run_shard(
                 timing: None,
                 trajectory: None,
                 gradient: GradientResult::default(),
-            }),
-            (Err(panic), None) => gradient_references.push(GradientReference {
-                dt_divisor: d.1,
-                integrator: d.0,
-                gradient: GradientResult {
-                    message: Some(format!("panicked: {panic}")),
-                    ..Default::default()
-                },
-                fd_check: None,
             }),
         }
     }
