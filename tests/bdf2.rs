@@ -5,7 +5,7 @@
 
 mod common;
 
-use diffsoft::diff::{self, Mode, Options, Param};
+use diffsoft::diff::{Mode, Options, Param};
 use diffsoft::solver::{Integrator, Settings, Simulator, SolverKind};
 use diffsoft::verify::gradients::{self, check_case, Case};
 use diffsoft::verify::tradeoff::Cantilever;
@@ -219,17 +219,7 @@ fn bdf2_implicit_matches_unrolled_at_convergence() {
     case.settings.integrator = Integrator::Bdf2;
     case.settings.tolerance = 1e-14;
     case.settings.max_iterations = 500;
-    let run = |mode| {
-        diff::gradient(
-            &case.model,
-            &case.settings,
-            case.steps,
-            &case.controls,
-            case.loss.as_ref(),
-            Options::mode(mode),
-        )
-        .unwrap()
-    };
+    let run = |mode| case.gradient(&case.settings, Options::mode(mode)).unwrap();
     let (u, i) = (run(Mode::Unrolled), run(Mode::Implicit));
     let params = [
         Param::YoungsModulus,

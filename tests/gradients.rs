@@ -509,15 +509,7 @@ fn steps_converged_in_one_iteration_are_counted() {
         let mut s = case.settings.clone();
         s.tolerance = tolerance;
         s.max_iterations = max_iterations;
-        let g = diff::gradient(
-            &case.model,
-            &s,
-            case.steps,
-            &Controls::default(),
-            case.loss.as_ref(),
-            Options::mode(mode),
-        )
-        .unwrap();
+        let g = case.gradient(&s, Options::mode(mode)).unwrap();
         let d: f64 = g.q0.iter().flat_map(|v| v.iter()).zip(&u).map(|(a, b)| a * b).sum();
         (g.stats.one_iteration_steps, d)
     };
@@ -547,15 +539,7 @@ fn anderson_mixing_of_the_contact_adjoint_keeps_the_gradient() {
             implicit_max_iterations: 5000,
             ..Options::mode(Mode::Implicit)
         };
-        diff::gradient(
-            &case.model,
-            &case.settings,
-            case.steps,
-            &Controls::default(),
-            case.loss.as_ref(),
-            opts,
-        )
-        .unwrap()
+        case.gradient(&case.settings, opts).unwrap()
     };
     let (plain, mixed) = (run(0), run(8));
     eprintln!(

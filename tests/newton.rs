@@ -297,17 +297,7 @@ fn implicit_gradients_through_newton_match_finite_differences() {
     case.settings.solver = SolverKind::Newton;
     case.settings.tolerance = 1e-13;
     case.settings.max_iterations = 200;
-    let grad = |settings: &Settings| {
-        diff::gradient(
-            &case.model,
-            settings,
-            case.steps,
-            &case.controls,
-            case.loss.as_ref(),
-            Options::mode(Mode::Implicit),
-        )
-        .unwrap()
-    };
+    let grad = |settings: &Settings| case.gradient(settings, Options::mode(Mode::Implicit)).unwrap();
     let g = grad(&case.settings);
     let (q0, v0) = case.controls.initial.clone().unwrap();
     // Random unit directions, the same for every finite difference.
@@ -361,15 +351,9 @@ fn implicit_gradients_through_newton_match_finite_differences() {
     let scale = d.v0.iter().map(|a| a.norm()).fold(0.0, f64::max);
     assert!(gd <= 1e-6 * scale, "{gd} vs {scale}");
     // Unrolled mode differentiates local-global iterations: refused.
-    let e = diff::gradient(
-        &case.model,
-        &case.settings,
-        case.steps,
-        &case.controls,
-        case.loss.as_ref(),
-        Options::mode(Mode::Unrolled),
-    )
-    .unwrap_err();
+    let e = case
+        .gradient(&case.settings, Options::mode(Mode::Unrolled))
+        .unwrap_err();
     assert!(matches!(e, DiffError::Unsupported(_)), "{e}");
     assert!(
         e.to_string().contains("Newton") && e.to_string().contains("implicit"),
@@ -680,15 +664,7 @@ fn bridgesus_material_gradients_through_newton() {
         case.settings.integrator = integrator;
         case.settings.tolerance = 1e-13;
         case.settings.max_iterations = 200;
-        let g = diff::gradient(
-            &case.model,
-            &case.settings,
-            case.steps,
-            &case.controls,
-            case.loss.as_ref(),
-            Options::mode(Mode::Implicit),
-        )
-        .unwrap();
+        let g = case.gradient(&case.settings, Options::mode(Mode::Implicit)).unwrap();
         for p in [Param::YoungsModulus, Param::PoissonRatio, Param::Density] {
             let x = p.get(&case.model).unwrap();
             let analytic = p.derivative(&case.model, &g) * x;

@@ -8,46 +8,17 @@
 mod common;
 
 use common::{median, with_solver};
-use diffsoft::contact::Obstacle;
 use diffsoft::diff::{self, Mode, Options};
-use diffsoft::mesh::generate::BoxSpec;
 use diffsoft::solver::StepStats;
 use diffsoft::verify::gradients;
-use diffsoft::{BodySpec, MassSpec, Material, Model, ModelBuilder, Settings, Simulator, SolverKind};
-use nalgebra::Vector3;
-
-/// The ground-contact gradient case's box (60 tets, thrown at (0.5, -1, 0.2) m/s) over ground
-/// with friction `mu`.
-fn ground_box(mu: f64) -> Model {
-    let mesh = BoxSpec::new([3, 2, 2], [0.3, 0.2, 0.2])
-        .jitter(0.1, 5)
-        .origin([0.0, 0.02, 0.0])
-        .build()
-        .unwrap();
-    let mut body = BodySpec::new(
-        "box",
-        mesh,
-        Material {
-            youngs_modulus: 2e4,
-            poisson_ratio: 0.3,
-        },
-        MassSpec::Density(1000.0),
-    );
-    body.initial_velocity = Vector3::new(0.5, -1.0, 0.2);
-    ModelBuilder::new()
-        .gravity(Vector3::new(0.0, -9.81, 0.0))
-        .body(body)
-        .obstacle(Obstacle::plane("ground", Vector3::zeros(), Vector3::y(), mu))
-        .build()
-        .unwrap()
-}
+use diffsoft::{Settings, Simulator, SolverKind};
 
 /// The ground-contact case's box with friction `mu`, run `steps` steps by Newton and by the
 /// direct solver at tolerance 1e-12: the largest position difference over the run against the
 /// largest displacement, and Newton's and the direct solver's statistics.
 fn compare(mu: f64, steps: usize) -> (f64, f64, Vec<StepStats>, Vec<StepStats>) {
     let settings = gradients::gradcheck_settings(0.01, 10);
-    let model = ground_box(mu);
+    let model = gradients::ground_box(mu).unwrap();
     let mut newton = Simulator::new(model.clone(), with_solver(&settings, SolverKind::Newton, 1e-12, 200)).unwrap();
     let mut direct = Simulator::new(model, with_solver(&settings, SolverKind::Direct, 1e-12, 100_000)).unwrap();
     let q0 = newton.state().q.clone();
@@ -130,17 +101,7 @@ fn check_against_direct(case: &gradients::Case) {
     let failed = !check.passes;
     assert!(m.stats.contact_sweeps > 0, "the box must touch the ground");
     // The direct solver's converged forward gives the same gradient.
-    let grad = |settings: &Settings| {
-        diff::gradient(
-            &case.model,
-            settings,
-            case.steps,
-            &case.controls,
-            case.loss.as_ref(),
-            Options::mode(Mode::Implicit),
-        )
-        .unwrap()
-    };
+    let grad = |settings: &Settings| case.gradient(settings, Options::mode(Mode::Implicit)).unwrap();
     let gn = grad(&case.settings);
     let gd = grad(&with_solver(&case.settings, SolverKind::Direct, 1e-12, 100_000));
     let diff_v0 = gn

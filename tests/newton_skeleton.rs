@@ -11,7 +11,7 @@ mod common;
 use common::{median, root, with_solver};
 use diffsoft::diff::loss::CenterOfMass;
 use diffsoft::diff::params::Param;
-use diffsoft::diff::{self, Controls, Gradient, Mode, Options};
+use diffsoft::diff::{Controls, Gradient, Mode, Options};
 use diffsoft::mesh::generate::BoxSpec;
 use diffsoft::skeleton::fixed::Fixed;
 use diffsoft::skeleton::rotational::Rotational;
@@ -244,17 +244,7 @@ fn gradients_through_newton(mut case: Case, label: &str) {
     case.settings.solver = SolverKind::Newton;
     case.settings.tolerance = 1e-12;
     case.settings.max_iterations = 200;
-    let grad = |settings: &Settings| -> Gradient {
-        diff::gradient(
-            &case.model,
-            settings,
-            case.steps,
-            &case.controls,
-            case.loss.as_ref(),
-            Options::mode(Mode::Implicit),
-        )
-        .unwrap()
-    };
+    let grad = |settings: &Settings| -> Gradient { case.gradient(settings, Options::mode(Mode::Implicit)).unwrap() };
     let g = grad(&case.settings);
     for (k, group) in case.groups.iter().enumerate() {
         let c = gradients::check_group(&case, group, &g, 7 + k as u64).unwrap();

@@ -134,6 +134,19 @@ fn random_direction(len: usize, seed: u64) -> Vec<f64> {
 }
 
 impl Case {
+    /// The case's loss and gradient over its steps, controls and loss, under `settings` (its
+    /// own or a variant) and `opts`.
+    pub fn gradient(&self, settings: &Settings, opts: diff::Options) -> Result<Gradient, DiffError> {
+        diff::gradient(
+            &self.model,
+            settings,
+            self.steps,
+            &self.controls,
+            self.loss.as_ref(),
+            opts,
+        )
+    }
+
     pub(super) fn direction(&self, group: &Group, seed: u64) -> Direction {
         let m = &self.model;
         match group {
@@ -374,8 +387,9 @@ pub fn bridgesus(scene_path: &Path, steps: usize) -> Result<Case> {
     })
 }
 
-/// A soft box thrown onto frictional ground (mu 0.5): it lands, slides and sticks.
-pub fn ground_contact(steps: usize) -> Result<Case> {
+/// The ground-contact case's model: a jittered soft box (60 tets) thrown at (0.5, -1, 0.2) m/s
+/// onto ground with friction `mu`.
+pub fn ground_box(mu: f64) -> Result<Model> {
     let mesh = BoxSpec::new([3, 2, 2], [0.3, 0.2, 0.2])
         .jitter(0.1, 5)
         .origin([0.0, 0.02, 0.0])
@@ -393,8 +407,14 @@ pub fn ground_contact(steps: usize) -> Result<Case> {
     let model = ModelBuilder::new()
         .gravity(Vector3::new(0.0, -9.81, 0.0))
         .body(body)
-        .obstacle(Obstacle::plane("ground", Vector3::zeros(), Vector3::y(), 0.5))
+        .obstacle(Obstacle::plane("ground", Vector3::zeros(), Vector3::y(), mu))
         .build()?;
+    Ok(model)
+}
+
+/// A soft box thrown onto frictional ground (mu 0.5): it lands, slides and sticks.
+pub fn ground_contact(steps: usize) -> Result<Case> {
+    let model = ground_box(0.5)?;
     Ok(Case {
         name: "ground_contact".into(),
         description:

@@ -13,7 +13,7 @@ use indicatif::ProgressBar;
 
 use super::cases::{Case, Group};
 use super::{ATOL, RTOL};
-use crate::diff::{self, DiffError, DiffStats, Gradient, Mode, Options};
+use crate::diff::{DiffError, DiffStats, Gradient, Mode, Options};
 use crate::kernel::actuator::tet_target_dual;
 use crate::kernel::linearization::TetLinearization;
 use crate::kernel::svd::svd3;
@@ -299,14 +299,7 @@ pub fn check_case(case: &Case, seed: u64) -> CaseCheck {
         passes: false,
     };
     let run = |mode: Mode| -> Result<ModeCheck, DiffError> {
-        let g = diff::gradient(
-            &case.model,
-            &case.settings,
-            case.steps,
-            &case.controls,
-            case.loss.as_ref(),
-            Options::mode(mode),
-        )?;
+        let g = case.gradient(&case.settings, Options::mode(mode))?;
         let mut groups = Vec::new();
         for (k, grp) in case.groups.iter().enumerate() {
             groups.push(check_group(case, grp, &g, seed + k as u64)?);
