@@ -185,3 +185,31 @@ fn detection_finds_the_resting_box_and_scales_with_the_mesh() {
     let size = (large.triangles + large.edges) as f64 / (small.triangles + small.edges) as f64;
     assert!(ratio < 2.0 * size, "tested {ratio:.1}x for {size:.1}x the surface");
 }
+
+/// A contact solve between bodies that stops at its sweep cap is counted in the step's
+/// `capped_solves` (the direct solver used to report every contact solve as converged), and a
+/// solve within its cap is not.
+#[test]
+fn a_capped_contact_solve_between_bodies_is_reported() {
+    use diffsoft::scene::{self, LoadOptions};
+    use diffsoft::solver::Simulator;
+    let path = common::root().join("verification/scenes/ball_on_cloth.json");
+    let run = |cap: usize| {
+        let mut sc = scene::load(&path, LoadOptions::default()).unwrap();
+        sc.settings.inner_max_iterations = cap;
+        let mut sim = Simulator::new(sc.model, sc.settings).unwrap();
+        let mut in_contact = Vec::new();
+        for _ in 0..60 {
+            let st = sim.step().unwrap();
+            if st.pair_contacts > 0 {
+                in_contact.push((st.contact_iterations, st.capped_solves));
+            }
+        }
+        in_contact
+    };
+    let capped = run(1);
+    assert!(!capped.is_empty(), "the ball reaches the cloth within 60 steps");
+    assert!(capped.iter().any(|&(_, c)| c > 0), "{capped:?}");
+    let free = run(2000);
+    assert!(free.iter().all(|&(_, c)| c == 0), "{free:?}");
+}

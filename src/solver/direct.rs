@@ -315,6 +315,7 @@ impl Direct {
             self.control.max_iterations,
         );
         stats.contact_iterations = solve.sweeps + solve.active_set_solves;
+        stats.converged = solve.converged;
         stats.last_update = solve.last_change;
         for j in 0..m {
             let l = self.lambda[j];
