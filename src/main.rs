@@ -44,6 +44,7 @@ mod cli;
 
 use cli::files::{emit, find_data, preflight, save, write_mesh};
 use cli::grad::{grad, GradArgs};
+use cli::overrides::SolverOverrides;
 use cli::simulate::{simulate, RunOutput};
 use cli::tradeoff::{tradeoff, TradeoffArgs};
 
@@ -153,27 +154,14 @@ enum Command {
         /// Replace the files of an earlier run in --out (run.json, frames) instead of refusing.
         #[arg(long)]
         overwrite: bool,
-        /// Override the global solver.
-        #[arg(long, value_enum)]
-        solver: Option<diffsoft::solver::SolverKind>,
-        /// Override the time integrator (bdf2: second order; its first step is implicit Euler).
-        #[arg(long, value_enum)]
-        integrator: Option<diffsoft::solver::Integrator>,
+        #[command(flatten)]
+        overrides: SolverOverrides,
         /// Override the certification policy.
         #[arg(long, value_enum)]
         certify: Option<diffsoft::solver::CertifyPolicy>,
         /// Override the time step (s).
         #[arg(long)]
         dt: Option<f64>,
-        /// Override the local-global iteration cap.
-        #[arg(long)]
-        max_iterations: Option<usize>,
-        /// Override the local-global tolerance (0: always run the cap), as on `grad`.
-        #[arg(long)]
-        tolerance: Option<f64>,
-        /// Override the Anderson memory of the local-global iteration (0: off), as on `grad`.
-        #[arg(long)]
-        anderson: Option<usize>,
         /// Paper scenes: drop features this version cannot simulate, with a note, instead of
         /// failing (every feature of the paper's own files is simulated now).
         #[arg(long)]
@@ -491,38 +479,20 @@ fn run(command: Command) -> Result<()> {
             steps,
             out,
             every,
-            solver,
-            integrator,
+            overrides,
             certify,
             dt,
-            max_iterations,
-            tolerance,
-            anderson,
             passive,
             activation,
             overwrite,
         } => {
             let mut sc = diffsoft::scene::load(&scene, diffsoft::scene::LoadOptions { passive })?;
-            if let Some(s) = solver {
-                sc.settings.solver = s;
-            }
-            if let Some(i) = integrator {
-                sc.settings.integrator = i;
-            }
+            overrides.apply(&mut sc.settings);
             if let Some(c) = certify {
                 sc.settings.certify = c;
             }
             if let Some(h) = dt {
                 sc.settings.dt = h;
-            }
-            if let Some(m) = max_iterations {
-                sc.settings.max_iterations = m;
-            }
-            if let Some(t) = tolerance {
-                sc.settings.tolerance = t;
-            }
-            if let Some(m) = anderson {
-                sc.settings.anderson = m;
             }
             let mut held = Vec::new();
             for a in &activation {

@@ -2,6 +2,7 @@
 //! derivatives.
 
 use super::files::{preflight, save};
+use super::overrides::SolverOverrides;
 use super::prelude::*;
 
 #[derive(clap::Args)]
@@ -28,21 +29,8 @@ pub(crate) struct GradArgs {
     /// Differentiation mode.
     #[arg(long, value_enum, default_value = "unrolled")]
     mode: diffsoft::diff::Mode,
-    /// Override the global solver.
-    #[arg(long, value_enum)]
-    solver: Option<diffsoft::solver::SolverKind>,
-    /// Override the time integrator (bdf2: second order; its first step is implicit Euler).
-    #[arg(long, value_enum)]
-    integrator: Option<diffsoft::solver::Integrator>,
-    /// Override the local-global iteration cap.
-    #[arg(long)]
-    max_iterations: Option<usize>,
-    /// Override the local-global tolerance (0: always run the cap, a smooth forward).
-    #[arg(long)]
-    tolerance: Option<f64>,
-    /// Override the Anderson memory (unrolled mode differentiates plain iterations: 0).
-    #[arg(long)]
-    anderson: Option<usize>,
+    #[command(flatten)]
+    overrides: SolverOverrides,
     /// Write `{loss, gradient}` as JSON here (`-`: standard output).
     #[arg(long)]
     json: Option<PathBuf>,
@@ -81,21 +69,7 @@ pub(crate) fn grad(a: GradArgs) -> Result<()> {
         );
     }
     let mut sc = diffsoft::scene::load(&scene, diffsoft::scene::LoadOptions::default())?;
-    if let Some(s) = a.solver {
-        sc.settings.solver = s;
-    }
-    if let Some(i) = a.integrator {
-        sc.settings.integrator = i;
-    }
-    if let Some(m) = a.max_iterations {
-        sc.settings.max_iterations = m;
-    }
-    if let Some(t) = a.tolerance {
-        sc.settings.tolerance = t;
-    }
-    if let Some(m) = a.anderson {
-        sc.settings.anderson = m;
-    }
+    a.overrides.apply(&mut sc.settings);
     for s in &a.set {
         let (name, value) = s
             .split_once('=')

@@ -3,6 +3,7 @@
 
 pub(crate) mod files;
 pub(crate) mod grad;
+pub(crate) mod overrides;
 pub(crate) mod simulate;
 pub(crate) mod tradeoff;
 
