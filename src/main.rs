@@ -263,25 +263,6 @@ enum Command {
     },
 }
 
-/// A comma-separated list given as one value, which may be empty (`--caps ''`: none).
-#[derive(Clone, Debug)]
-struct List<T>(Vec<T>);
-
-impl<T: std::str::FromStr> std::str::FromStr for List<T> {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
-        s.split(',')
-            .map(str::trim)
-            .filter(|t| !t.is_empty())
-            .map(|t| {
-                t.parse()
-                    .map_err(|_| format!("'{t}' is not a valid entry of the list '{s}'"))
-            })
-            .collect::<Result<_, _>>()
-            .map(List)
-    }
-}
-
 #[derive(Clone, Copy, ValueEnum)]
 enum Split {
     Kuhn,
