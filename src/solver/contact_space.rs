@@ -81,9 +81,13 @@ enum State {
 #[derive(Debug, Clone, Default)]
 pub(crate) struct ContactSpace {
     state: Vec<State>,
-    /// Unknowns of the active-set system: `(contact, axis)`; axis 3 is a sliding contact's
-    /// normal impulse.
-    unknowns: Vec<(usize, u8)>,
+    /// Unknowns of the active-set system: `(contact, direction)`, the contact's impulse being
+    /// the sum of its directions times their unknowns (the three axes for a sticking contact;
+    /// `n + mu dir` and `n x dir` for a sliding one, which puts it on its cone's boundary).
+    unknowns: Vec<(usize, Vector3<f64>)>,
+    /// Equations of the active-set system: `(contact, row)` (rows 0-2 of a sticking contact;
+    /// 0 and 2 of a sliding one).
+    rows: Vec<(usize, u8)>,
     matrix: Vec<f64>,
     rhs: Vec<f64>,
     /// `r = f + D lambda` at the current iterate (set by `classify`).
@@ -346,22 +350,37 @@ impl ContactSpace {
 
     /// One Newton step of the contact conditions with the states fixed: sticking contacts sit
     /// at their target, sliding ones on the plane with the impulse on the cone's boundary
-    /// against the slip, whose direction is linearized at the current iterate (`self.r`).
+    /// against the slip, whose direction is linearized at the current iterate (`self.r`). A
+    /// sliding contact's impulse is written on the cone's boundary (two unknowns, not three),
+    /// so the system has three unknowns per sticking contact and two per sliding one.
     /// `current` is the iterate the states were taken at (the proximal term's centre); the
     /// result goes into `lambda`. Returns false when the system is singular.
     fn solve_states(&mut self, p: &Problem<'_>, current: &[Vector3<f64>], lambda: &mut [Vector3<f64>]) -> bool {
         let m = p.m();
         self.unknowns.clear();
+        self.rows.clear();
         for (j, s) in self.state.iter().enumerate() {
-            if *s != State::Separate {
-                self.unknowns.extend((0..3).map(|a| (j, a)));
+            let c = &p.contacts[j].contact;
+            match *s {
+                State::Separate => {}
+                State::Stick => {
+                    self.unknowns.extend((0..3).map(|a| (j, Vector3::ith(a, 1.0))));
+                    self.rows.extend((0..3).map(|a| (j, a)));
+                }
+                State::Slide { dir, .. } => {
+                    // On the cone's boundary along `dir` by construction: the impulse is
+                    // `t (n + mu dir) + u (n x dir)`.
+                    self.unknowns.push((j, c.normal + dir * c.friction));
+                    self.unknowns.push((j, c.normal.cross(&dir)));
+                    self.rows.extend([(j, 0), (j, 2)]);
+                }
             }
         }
         let k = self.unknowns.len();
         self.matrix.clear();
         self.matrix.resize(k * k, 0.0);
         self.rhs.clear();
-        for (row, &(j, a)) in self.unknowns.iter().enumerate() {
+        for (row, &(j, a)) in self.rows.iter().enumerate() {
             let c = &p.contacts[j].contact;
             let drow = &p.d[j * m..(j + 1) * m];
             let djj = drow[j];
@@ -384,10 +403,6 @@ impl ContactSpace {
                         c.normal.dot(&(c.point - p.f[j])) + own.dot(&current[j]),
                     )
                 }
-                (State::Slide { dir, .. }, 1) => {
-                    // On the cone's boundary along `dir`: `(dir - mu n) . lambda_j = 0`.
-                    (Vector3::zeros(), 0.0, (dir - c.normal * c.friction) * djj, 0.0)
-                }
                 (State::Slide { dir, c: sens }, _) => {
                     // No impulse across the slip direction `b`, linearized:
                     // `b . lambda_j + sens b . (r_j - r0_j) = 0`, scaled to D's size.
@@ -395,16 +410,16 @@ impl ContactSpace {
                     let scale = djj / (1.0 + sens * djj);
                     (b, sens * scale, b * scale, sens * scale * b.dot(&(self.r[j] - p.f[j])))
                 }
-                (State::Separate, _) => unreachable!("separate contacts have no unknowns"),
+                (State::Separate, _) => unreachable!("separate contacts have no equations"),
             };
             self.rhs.push(rhs);
             let out = &mut self.matrix[row * k..(row + 1) * k];
-            for (col, &(kc, b)) in self.unknowns.iter().enumerate() {
-                let mut v = coupling * drow[kc] * test[b as usize];
-                if kc == j {
-                    v += own[b as usize];
+            for (col, (kc, v)) in self.unknowns.iter().enumerate() {
+                let mut e = coupling * drow[*kc] * test.dot(v);
+                if *kc == j {
+                    e += own.dot(v);
                 }
-                out[col] = v;
+                out[col] = e;
             }
         }
         self.dense_work += (k * k * k) as f64 / 3.0 + (k * m) as f64;
@@ -412,8 +427,8 @@ impl ContactSpace {
             return false;
         }
         lambda.iter_mut().for_each(|l| *l = Vector3::zeros());
-        for (&(j, a), u) in self.unknowns.iter().zip(&self.rhs) {
-            lambda[j][a as usize] = *u;
+        for ((j, v), u) in self.unknowns.iter().zip(&self.rhs) {
+            lambda[*j] += v * *u;
         }
         lambda.iter().all(|l| l.iter().all(|v| v.is_finite()))
     }
