@@ -160,7 +160,7 @@ pub(crate) fn simulate(
     );
     if summary.steps_with_capped_solves > 0 {
         say!(
-            "warning     {} of {} steps had a global or contact solve stop unconverged, at its iteration cap (the scene's solver.inner_max_iterations) or stalled (an infeasible contact set); capped_solves in the step log",
+            "warning     {} of {} steps had a global or contact solve stop unconverged, at its iteration cap (the scene's solver.inner_max_iterations) or stalled (no progress over a long batch of sweeps: an infeasible or badly conditioned contact set); capped_solves in the step log",
             summary.steps_with_capped_solves,
             summary.steps
         );
