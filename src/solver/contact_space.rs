@@ -33,8 +33,9 @@ use super::free_contact::FreeContact;
 use crate::contact::{project, ContactState};
 
 /// Dense solves per active-set attempt before giving up (Gauss-Seidel then continues); a
-/// contact solve makes at most twice as many in all.
-pub(crate) const ACTIVE_SET_SOLVES: usize = 30;
+/// contact solve makes at most [`MAX_ATTEMPTS`] attempts, later ones only while the dense work
+/// stays within [`DENSE_WORK_RATIO`] times the sweeps'.
+const ACTIVE_SET_SOLVES: usize = 30;
 
 /// Later active-set attempts are made while the dense work so far is at most this many times
 /// the sweeps' (measured on the paper's cloth_ball: a retry from an iterate the sweeps improved
