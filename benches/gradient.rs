@@ -1,10 +1,11 @@
-//! Cost of the backward pass against the forward pass (issue: backward at most 3x forward),
-//! Baymax, 100 steps at dt 1/100, on 1 and 2 threads:
+//! Cost of the backward pass against the forward pass, 100 steps on 1 and 2 threads:
 //!
-//! * `baymax_free_fall`: the paper mesh falling (no obstacles);
-//! * `baymax_on_ground`: dropped onto the ground (frictional contact from the first step);
-//! * `baymax_skeleton`: the paper's skeleton scene (free torso, 4 rotational joints, shoulder
-//!   torques; no ground), through the reduced step.
+//! * `free_fall`: the paper's Baymax mesh falling (no obstacles; dt 1/100);
+//! * `on_ground`: the same dropped onto the ground (frictional contact from the first step);
+//! * `skeleton`: the paper's skeleton scene (free torso, 4 rotational joints, shoulder
+//!   torques; no ground), through the reduced step;
+//! * `bridge`: the paper's bridge (pinned ends, dt 1/200), the other scene of the implicit
+//!   backward's target.
 //!
 //! For each: the forward alone (`diff::loss_value`), and the forward plus backward of the
 //! unrolled mode with pure checkpointing (`unrolled`), with the forward's recordings kept within
@@ -20,9 +21,9 @@ use diffsoft::diff::{self, loss, Controls, Mode, Options};
 use diffsoft::scene::{self, LoadOptions};
 use diffsoft::{Model, Settings, SolverKind};
 
-fn baymax(file: &str, ground: bool) -> (Model, Settings) {
+fn load(file: &str, ground: bool) -> (Model, Settings) {
     let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("verification/scenes")
+        .join("verification")
         .join(file);
     let mut sc = scene::load(path, LoadOptions::default()).expect("scene loads");
     if !ground {
@@ -36,7 +37,7 @@ fn baymax(file: &str, ground: bool) -> (Model, Settings) {
 fn bench(c: &mut Criterion) {
     let steps = 100;
     let l = loss::by_name("mean_com.y").expect("loss");
-    let mut g = c.benchmark_group("gradient_baymax_100_steps");
+    let mut g = c.benchmark_group("gradient_100_steps");
     g.sample_size(10);
     for threads in [1usize, 2] {
         let pool = rayon::ThreadPoolBuilder::new()
@@ -44,11 +45,12 @@ fn bench(c: &mut Criterion) {
             .build()
             .expect("pool");
         for (name, file, ground) in [
-            ("free_fall", "baymax_ground.json", false),
-            ("on_ground", "baymax_ground.json", true),
-            ("skeleton", "baymax_skeleton.json", false),
+            ("free_fall", "scenes/baymax_ground.json", false),
+            ("on_ground", "scenes/baymax_ground.json", true),
+            ("skeleton", "scenes/baymax_skeleton.json", false),
+            ("bridge", "paper/bridge/bridge.json", true),
         ] {
-            let (model, settings) = baymax(file, ground);
+            let (model, settings) = load(file, ground);
             g.bench_function(BenchmarkId::new(format!("{name}/forward"), threads), |b| {
                 b.iter(|| {
                     pool.install(|| diff::loss_value(&model, &settings, steps, &Controls::default(), l.as_ref()))
