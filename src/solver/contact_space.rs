@@ -91,11 +91,16 @@ pub(crate) struct ContactSpace {
     rows: Vec<(usize, u8)>,
     matrix: Vec<f64>,
     rhs: Vec<f64>,
-    /// `r = f + D lambda` at the current iterate (set by `classify`).
+    /// `r = f + D lambda` at the active-set iterate, kept up to date along the line search.
     r: Vec<Vector3<f64>>,
     trial: Vec<Vector3<f64>>,
-    /// A point of the line search.
+    /// A Newton step: `trial - lambda`, and `D` times it.
+    delta: Vec<Vector3<f64>>,
+    d_delta: Vec<Vector3<f64>>,
+    /// A point of the line search, and its `r` (`r + step D delta`: `r` is linear in the step,
+    /// so a point costs `O(m)` instead of a product with `D`).
     candidate: Vec<Vector3<f64>>,
+    candidate_r: Vec<Vector3<f64>>,
     /// The best iterate of a non-monotone active-set attempt.
     best: Vec<Vector3<f64>>,
     /// The dense solver of the active-set systems.
@@ -130,6 +135,17 @@ pub(crate) struct Problem<'a> {
 impl Problem<'_> {
     fn m(&self) -> usize {
         self.f.len()
+    }
+
+    /// `out = D lambda`.
+    fn apply_d(&self, lambda: &[Vector3<f64>], out: &mut Vec<Vector3<f64>>) {
+        let m = self.m();
+        out.clear();
+        out.extend(self.d.chunks_exact(m).map(|row| {
+            row.iter()
+                .zip(lambda)
+                .fold(Vector3::zeros(), |acc, (d, l)| acc + l * *d)
+        }));
     }
 
     /// `r_j` with contact `j`'s own impulse left out.
@@ -235,7 +251,15 @@ impl ContactSpace {
     /// [`NON_MONOTONE_STEPS`] full steps are taken anyway. `lambda` ends at the best iterate
     /// seen, so it only improves.
     fn active_set(&mut self, p: &Problem<'_>, lambda: &mut [Vector3<f64>], tolerance: f64) -> (bool, usize) {
-        let mut res = Self::residual(p, lambda);
+        let m = p.m();
+        let mut r = std::mem::take(&mut self.r);
+        p.apply_d(lambda, &mut r);
+        for (r, f) in r.iter_mut().zip(p.f) {
+            *r += f;
+        }
+        self.r = r;
+        self.dense_work += (m * m) as f64;
+        let mut res = Self::residual_at(p, &self.r, lambda);
         let mut best_res = res;
         self.best.clear();
         self.best.extend_from_slice(lambda);
@@ -255,6 +279,13 @@ impl ContactSpace {
             if !ok {
                 break false;
             }
+            self.delta.clear();
+            self.delta
+                .extend(self.trial.iter().zip(lambda.iter()).map(|(t, l)| t - l));
+            let mut d_delta = std::mem::take(&mut self.d_delta);
+            p.apply_d(&self.delta, &mut d_delta);
+            self.d_delta = d_delta;
+            self.dense_work += (m * m) as f64;
             // Damped: the longest step (halving from the full Newton step) that lowers the
             // residual; none lowers it: the full step while the non-monotone budget lasts.
             let mut step = 1.0;
@@ -262,12 +293,16 @@ impl ContactSpace {
             loop {
                 self.candidate.clear();
                 self.candidate
-                    .extend(lambda.iter().zip(&self.trial).map(|(l, t)| l + (t - l) * step));
-                let r = Self::residual(p, &self.candidate);
-                self.dense_work += (p.m() * p.m()) as f64;
+                    .extend(lambda.iter().zip(&self.delta).map(|(l, d)| l + d * step));
+                self.candidate_r.clear();
+                self.candidate_r
+                    .extend(self.r.iter().zip(&self.d_delta).map(|(r, d)| r + d * step));
+                let r = Self::residual_at(p, &self.candidate_r, &self.candidate);
+                self.dense_work += m as f64;
                 if r < res {
                     res = r;
                     lambda.copy_from_slice(&self.candidate);
+                    self.r.copy_from_slice(&self.candidate_r);
                     break;
                 }
                 step *= 0.5;
@@ -277,8 +312,11 @@ impl ContactSpace {
                     } else {
                         non_monotone -= 1;
                         lambda.copy_from_slice(&self.trial);
-                        res = Self::residual(p, lambda);
-                        self.dense_work += (p.m() * p.m()) as f64;
+                        for (r, d) in self.r.iter_mut().zip(&self.d_delta) {
+                            *r += d;
+                        }
+                        res = Self::residual_at(p, &self.r, lambda);
+                        self.dense_work += m as f64;
                     }
                     break;
                 }
@@ -301,30 +339,40 @@ impl ContactSpace {
     }
 
     /// The largest change a projection of each contact (the others held) would make, in
-    /// position (m): 0 exactly at a solution.
-    fn residual(p: &Problem<'_>, lambda: &[Vector3<f64>]) -> f64 {
+    /// position (m), given `r = f + D lambda`: 0 exactly at a solution.
+    fn residual_at(p: &Problem<'_>, r: &[Vector3<f64>], lambda: &[Vector3<f64>]) -> f64 {
         let m = p.m();
         let mut worst = 0.0f64;
         for j in 0..m {
             let djj = p.d[j * m + j];
-            let (l, _) = project(&p.x_hat(j, lambda), 1.0 / djj, &p.contacts[j].contact);
+            let x_hat = r[j] - lambda[j] * djj;
+            let (l, _) = project(&x_hat, 1.0 / djj, &p.contacts[j].contact);
             worst = worst.max(((l - lambda[j]) * djj).amax());
         }
         worst
     }
 
-    /// Each contact's state at `lambda`, by its cone projection, with what the Newton
-    /// linearization of a sliding contact needs.
+    /// [`ContactSpace::residual_at`] from `lambda` alone.
+    #[cfg(test)]
+    fn residual(p: &Problem<'_>, lambda: &[Vector3<f64>]) -> f64 {
+        let mut r = Vec::new();
+        p.apply_d(lambda, &mut r);
+        for (r, f) in r.iter_mut().zip(p.f) {
+            *r += f;
+        }
+        Self::residual_at(p, &r, lambda)
+    }
+
+    /// Each contact's state at `lambda` (with `self.r` its `f + D lambda`), by its cone
+    /// projection, with what the Newton linearization of a sliding contact needs.
     fn classify(&mut self, p: &Problem<'_>, lambda: &[Vector3<f64>]) {
         let m = p.m();
         self.state.clear();
-        self.r.clear();
         for j in 0..m {
             let c = &p.contacts[j].contact;
             let djj = p.d[j * m + j];
-            let x_hat = p.x_hat(j, lambda);
-            let r = x_hat + lambda[j] * djj;
-            self.r.push(r);
+            let r = self.r[j];
+            let x_hat = r - lambda[j] * djj;
             let (l, s) = project(&x_hat, 1.0 / djj, c);
             self.state.push(match s {
                 ContactState::Separate => State::Separate,
