@@ -368,11 +368,10 @@ impl ContactSpace {
     fn classify(&mut self, p: &Problem<'_>, lambda: &[Vector3<f64>]) {
         let m = p.m();
         self.state.clear();
-        for j in 0..m {
+        for (j, (&r, lambda_j)) in self.r.iter().zip(lambda).enumerate() {
             let c = &p.contacts[j].contact;
             let djj = p.d[j * m + j];
-            let r = self.r[j];
-            let x_hat = r - lambda[j] * djj;
+            let x_hat = r - lambda_j * djj;
             let (l, s) = project(&x_hat, 1.0 / djj, c);
             self.state.push(match s {
                 ContactState::Separate => State::Separate,
@@ -383,7 +382,7 @@ impl ContactSpace {
                     let rel = r - c.anchor;
                     let slip = rel - c.normal * c.normal.dot(&rel);
                     let sn = slip.norm();
-                    let ln = c.normal.dot(&lambda[j]).max(c.normal.dot(&l));
+                    let ln = c.normal.dot(lambda_j).max(c.normal.dot(&l));
                     if sn > 0.0 && slip.dot(&dir) < 0.0 {
                         State::Slide {
                             dir: -slip / sn,
