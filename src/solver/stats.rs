@@ -24,8 +24,9 @@ pub struct StepStats {
     /// Contact iterations (sweeps and active-set solves), summed over the step.
     pub contact_iterations: usize,
     /// Global or contact solves of the step that stopped unconverged: at their iteration cap,
-    /// or a contact solve that stalled (no progress: an infeasible contact set). Their result is
-    /// used as it is; the step's own convergence test still applies.
+    /// or a contact solve that stalled (no progress over a long batch of sweeps: an infeasible
+    /// contact set, such as surfaces already crossed, or one too badly conditioned to reach the
+    /// tolerance). Their result is used as it is; the step's own convergence test still applies.
     pub capped_solves: usize,
     /// Deepest penetration after the step (m; 0 without obstacles).
     pub max_penetration: f64,
