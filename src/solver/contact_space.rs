@@ -148,6 +148,14 @@ impl Problem<'_> {
         }));
     }
 
+    /// `out = f + D lambda`: every contact's relative coordinate under the impulses.
+    fn positions(&self, lambda: &[Vector3<f64>], out: &mut Vec<Vector3<f64>>) {
+        self.apply_d(lambda, out);
+        for (r, f) in out.iter_mut().zip(self.f) {
+            *r += f;
+        }
+    }
+
     /// `r_j` with contact `j`'s own impulse left out.
     fn x_hat(&self, j: usize, lambda: &[Vector3<f64>]) -> Vector3<f64> {
         let m = self.m();
@@ -253,10 +261,7 @@ impl ContactSpace {
     fn active_set(&mut self, p: &Problem<'_>, lambda: &mut [Vector3<f64>], tolerance: f64) -> (bool, usize) {
         let m = p.m();
         let mut r = std::mem::take(&mut self.r);
-        p.apply_d(lambda, &mut r);
-        for (r, f) in r.iter_mut().zip(p.f) {
-            *r += f;
-        }
+        p.positions(lambda, &mut r);
         self.r = r;
         self.dense_work += (m * m) as f64;
         let mut res = Self::residual_at(p, &self.r, lambda);
@@ -356,10 +361,7 @@ impl ContactSpace {
     #[cfg(test)]
     fn residual(p: &Problem<'_>, lambda: &[Vector3<f64>]) -> f64 {
         let mut r = Vec::new();
-        p.apply_d(lambda, &mut r);
-        for (r, f) in r.iter_mut().zip(p.f) {
-            *r += f;
-        }
+        p.positions(lambda, &mut r);
         Self::residual_at(p, &r, lambda)
     }
 
@@ -531,6 +533,35 @@ mod tests {
             assert!(c.contact.normal.dot(&r) >= -1e-11, "contact {j} penetrates: {r}");
             assert!(c.contact.normal.dot(&lambda[j]) >= 0.0, "contact {j} pulls");
         }
+    }
+
+    /// The active set keeps `r = f + D lambda` by moving it along each Newton step; at the end
+    /// of an attempt it still equals a fresh product at the iterate reached (up to rounding).
+    #[test]
+    fn positions_kept_along_the_line_search_match_a_fresh_product() {
+        let y = Vector3::y();
+        let contacts = [ground(0, y, 0.3), ground(1, y, 0.8), ground(2, y, 0.0)];
+        let d = [1.0, 0.4, 0.1, 0.4, 2.0, 0.3, 0.1, 0.3, 0.5];
+        let f = [
+            Vector3::new(0.3, -0.2, 0.1),
+            Vector3::new(-0.02, -0.1, 0.05),
+            Vector3::new(0.01, 0.3, 0.0),
+        ];
+        let p = Problem {
+            d: &d,
+            f: &f,
+            contacts: &contacts,
+        };
+        let mut lambda = vec![Vector3::zeros(); 3];
+        let mut space = ContactSpace::default();
+        let (solved, solves) = space.active_set(&p, &mut lambda, 1e-13);
+        assert!(solved && solves >= 1, "{solved} {solves}");
+        let mut fresh = Vec::new();
+        p.positions(&lambda, &mut fresh);
+        for (kept, fresh) in space.r.iter().zip(&fresh) {
+            assert!((kept - fresh).amax() <= 1e-14, "{kept} against {fresh}");
+        }
+        assert!(ContactSpace::residual(&p, &lambda) <= 1e-13);
     }
 
     /// Three contacts on almost the same relative coordinate with planes 40 degrees apart and
