@@ -504,6 +504,22 @@ mod tests {
         )
     }
 
+    /// Every contact at `lambda` is not penetrating (to 1e-11 m) and its impulse lies in its
+    /// friction cone (so it does not pull).
+    fn assert_feasible(p: &Problem<'_>, lambda: &[Vector3<f64>]) {
+        let mut r = Vec::new();
+        p.positions(lambda, &mut r);
+        for (j, (c, (r, l))) in p.contacts.iter().zip(r.iter().zip(lambda)).enumerate() {
+            let n = c.contact.normal;
+            let (ln, lt) = (n.dot(l), (l - n * n.dot(l)).norm());
+            assert!(n.dot(&(r - c.contact.point)) >= -1e-11, "contact {j} penetrates: {r}");
+            assert!(
+                ln >= 0.0 && lt <= c.contact.friction * ln * (1.0 + 1e-9) + 1e-12,
+                "contact {j} outside its cone: {l}"
+            );
+        }
+    }
+
     /// Two contacts on two vertices coupled strongly through `D`, plus a duplicate of the first
     /// (a singular `D`): the solve converges to a point that every contact accepts.
     #[test]
@@ -528,11 +544,7 @@ mod tests {
         let out = space.solve(&p, &mut lambda, 1e-12, 2000);
         assert!(out.converged, "{out:?}");
         assert!(ContactSpace::residual(&p, &lambda) <= 1e-12);
-        for (j, c) in contacts.iter().enumerate() {
-            let r = p.x_hat(j, &lambda) + lambda[j] * d[j * 3 + j];
-            assert!(c.contact.normal.dot(&r) >= -1e-11, "contact {j} penetrates: {r}");
-            assert!(c.contact.normal.dot(&lambda[j]) >= 0.0, "contact {j} pulls");
-        }
+        assert_feasible(&p, &lambda);
     }
 
     /// The active set keeps `r = f + D lambda` by moving it along each Newton step; at the end
@@ -591,17 +603,7 @@ mod tests {
         let out = ContactSpace::default().solve(&p, &mut lambda, 1e-12, 2000);
         assert!(out.converged, "{out:?}");
         assert!(out.sweeps <= 10, "{out:?}");
-        for (j, c) in contacts.iter().enumerate() {
-            let r = p.x_hat(j, &lambda) + lambda[j] * d[j * 3 + j];
-            let ln = c.contact.normal.dot(&lambda[j]);
-            let lt = (lambda[j] - c.contact.normal * ln).norm();
-            assert!(c.contact.normal.dot(&r) >= -1e-11, "contact {j} penetrates: {r}");
-            assert!(
-                ln >= 0.0 && lt <= 0.1 * ln * (1.0 + 1e-9) + 1e-12,
-                "contact {j} outside its cone: {}",
-                lambda[j]
-            );
-        }
+        assert_feasible(&p, &lambda);
     }
 
     /// Contacts that ask the same vertex to be above and below a plane: no solution; the solve
