@@ -5,7 +5,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-cargo test --release
+cargo test --release --workspace
 
 venv="${DIFFSOFT_VENV:-target/venv}"
 if [ ! -x "$venv/bin/python" ]; then

@@ -3,7 +3,8 @@
 
 use diffsoft::analysis::bounds::{analyze, BoundsParams};
 use diffsoft::analysis::spectral::EigenMethod;
-use diffsoft::verify::gradients::{self, Case, Group};
+use diffsoft::testing::{gradcheck_settings, Case, Group};
+use diffsoft_harness::gradients;
 use pyo3::prelude::*;
 
 use crate::arrays;
@@ -92,7 +93,7 @@ pub fn gradcheck<'py>(
             .map_or("scene".into(), |s| s.to_string_lossy().into_owned()),
         description: format!("{} (from Python)", scene.inner.path.display()),
         model: scene.inner.model.clone(),
-        settings: gradients::gradcheck_settings(scene.inner.settings.dt, iterations),
+        settings: gradcheck_settings(scene.inner.settings.dt, iterations),
         steps,
         loss: diffsoft::diff::loss::by_name(loss).map_err(errors::diff)?,
         controls: scene.inputs.controls(&scene.inner.model),
@@ -107,6 +108,6 @@ pub fn gradcheck<'py>(
 #[pyfunction]
 #[pyo3(signature = (seed = 2021))]
 pub fn jacobians(py: Python<'_>, seed: u64) -> PyResult<Bound<'_, PyAny>> {
-    let report = py.detach(|| diffsoft::verify::jacobians::run(seed));
+    let report = py.detach(|| diffsoft_harness::jacobians::run(seed));
     arrays::report(py, &report)
 }

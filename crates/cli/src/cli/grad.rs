@@ -1,0 +1,156 @@
+//! `diffsoft grad`: its options, one forward and one backward pass, the loss and the
+//! derivatives.
+
+use super::choice::choice;
+use super::files::{preflight, save};
+use super::overrides::SolverOverrides;
+use super::prelude::*;
+
+#[derive(clap::Args)]
+pub(crate) struct GradArgs {
+    /// Scene file (.json, diffsoft.scene/1 or a paper scene), positional as in `simulate`.
+    #[arg(required_unless_present = "scene_flag", conflicts_with = "scene_flag")]
+    scene: Option<PathBuf>,
+    /// The scene as a flag (the older spelling; same as the positional SCENE).
+    #[arg(long = "scene", value_name = "SCENE", hide = true)]
+    scene_flag: Option<PathBuf>,
+    /// Steps to simulate.
+    #[arg(long, default_value_t = 100)]
+    steps: usize,
+    /// Loss: final_com.x|y|z, mean_com.x|y|z, joint_angle.BONE or mean_joint_angle.BONE.
+    #[arg(long, default_value = "final_com.y")]
+    loss: String,
+    /// Parameters to differentiate (repeatable): youngs_modulus, poisson_ratio, density,
+    /// initial_velocity.x|y|z, gravity.x|y|z.
+    #[arg(long, required = true)]
+    param: Vec<String>,
+    /// Override a parameter first, `NAME=VALUE` (repeatable; same names as --param).
+    #[arg(long, value_name = "NAME=VALUE")]
+    set: Vec<String>,
+    /// Differentiation mode.
+    #[arg(long, value_parser = choice::<diffsoft::diff::Mode>(), default_value = "unrolled")]
+    mode: diffsoft::diff::Mode,
+    #[command(flatten)]
+    overrides: SolverOverrides,
+    /// Write `{loss, gradient}` as JSON here (`-`: standard output).
+    #[arg(long)]
+    json: Option<PathBuf>,
+    /// Unrolled mode: keep whole steps' recordings from the forward pass up to this many MB
+    /// instead of replaying them from checkpoints (0: pure checkpointing).
+    #[arg(long, default_value_t = 0.0)]
+    store_mb: f64,
+    /// Return the loss and gradient even if forward steps miss the tolerance or a replay
+    /// deviates from the forward pass (otherwise an error; the counts are printed).
+    #[arg(long)]
+    allow_unconverged: bool,
+    /// Implicit mode: relative residual at which the adjoint solve of each step stops
+    #[arg(long, default_value_t = diffsoft::diff::Options::default().implicit_tolerance)]
+    implicit_tolerance: f64,
+}
+
+/// A memory budget in MB as bytes.
+pub(crate) fn store_bytes(mb: f64) -> Result<usize> {
+    if !(mb.is_finite() && mb >= 0.0) {
+        anyhow::bail!("--store-mb must be finite and >= 0, got {mb}");
+    }
+    Ok((mb * 1e6) as usize)
+}
+
+/// `diffsoft grad`: overrides, one forward and one backward pass, the loss and the derivatives.
+pub(crate) fn grad(a: GradArgs) -> Result<()> {
+    use diffsoft::diff::{self, Controls, Options, Param};
+    let Some(scene) = a.scene.clone().or_else(|| a.scene_flag.clone()) else {
+        bail!("give the scene file: diffsoft grad SCENE --param P");
+    };
+    preflight(a.json.as_deref(), &[&scene])?;
+    if !(a.implicit_tolerance.is_finite() && a.implicit_tolerance >= 0.0) {
+        bail!(
+            "--implicit-tolerance must be finite and >= 0, got {}",
+            a.implicit_tolerance
+        );
+    }
+    let mut sc = diffsoft::scene::load(&scene, diffsoft::scene::LoadOptions::default())?;
+    a.overrides.apply(&mut sc.settings);
+    for s in &a.set {
+        let (name, value) = s
+            .split_once('=')
+            .ok_or_else(|| anyhow::anyhow!("--set {s}: expected NAME=VALUE"))?;
+        let p: Param = name.parse()?;
+        let v: f64 = value
+            .trim()
+            .parse()
+            .map_err(|_| anyhow::anyhow!("--set {s}: '{value}' is not a number"))?;
+        p.set(&mut sc.model, v)?;
+    }
+    let params: Vec<Param> = a.param.iter().map(|p| p.parse()).collect::<Result<_, _>>()?;
+    let loss = diff::loss::by_name(&a.loss)?;
+    let g = diff::gradient(
+        &sc.model,
+        &sc.settings,
+        a.steps,
+        &Controls::default(),
+        loss.as_ref(),
+        Options {
+            store_bytes: store_bytes(a.store_mb)?,
+            allow_unconverged: a.allow_unconverged,
+            implicit_tolerance: a.implicit_tolerance,
+            ..Options::mode(a.mode)
+        },
+    )
+    .map_err(|e| match e {
+        diff::DiffError::Unconverged { .. } | diff::DiffError::NotReplayable { .. } => {
+            anyhow::anyhow!("{e} (--allow-unconverged)")
+        }
+        e => e.into(),
+    })?;
+    let mut gradient = std::collections::BTreeMap::new();
+    let mut values = std::collections::BTreeMap::new();
+    say!("loss {} = {:.17e}", a.loss, g.loss);
+    for p in &params {
+        let d = p.derivative(&sc.model, &g);
+        say!(
+            "d loss / d {p} = {d:.17e}   (at {p} = {})",
+            p.get(&sc.model).map_or("-".into(), |v| v.to_string())
+        );
+        gradient.insert(p.to_string(), d);
+        if let Ok(v) = p.get(&sc.model) {
+            values.insert(p.to_string(), v);
+        }
+    }
+    say!(
+        "forward {:.1} ms, backward {:.1} ms ({:?} mode), {} forward iterations, {} backward iterations",
+        g.stats.forward_ms,
+        g.stats.backward_ms,
+        a.mode,
+        g.stats.forward_iterations,
+        g.stats.backward_iterations
+    );
+    let missed = sc.settings.tolerance > 0.0 && g.stats.unconverged_steps > 0;
+    if missed || g.stats.replay_deviation > 1e-6 * sc.model.length_scale() {
+        say!(
+            "warning: {} of {} forward steps did not converge, replay deviation {:.3e} m (allowed by --allow-unconverged)",
+            g.stats.unconverged_steps, a.steps, g.stats.replay_deviation
+        );
+    }
+    if a.mode == diff::Mode::Unrolled && g.stats.one_iteration_steps > 0 {
+        say!(
+            "warning: {} of {} forward steps met the tolerance in their first iteration; unrolled mode differentiates that one iteration, not the converged step (use --mode implicit, or --tolerance 0 with a fixed --max-iterations)",
+            g.stats.one_iteration_steps, a.steps
+        );
+    }
+    if let Some(path) = &a.json {
+        let out = diffsoft::output::GradReport {
+            header: diffsoft::output::report::Header::new(diffsoft::output::GRAD_SCHEMA),
+            scene: scene.display().to_string(),
+            steps: a.steps,
+            mode: a.mode,
+            loss_name: a.loss.clone(),
+            loss: g.loss,
+            parameters: values,
+            gradient,
+            stats: g.stats,
+        };
+        save(path, &out, &[&scene])?;
+    }
+    Ok(())
+}

@@ -1,0 +1,186 @@
+//! `diffsoft simulate`: the run with its frames and run log, kept current during the run and
+//! finalised however it ends.
+
+use super::prelude::*;
+
+/// Set by SIGINT/SIGTERM: the run stops after its current step and finalises its log.
+static INTERRUPTED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+/// Where `simulate` writes, and whether it may replace an earlier run's files.
+pub(crate) struct RunOutput<'a> {
+    pub(crate) dir: Option<&'a Path>,
+    pub(crate) every: usize,
+    pub(crate) overwrite: bool,
+}
+
+/// Run a scene, printing a summary and writing frames and the run log. The output directory is
+/// checked before the first step; the log is kept current during the run and finalised however
+/// it ends (completed, failed, or interrupted by SIGINT/SIGTERM, exit status 130).
+pub(crate) fn simulate(
+    sc: diffsoft::scene::Scene,
+    steps: usize,
+    out: RunOutput<'_>,
+    activations: &[(String, f64)],
+) -> Result<()> {
+    use diffsoft::output::report::Header;
+    use diffsoft::output::{FrameWriter, RunDir, RunLog, RunStatus, RunSummary, RUN_SCHEMA};
+    use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+    use std::sync::atomic::Ordering;
+    // The run log holds every step's figures: a step count it cannot hold is refused up front.
+    diffsoft::base::memory::check(
+        &format!("--steps {steps}"),
+        steps,
+        std::mem::size_of::<diffsoft::StepStats>(),
+    )?;
+    let mut run_dir = match out.dir {
+        Some(dir) => Some(RunDir::prepare(dir, &[sc.path.as_path()], out.overwrite)?),
+        None => None,
+    };
+    let model_size = diffsoft::output::report::ModelSize::of(&sc.model);
+    let bodies = sc.model.bodies().to_vec();
+    let cloth = sc.model.cloth().map_or(Vec::new(), |c| c.bodies.clone());
+    say!(
+        "scene       {} ({:?}): {} vertices, {} tets, {} bodies{}",
+        sc.path.display(),
+        sc.format,
+        model_size.vertices,
+        model_size.tets,
+        bodies.len(),
+        if cloth.is_empty() {
+            String::new()
+        } else {
+            format!(", {} cloth ({} triangles)", cloth.len(), sc.model.num_cloth_triangles())
+        }
+    );
+    for n in &sc.notes {
+        say!("note        {n}");
+    }
+    let mut sim = diffsoft::solver::Simulator::new(sc.model, sc.settings.clone())?;
+    say!("solver      {}", sim.certificate().message);
+    if sc.settings.integrator == diffsoft::solver::Integrator::Bdf2 {
+        say!(
+            "integrator  bdf2 (docs/method.md Eq. T1): the matrix above is M/h_e^2 + L with h_e = 2h/3; the first step is implicit Euler on M/h^2 + L, factored when it is taken"
+        );
+    }
+    for (name, a) in activations {
+        sim.set_activation(name, *a)?;
+        say!("activation  {name} held at {a}");
+    }
+    let mut frames = match (&run_dir, out.every) {
+        (Some(d), every) if every > 0 => Some(FrameWriter::new(d.path(), sim.model())?),
+        _ => None,
+    };
+    let mut log = RunLog {
+        header: Header::new(RUN_SCHEMA),
+        scene: sc.path.display().to_string(),
+        notes: sc.notes.clone(),
+        bodies,
+        cloth,
+        size: model_size,
+        settings: sim.settings().clone(),
+        certificate: sim.certificate().clone(),
+        summary: RunSummary::of(&[]),
+        steps: Vec::new(),
+        frames: Vec::new(),
+        status: RunStatus::Running,
+        error: None,
+    };
+    let frame_name = |p: PathBuf| p.file_name().unwrap_or_default().to_string_lossy().into_owned();
+    if let Some(f) = frames.as_mut() {
+        log.frames.push(frame_name(f.write_state(&sim)?));
+    }
+    if let Some(d) = run_dir.as_mut() {
+        d.write_log(&log)?;
+    }
+    if let Err(e) = ctrlc::set_handler(|| {
+        // A second signal ends the process at once; the log of the last refresh stays.
+        if INTERRUPTED.swap(true, Ordering::SeqCst) {
+            std::process::exit(130);
+        }
+    }) {
+        eprintln!("warning: cannot catch SIGINT/SIGTERM ({e}); an interrupted run keeps its last log refresh");
+    }
+    let bar = ProgressBar::new(steps as u64);
+    if steps < 50 || !std::io::IsTerminal::is_terminal(&std::io::stderr()) {
+        bar.set_draw_target(ProgressDrawTarget::hidden());
+    }
+    bar.set_style(
+        ProgressStyle::with_template("{bar:40} {pos}/{len} steps {elapsed_precise} eta {eta} {msg}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    for k in 0..steps {
+        if INTERRUPTED.load(Ordering::SeqCst) {
+            log.status = RunStatus::Interrupted;
+            break;
+        }
+        match sim.step() {
+            Ok(s) => {
+                bar.set_message(format!("{} it", s.iterations));
+                log.steps.push(s);
+            }
+            Err(e) => {
+                log.status = RunStatus::Failed;
+                log.error = Some(format!("step {}: {e}", k + 1));
+                break;
+            }
+        }
+        bar.inc(1);
+        if let Some(f) = frames.as_mut() {
+            if (k + 1) % out.every == 0 {
+                log.frames.push(frame_name(f.write_state(&sim)?));
+            }
+        }
+        if let Some(d) = run_dir.as_mut().filter(|d| d.log_due()) {
+            log.summary = RunSummary::of(&log.steps);
+            d.write_log(&log)?;
+        }
+    }
+    if log.status == RunStatus::Running {
+        log.status = if INTERRUPTED.load(Ordering::SeqCst) && log.steps.len() < steps {
+            RunStatus::Interrupted
+        } else {
+            RunStatus::Completed
+        };
+    }
+    bar.finish_and_clear();
+    log.summary = RunSummary::of(&log.steps);
+    let summary = &log.summary;
+    say!(
+        "ran         {} steps ({:.4} s simulated) in {:.3} s: median {:.3} ms/step, {:.2} iterations/step, {} of {} converged, max penetration {:.3e} m, max contacts {} (between bodies {})",
+        summary.steps,
+        summary.simulated_time,
+        summary.wall_time_s,
+        summary.median_ms_per_step,
+        summary.mean_iterations,
+        summary.converged_steps,
+        summary.steps,
+        summary.max_penetration,
+        summary.max_contacts,
+        summary.max_pair_contacts
+    );
+    if summary.steps_with_capped_solves > 0 {
+        say!(
+            "warning     {} of {} steps had a global or contact solve stop unconverged, at its iteration cap (the scene's solver.inner_max_iterations) or stalled (no progress over a long batch of sweeps: an infeasible or badly conditioned contact set); capped_solves in the step log",
+            summary.steps_with_capped_solves,
+            summary.steps
+        );
+    }
+    if let Some(d) = run_dir.as_mut() {
+        d.write_log(&log)?;
+        say!(
+            "wrote       {} ({:?}) and {} frames{}",
+            d.log_path().display(),
+            log.status,
+            log.frames.len(),
+            if log.frames.is_empty() { "" } else { " (frames.pvd)" }
+        );
+    }
+    match (log.status, log.error) {
+        (RunStatus::Interrupted, _) => {
+            eprintln!("interrupted after {} of {steps} steps", log.steps.len());
+            std::process::exit(130);
+        }
+        (_, Some(e)) => bail!(e),
+        _ => Ok(()),
+    }
+}

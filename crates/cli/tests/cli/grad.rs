@@ -1,0 +1,95 @@
+//! `diffsoft grad`: the gradient from the command line.
+
+use std::process::Command;
+
+fn grad_cli(scene: &std::path::Path, set: Option<f64>, json: &std::path::Path) -> (f64, f64) {
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_diffsoft"));
+    cmd.args(["--threads", "1", "grad", "--scene"])
+        .arg(scene)
+        .args([
+            "--steps",
+            "5",
+            "--loss",
+            "final_com.y",
+            "--param",
+            "youngs_modulus",
+            "--tolerance",
+            "0",
+        ])
+        .args(["--max-iterations", "10", "--json"])
+        .arg(json);
+    if let Some(e) = set {
+        cmd.arg("--set").arg(format!("youngs_modulus={e:.17e}"));
+    }
+    let out = cmd.output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(json).unwrap()).unwrap();
+    (
+        v["loss"].as_f64().unwrap(),
+        v["gradient"]["youngs_modulus"].as_f64().unwrap(),
+    )
+}
+
+/// `grad --implicit-tolerance` reaches the implicit adjoint: a looser tolerance takes fewer
+/// backward iterations and gives nearly the same gradient; a negative one is an error.
+#[test]
+fn grad_cli_implicit_tolerance_takes_effect() {
+    let dir = crate::common::tmp_dir("grad-implicit-tolerance");
+    let scene = crate::common::root().join("verification/paper/bridgesus/bridgesus.json");
+    let run = |tol: &str| {
+        let json = dir.join(format!("g{tol}.json"));
+        let out = Command::new(env!("CARGO_BIN_EXE_diffsoft"))
+            .args(["--threads", "1", "grad"])
+            .arg(&scene)
+            .args(["--steps", "10", "--param", "youngs_modulus", "--mode", "implicit"])
+            .args([
+                "--tolerance",
+                "1e-10",
+                "--max-iterations",
+                "200",
+                "--implicit-tolerance",
+                tol,
+                "--json",
+            ])
+            .arg(&json)
+            .output()
+            .unwrap();
+        (out, json)
+    };
+    let read = |json: &std::path::Path| {
+        let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(json).unwrap()).unwrap();
+        (
+            v["gradient"]["youngs_modulus"].as_f64().unwrap(),
+            v["stats"]["backward_iterations"].as_u64().unwrap(),
+        )
+    };
+    let (tight, jt) = run("1e-12");
+    assert!(tight.status.success(), "{}", String::from_utf8_lossy(&tight.stderr));
+    let (loose, jl) = run("1e-4");
+    assert!(loose.status.success(), "{}", String::from_utf8_lossy(&loose.stderr));
+    let ((gt, it), (gl, il)) = (read(&jt), read(&jl));
+    assert!(il < it, "backward iterations: {il} at 1e-4, {it} at 1e-12");
+    assert!((gl - gt).abs() <= 1e-3 * gt.abs(), "gradients {gl:e} and {gt:e}");
+    let (bad, _) = run("-1");
+    assert!(!bad.status.success());
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("--implicit-tolerance"));
+}
+
+/// `diffsoft grad` against central differences of its own loss taken through `--set`.
+#[test]
+fn grad_cli_agrees_with_outside_finite_differences() {
+    let dir = crate::common::tmp_dir("grad-cli");
+    let scene = crate::common::root().join("verification/paper/bridgesus/bridgesus.json");
+    let json = dir.join("g.json");
+    let (_, g) = grad_cli(&scene, None, &json);
+    let e0 = 2e5;
+    let mut best = f64::INFINITY;
+    for k in 2..8 {
+        let h = e0 * 10f64.powi(-k);
+        let (lp, _) = grad_cli(&scene, Some(e0 + h), &json);
+        let (lm, _) = grad_cli(&scene, Some(e0 - h), &json);
+        let fd = (lp - lm) / (2.0 * h);
+        best = best.min((fd - g).abs() / fd.abs());
+    }
+    assert!(best < 1e-6, "best relative difference {best:e} (gradient {g:e})");
+}

@@ -1,0 +1,436 @@
+//! Hostile and careless input as a new user would give it: no panic, no abort, no silent wrong
+//! answer, no lost or overwritten output. Each test drives the command-line tool or the
+//! library the way the user would and checks the exit status, the message and the files.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+use crate::common::{cube_scene, root, tmp_dir, write};
+use diffsoft::diff::{self, Controls, DiffError, Mode, Options, Param};
+
+const DENSITY: &str = r#", "density": 1000"#;
+
+fn diffsoft(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_diffsoft"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+fn stdout(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+fn json(path: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
+/// A free-falling two-tet cube so stiff (E = 1e20) that the local-global iteration cannot meet
+/// its tolerance within the cap: the gradient of such a run is refused unless asked for.
+#[test]
+fn an_unconverged_forward_is_an_error_unless_allowed() {
+    let dir = tmp_dir("hard-unconverged");
+    let scene = cube_scene(&dir, DENSITY, "");
+    let sc = diffsoft::scene::load(&scene, Default::default()).unwrap();
+    let mut model = sc.model.clone();
+    Param::YoungsModulus.set(&mut model, 1e20).unwrap();
+    let loss = diff::loss::by_name("final_com.y").unwrap();
+    assert!(sc.settings.tolerance > 0.0);
+    let e = diff::gradient(
+        &model,
+        &sc.settings,
+        10,
+        &Controls::default(),
+        loss.as_ref(),
+        Options::default(),
+    )
+    .unwrap_err();
+    assert!(matches!(e, DiffError::Unconverged { of: 10, .. }), "{e}");
+    assert!(e.to_string().contains("did not converge"), "{e}");
+    let g = diff::gradient(
+        &model,
+        &sc.settings,
+        10,
+        &Controls::default(),
+        loss.as_ref(),
+        Options {
+            allow_unconverged: true,
+            ..Options::mode(Mode::Unrolled)
+        },
+    )
+    .unwrap();
+    assert!(g.stats.unconverged_steps > 0);
+    // A fixed iteration count (tolerance 0) is a deliberate, smooth forward: not refused when
+    // the backward pass replays it exactly (the moderate material of the scene) ...
+    let mut fixed = sc.settings.clone();
+    fixed.tolerance = 0.0;
+    fixed.max_iterations = 5;
+    let g = diff::gradient(
+        &sc.model,
+        &fixed,
+        10,
+        &Controls::default(),
+        loss.as_ref(),
+        Options::default(),
+    )
+    .unwrap();
+    assert!(g.stats.replay_deviation <= 1e-12, "{}", g.stats.replay_deviation);
+    // ... but refused when round-off grows so fast at E = 1e20 that the replay leaves the
+    // forward's trajectory: the gradient would be of another run.
+    let e = diff::gradient(
+        &model,
+        &fixed,
+        10,
+        &Controls::default(),
+        loss.as_ref(),
+        Options::default(),
+    )
+    .unwrap_err();
+    assert!(matches!(e, DiffError::NotReplayable { .. }), "{e}");
+
+    let s = scene.to_str().unwrap();
+    let stiff = [
+        "grad",
+        s,
+        "--steps",
+        "10",
+        "--param",
+        "density",
+        "--set",
+        "youngs_modulus=1e20",
+    ];
+    let o = diffsoft(&stiff);
+    assert_eq!(o.status.code(), Some(1), "{}", stdout(&o));
+    assert!(
+        stderr(&o).contains("did not converge") && stderr(&o).contains("--allow-unconverged"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!stdout(&o).contains("d loss"), "no gradient is printed: {}", stdout(&o));
+    let o = diffsoft(&[&stiff[..], &["--allow-unconverged"]].concat());
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stdout(&o).contains("warning: ") && stdout(&o).contains("did not converge"),
+        "{}",
+        stdout(&o)
+    );
+}
+
+#[test]
+fn simulate_refuses_stale_output_and_overwrites_only_when_asked() {
+    let dir = tmp_dir("hard-stale");
+    let scene = cube_scene(&dir, DENSITY, "");
+    let out = dir.join("out");
+    let (s, o) = (scene.to_str().unwrap(), out.to_str().unwrap());
+    let r = diffsoft(&["simulate", s, "--steps", "6", "--out", o]);
+    assert!(r.status.success(), "{}", stderr(&r));
+    assert_eq!(json(&out.join("run.json"))["status"], "completed");
+    assert!(out.join("frame_00006.vtu").exists());
+    // A second run into the same directory would leave the first run's frames beside its own.
+    let r = diffsoft(&["simulate", s, "--steps", "2", "--out", o]);
+    assert_eq!(r.status.code(), Some(1));
+    assert!(
+        stderr(&r).contains("earlier run") && stderr(&r).contains("--overwrite"),
+        "{}",
+        stderr(&r)
+    );
+    assert!(out.join("frame_00006.vtu").exists(), "the refused run touched nothing");
+    let r = diffsoft(&["simulate", s, "--steps", "2", "--out", o, "--overwrite"]);
+    assert!(r.status.success(), "{}", stderr(&r));
+    assert!(!out.join("frame_00006.vtu").exists() && out.join("frame_00002.vtu").exists());
+    let log = json(&out.join("run.json"));
+    assert_eq!(log["frames"].as_array().unwrap().len(), 3);
+    // --every 0: no frames, but the run log is written.
+    let quiet = dir.join("quiet");
+    let r = diffsoft(&[
+        "simulate",
+        s,
+        "--steps",
+        "3",
+        "--every",
+        "0",
+        "--out",
+        quiet.to_str().unwrap(),
+    ]);
+    assert!(r.status.success(), "{}", stderr(&r));
+    let log = json(&quiet.join("run.json"));
+    assert_eq!(
+        (log["status"].as_str(), log["steps"].as_array().unwrap().len()),
+        (Some("completed"), 3)
+    );
+    // An output directory that cannot be created is found before the run.
+    let r = diffsoft(&["simulate", s, "--steps", "100000000", "--out", "/proc/diffsoft-out"]);
+    assert_eq!(r.status.code(), Some(1));
+    assert!(stderr(&r).contains("/proc/diffsoft-out"), "{}", stderr(&r));
+}
+
+#[test]
+fn an_interrupted_simulation_finalises_its_log() {
+    let dir = tmp_dir("hard-interrupt");
+    let scene = cube_scene(
+        &dir,
+        DENSITY,
+        r#", "obstacles": [{"plane": {"point": [0, -1, 0], "normal": [0, 1, 0]}, "friction": 0.3}]"#,
+    );
+    let out = dir.join("out");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_diffsoft"))
+        .args([
+            "simulate",
+            scene.to_str().unwrap(),
+            "--steps",
+            "100000000",
+            "--every",
+            "1000",
+        ])
+        .args(["--out", out.to_str().unwrap()])
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Wait until the run is under way (its log says so), then interrupt it.
+    let t0 = std::time::Instant::now();
+    while !(out.join("run.json").exists() && json(&out.join("run.json"))["status"] == "running") {
+        if let Some(status) = child.try_wait().unwrap() {
+            panic!("the run ended before it was interrupted: {status}");
+        }
+        assert!(t0.elapsed().as_secs() < 60, "the run did not start");
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    std::thread::sleep(std::time::Duration::from_millis(300));
+    let kill = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(kill.success());
+    let o = child.wait_with_output().unwrap();
+    assert_eq!(o.status.code(), Some(130), "{}", stderr(&o));
+    assert!(stderr(&o).contains("interrupted after"), "{}", stderr(&o));
+    let log = json(&out.join("run.json"));
+    assert_eq!(log["status"], "interrupted");
+    let steps = log["steps"].as_array().unwrap().len();
+    assert!(
+        steps > 0 && log["summary"]["steps"] == steps,
+        "{steps} steps in the log"
+    );
+    for e in std::fs::read_dir(&out).unwrap() {
+        let e = e.unwrap();
+        let name = e.file_name().to_string_lossy().into_owned();
+        assert!(!name.contains(".tmp."), "temporary file left: {name}");
+        assert!(e.metadata().unwrap().len() > 0, "empty file left: {name}");
+    }
+}
+
+#[test]
+fn no_output_is_written_over_an_input() {
+    let dir = tmp_dir("hard-input");
+    let mesh = write(&dir, "m.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nt 0 1 2 3\n");
+    let before = std::fs::read(&mesh).unwrap();
+    let m = mesh.to_str().unwrap();
+    let o = diffsoft(&["quality", "--mesh", m, "--json", m]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("over the input"), "{}", stderr(&o));
+    let o = diffsoft(&[
+        "bounds", "--mesh", m, "--rho", "1000", "--mu", "1e5", "--dt", "0.01", "--json", m,
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    assert_eq!(std::fs::read(&mesh).unwrap(), before, "the mesh is untouched");
+    let part = write(&dir, "p.json", "{}");
+    let p = part.to_str().unwrap();
+    let o = diffsoft(&["merge", p, "--out", p]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("over the input"), "{}", stderr(&o));
+}
+
+#[test]
+fn json_dash_goes_to_standard_output_alone() {
+    let mesh = root().join("python/tests/data/beam.obj");
+    let o = diffsoft(&[
+        "bounds",
+        "--mesh",
+        mesh.to_str().unwrap(),
+        "--rho",
+        "1000",
+        "--mu",
+        "1e5",
+        "--dt",
+        "0.01",
+        "--json",
+        "-",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("stdout is exactly the JSON report");
+    assert!(v["schema"].as_str().unwrap().contains("bounds"), "{v}");
+    assert!(!Path::new("-").exists(), "no file named '-'");
+}
+
+#[test]
+fn sizes_a_user_types_are_checked_before_allocating() {
+    let dir = tmp_dir("hard-sizes");
+    let out = dir.join("m.obj");
+    for cells in [
+        "100000,100000,100000",
+        "18446744073709551615,2,2",
+        "4294967296,4294967296,1",
+    ] {
+        let o = diffsoft(&["generate", "--cells", cells, "--out", out.to_str().unwrap()]);
+        assert_eq!(o.status.code(), Some(1), "--cells {cells}: {}", stderr(&o));
+        assert!(stderr(&o).contains("cells"), "--cells {cells}: {}", stderr(&o));
+    }
+    let scene = cube_scene(&dir, DENSITY, "");
+    for steps in ["18446744073709551615", "10000000000000"] {
+        let o = diffsoft(&["simulate", scene.to_str().unwrap(), "--steps", steps]);
+        assert_eq!(o.status.code(), Some(1), "--steps {steps}: {}", stderr(&o));
+        assert!(stderr(&o).contains(&format!("--steps {steps}")), "{}", stderr(&o));
+        let o = diffsoft(&[
+            "grad",
+            "--scene",
+            scene.to_str().unwrap(),
+            "--steps",
+            steps,
+            "--param",
+            "density",
+        ]);
+        assert_eq!(o.status.code(), Some(1), "grad --steps {steps}: {}", stderr(&o));
+        assert!(stderr(&o).contains("steps"), "{}", stderr(&o));
+    }
+    let o = diffsoft(&[
+        "cloth",
+        "--sizes",
+        "4000000000",
+        "--steps",
+        "1",
+        "--out",
+        dir.join("c").to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(stderr(&o).contains("4000000000"), "{}", stderr(&o));
+}
+
+#[test]
+fn counts_and_scales_beyond_reason_are_errors_naming_the_flag() {
+    let dir = tmp_dir("hard-flags");
+    let mesh = root().join("python/tests/data/beam.obj");
+    let m = mesh.to_str().unwrap();
+    let max = u64::MAX.to_string();
+    let cases: Vec<(Vec<&str>, &str)> = vec![
+        (
+            vec!["sweep", "--mesh", m, "--rho", "1000", "--mu", "1e5", "--points", &max],
+            "--points",
+        ),
+        (
+            vec![
+                "sweep",
+                "--mesh",
+                m,
+                "--rho",
+                "1000",
+                "--mu",
+                "1e5",
+                "--points",
+                "100000000000",
+            ],
+            "--points",
+        ),
+        (
+            vec!["gradcheck", "--steps", &max, "--json", "/tmp/diffsoft-never.json"],
+            "--steps",
+        ),
+        (vec!["tradeoff", "--cantilever", "4,1,1", "--steps", &max], "--steps"),
+        (
+            vec!["tradeoff", "--cantilever", "4,1,1", "--steps", "1000000000000"],
+            "--steps",
+        ),
+        (
+            vec![
+                "bounds", "--mesh", m, "--rho", "1000", "--mu", "1e5", "--dt", "0.01", "--scale", "1e300",
+            ],
+            "--scale",
+        ),
+        (
+            vec![
+                "bounds", "--mesh", m, "--rho", "1000", "--mu", "1e5", "--dt", "0.01", "--scale", "1e-300",
+            ],
+            "--scale",
+        ),
+    ];
+    for (args, flag) in cases {
+        let o = diffsoft(&args);
+        assert_eq!(o.status.code(), Some(1), "{args:?}: {}", stderr(&o));
+        assert!(
+            stderr(&o).contains(flag) && !stderr(&o).contains("panicked"),
+            "{args:?}: {}",
+            stderr(&o)
+        );
+    }
+    let o = diffsoft(&["--threads", "100000", "quality", "--mesh", m]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("--threads"), "{}", stderr(&o));
+    let out = dir.join("huge.obj");
+    let o = diffsoft(&[
+        "generate",
+        "--cells",
+        "1,1,1",
+        "--size",
+        "1e308,1e308,1e308",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("overflows"), "not 'degenerate': {}", stderr(&o));
+}
+
+/// `simulate --tolerance` and `--anderson` mean what they mean on `grad`: tolerance 0 runs
+/// exactly the cap every step, the settings land in the run log, and bad values are errors
+/// naming the setting.
+#[test]
+fn simulate_takes_tolerance_and_anderson() {
+    let dir = tmp_dir("hard-sim-tolerance");
+    let scene = root().join("verification/paper/bridgesus/bridgesus.json");
+    let out = dir.join("run");
+    let s = scene.to_str().unwrap();
+    let o = out.to_str().unwrap();
+    let ok = diffsoft(&[
+        "--threads",
+        "1",
+        "simulate",
+        s,
+        "--steps",
+        "3",
+        "--every",
+        "0",
+        "--out",
+        o,
+        "--tolerance",
+        "0",
+        "--max-iterations",
+        "4",
+        "--anderson",
+        "3",
+    ]);
+    assert!(ok.status.success(), "{}", stderr(&ok));
+    let log = json(&out.join("run.json"));
+    assert_eq!(log["settings"]["tolerance"].as_f64(), Some(0.0));
+    assert_eq!(log["settings"]["anderson"].as_u64(), Some(3));
+    for step in log["steps"].as_array().unwrap() {
+        assert_eq!(step["iterations"].as_u64(), Some(4), "{step}");
+    }
+    let bad = diffsoft(&[
+        "simulate",
+        s,
+        "--steps",
+        "1",
+        "--every",
+        "0",
+        "--out",
+        o,
+        "--overwrite",
+        "--tolerance",
+        "-1",
+    ]);
+    assert!(!bad.status.success());
+    assert!(stderr(&bad).contains("tolerance"), "{}", stderr(&bad));
+}

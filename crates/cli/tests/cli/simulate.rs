@@ -1,0 +1,120 @@
+//! `diffsoft simulate`: frames, run log, certificate messages and exit codes, Newton.
+
+use std::process::Command;
+
+use serde_json::Value;
+
+use crate::common::{root, tmp_dir};
+
+fn paper(name: &str) -> std::path::PathBuf {
+    root().join("verification/paper").join(name)
+}
+
+#[test]
+fn simulate_writes_vtk_frames_and_a_run_log() {
+    let dir = tmp_dir("cli-simulate");
+    let out = Command::new(env!("CARGO_BIN_EXE_diffsoft"))
+        .args([
+            "simulate",
+            paper("bridgesus/bridgesus.json").to_str().unwrap(),
+            // The certificate checked below is the split iteration's fallback.
+            "--solver",
+            "split",
+            "--steps",
+            "6",
+            "--every",
+            "3",
+            "--out",
+            dir.to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("falling back to the direct solver"), "{stdout}");
+    let log: Value = serde_json::from_str(&std::fs::read_to_string(dir.join("run.json")).unwrap()).unwrap();
+    assert_eq!(log["schema"], "diffsoft.run/2");
+    assert_eq!(log["steps"].as_array().unwrap().len(), 6);
+    assert_eq!(log["certificate"]["used"], "direct");
+    assert_eq!(log["frames"].as_array().unwrap().len(), 3);
+    for f in ["frame_00000.vtu", "frame_00002.vtu", "frames.pvd"] {
+        assert!(dir.join(f).exists(), "{f}");
+    }
+    // The frame is a VTK XML unstructured grid with the mesh's points and tets (its arrays are
+    // decoded and checked in tests/vtk_frames.rs).
+    let vtu = std::fs::read_to_string(dir.join("frame_00002.vtu")).unwrap();
+    assert!(
+        vtu.contains("<VTKFile type=\"UnstructuredGrid\""),
+        "{}",
+        &vtu[..200.min(vtu.len())]
+    );
+    assert!(
+        vtu.contains("NumberOfPoints=\"212\" NumberOfCells=\"668\""),
+        "{}",
+        &vtu[..400.min(vtu.len())]
+    );
+    // Divergence is a clear failure with exit status 1, not a panic.
+    let out = Command::new(env!("CARGO_BIN_EXE_diffsoft"))
+        .args([
+            "simulate",
+            paper("bridgesus/bridgesus.json").to_str().unwrap(),
+            // The unchecked split iteration diverges on this mesh.
+            "--solver",
+            "split",
+            "--steps",
+            "5",
+            "--certify",
+            "off",
+        ])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("diverged"),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let out = Command::new(env!("CARGO_BIN_EXE_diffsoft"))
+        .args([
+            "simulate",
+            paper("bridgesus/bridgesus.json").to_str().unwrap(),
+            // Certification refuses the split iteration on this mesh.
+            "--solver",
+            "split",
+            "--steps",
+            "5",
+            "--certify",
+            "refuse",
+        ])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("rejected by certification"));
+}
+
+/// `--solver newton` is accepted by `simulate` and reported in its output.
+#[test]
+fn the_cli_runs_newton() {
+    let dir = tmp_dir("newton-cli");
+    let out = Command::new(env!("CARGO_BIN_EXE_diffsoft"))
+        .args([
+            "simulate",
+            root()
+                .join("verification/paper/bridgesus/bridgesus.json")
+                .to_str()
+                .unwrap(),
+            "--steps",
+            "3",
+            "--every",
+            "0",
+            "--solver",
+            "newton",
+            "--out",
+            dir.join("run").to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("Newton"), "{stdout}");
+}

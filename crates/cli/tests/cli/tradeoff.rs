@@ -1,0 +1,77 @@
+//! `diffsoft tradeoff --shard` and `diffsoft merge`.
+
+use std::process::Command;
+
+use serde_json::Value;
+
+use crate::common::tmp_dir;
+
+fn diffsoft(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_diffsoft"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+#[test]
+fn cli_shards_and_merge() {
+    let dir = tmp_dir("tradeoff-cli");
+    let p = |f: &str| dir.join(f).to_str().unwrap().to_string();
+    let common = [
+        "tradeoff",
+        "--cantilever",
+        "4,1,1",
+        "--steps",
+        "3",
+        "--dt-divisors",
+        "1,2",
+        "--reference-divisor",
+        "4",
+        "--families",
+        "direct,chebyshev",
+        "--caps",
+        "1,2",
+        "--tolerances",
+        "1e-6",
+        "--time-axis",
+        "iterations",
+        "--min-timing-s",
+        "0",
+    ];
+    let run = |extra: &[&str]| {
+        let mut a: Vec<&str> = common.to_vec();
+        a.extend_from_slice(extra);
+        let out = diffsoft(&a);
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    };
+    let whole = run(&["--json", &p("whole.json")]);
+    assert!(whole.contains("Pareto front"), "{whole}");
+    run(&["--shard", "0/2", "--json", &p("a.json")]);
+    run(&["--shard", "1/2", "--json", &p("b.json")]);
+    let out = diffsoft(&["merge", &p("a.json"), &p("b.json"), "-o", &p("merged.json")]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let read = |f: &str| -> Value { serde_json::from_str(&std::fs::read_to_string(dir.join(f)).unwrap()).unwrap() };
+    let (mut w, mut m) = (read("whole.json"), read("merged.json"));
+    assert_eq!(w["schema"], "diffsoft.tradeoff/1");
+    assert_eq!(read("a.json")["schema"], "diffsoft.tradeoff_partial/1");
+    assert!(dir.join("tradeoff_cantilever_24.svg").exists());
+    crate::common::strip_keys(&mut w, crate::common::RUN_DEPENDENT_KEYS);
+    crate::common::strip_keys(&mut m, crate::common::RUN_DEPENDENT_KEYS);
+    assert_eq!(crate::common::json_difference(&w, &m, ""), None);
+    // Merging one shard alone names the missing one; a bad --shard is refused.
+    let out = diffsoft(&["merge", &p("a.json"), "-o", &p("x.json")]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("missing shard(s) 1/2"));
+    let out = diffsoft(&[
+        "tradeoff",
+        "--cantilever",
+        "2,1,1",
+        "--shard",
+        "2/2",
+        "--json",
+        &p("y.json"),
+    ]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("0 <= K < N"));
+}

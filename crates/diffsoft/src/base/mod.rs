@@ -1,0 +1,25 @@
+//! The bottom layer: plain data and the input-validation error that every other module builds
+//! on. Nothing here imports the rest of the crate.
+//!
+//! * [`InputError`]: what every `validate()` and builder returns for physically meaningless or
+//!   inconsistent input; the errors of higher layers wrap it (`#[from]`).
+//! * [`Material`]: a body's elastic material and its constraint weights (docs/method.md
+//!   section 2).
+//! * [`Body`]: where one body lives in the assembled system.
+//! * [`Schedule`]: a piecewise-linear time series (activations, torques).
+//! * [`Choice`]: settings chosen from a fixed list of names, one spelling each.
+//! * [`memory`]: sizes from files and flags checked against overflow and the machine's memory
+//!   before anything is allocated for them.
+
+mod body;
+mod choice;
+mod error;
+mod material;
+pub mod memory;
+mod schedule;
+
+pub use body::Body;
+pub use choice::Choice;
+pub use error::InputError;
+pub use material::Material;
+pub use schedule::Schedule;

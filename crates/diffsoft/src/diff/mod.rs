@@ -1,0 +1,323 @@
+//! Reverse-mode gradients of whole simulations (docs/method.md section 7).
+//!
+//! A loss `L(q_1, v_1, ..., q_N, v_N)` ([`loss`]) of a trajectory is differentiated with respect
+//! to the initial positions and velocities, the per-tet constraint weights (hence Young's modulus
+//! and Poisson ratio, globally or per element), the lumped masses (density), the external
+//! accelerations (gravity), the attachment targets, the actuators' activations at every step,
+//! the joint torques at every step and the initial joint state (skeletons, [`skeletal`]).
+//!
+//! The forward pass stores each step's state (checkpointing, as the paper does); the backward
+//! pass walks the steps in reverse. Two modes:
+//!
+//! * [`Mode::Unrolled`] replays each step from its checkpoint, recording the local-global
+//!   iterates `x_0 = s, x_1, ..., x_N` (Eqs. 2-5), and differentiates every iteration the forward
+//!   ran, `x_{k+1} = A^-1 (M s/h^2 + b_fixed + J p(x_k))`: with `r_bar = A^-1 x_bar` (plus the
+//!   contact correction of [`contact`]), `x_bar_k = J (dp/dq)(x_k)^T J^T r_bar` ([`local`]). It
+//!   is the exact derivative of what the truncated solver computed.
+//! * [`Mode::Implicit`] differentiates the converged step by the implicit function theorem at the
+//!   stored next state, solving `(A - K) r_bar = x_bar` (`K` the local step's linearization,
+//!   symmetric) by conjugate gradients preconditioned with the prefactored `A` (DiffPD's
+//!   approach), or with contacts by the fixed point `r_bar = A^-T (x_bar + K r_bar)`: cheap, and
+//!   exact only where the forward converged.
+//!
+//! The weights enter `A = M/h^2 + L(w)` too: each solve contributes
+//! `dL/dw_t = <F_t(r_bar), P_t(x_k)/w_t> - <F_t(r_bar), F_t(x_{k+1})>` and each mass
+//! `r_bar . (s - x_{k+1}) / h^2`. The global solves are differentiated as exact linear solves with
+//! a sparse Cholesky factor (built here for any forward solver); contact subproblems at the
+//! impulses they converged to. With a skeleton, each iteration is the reduced step of Eqs. 7-18,
+//! differentiated with the joints' tangent charts, their update rules, active joint limits and
+//! contacts on free and bone vertices (see [`skeletal`]); its implicit mode iterates the adjoint
+//! of the step's last iteration to its fixed point. Anderson-accelerated unrolled runs return
+//! [`DiffError::Unsupported`].
+//!
+//! Memory: one state per step (pure checkpointing, as the paper); [`Options::store_bytes`]
+//! keeps whole steps' recordings from the forward pass within a budget so they need no replay.
+
+mod backward;
+pub(crate) mod contact;
+mod cotangent;
+mod forward;
+mod gradient;
+mod implicit;
+pub mod loss;
+pub mod optim;
+pub mod params;
+pub(crate) mod recording;
+mod rollout;
+pub(crate) mod skeletal;
+
+use nalgebra::Vector3;
+use serde::Serialize;
+
+use crate::model::Model;
+use crate::solver::SolverError;
+
+pub use cotangent::{vjp, Cotangent};
+pub use gradient::{gradient, gradient_with, loss_value, Progress};
+pub use params::Param;
+pub use rollout::{rollout, Rollout};
+
+/// Errors of the differentiation.
+#[derive(Debug, Clone, thiserror::Error)]
+#[non_exhaustive]
+pub enum DiffError {
+    /// Bad input (parameters, losses, controls).
+    #[error("invalid input: {0}")]
+    Input(String),
+    /// A feature the backward pass does not differentiate.
+    #[error("not supported by the backward pass: {0}")]
+    Unsupported(String),
+    /// The simulation passes through a point where it is not differentiable.
+    #[error("not differentiable: {0}")]
+    NotDifferentiable(String),
+    /// The forward pass did not meet its tolerance on some steps, so the loss and gradient
+    /// would be of an unconverged simulation (opt in with [`Options::allow_unconverged`]).
+    #[error(
+        "the forward simulation did not converge on {steps} of {of} steps (tolerance {tolerance:e}, cap {max_iterations} iterations): its loss and gradient would be those of an unconverged run; raise the iteration cap, lower the tolerance or the time step, or allow unconverged steps explicitly"
+    )]
+    Unconverged {
+        /// Steps that hit the iteration cap.
+        steps: usize,
+        /// Steps simulated.
+        of: usize,
+        /// The tolerance they missed.
+        tolerance: f64,
+        /// The iteration cap.
+        max_iterations: usize,
+    },
+    /// Unrolled mode: replaying a step from its checkpoint did not reproduce the forward pass
+    /// (e.g. an accelerated forward that did not converge), so the backward pass would
+    /// differentiate another trajectory.
+    #[error(
+        "the backward pass's replay deviates from the forward pass by {deviation:e} m (allowed {allowed:e} m): the gradient would be of another trajectory; use a tolerance the forward meets, or Anderson memory 0"
+    )]
+    NotReplayable {
+        /// Largest position difference between replay and forward (m).
+        deviation: f64,
+        /// The allowed difference (m): 1e-6 of the model's length scale.
+        allowed: f64,
+    },
+    /// The forward simulation failed.
+    #[error(transparent)]
+    Solver(#[from] SolverError),
+}
+
+impl From<crate::constraint::NotDifferentiable> for DiffError {
+    fn from(e: crate::constraint::NotDifferentiable) -> Self {
+        DiffError::NotDifferentiable(e.0)
+    }
+}
+
+impl From<crate::base::InputError> for DiffError {
+    fn from(e: crate::base::InputError) -> Self {
+        DiffError::Solver(SolverError::Input(e))
+    }
+}
+
+/// How steps are differentiated.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, serde::Deserialize, schemars::JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum Mode {
+    /// Every local-global iteration the forward ran (exact for the truncated solver).
+    Unrolled,
+    /// The converged step, by the implicit function theorem (exact at convergence).
+    Implicit,
+}
+
+/// Settings of the backward pass.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct Options {
+    /// Mode.
+    pub mode: Mode,
+    /// Implicit mode: stop the adjoint fixed-point iteration at this relative change.
+    pub implicit_tolerance: f64,
+    /// Implicit mode: iteration cap of the adjoint fixed point.
+    pub implicit_max_iterations: usize,
+    /// Implicit mode with contacts: memory of the Anderson mixing that accelerates the adjoint
+    /// fixed point (0: the plain iteration, which converges at the forward's own rate).
+    pub implicit_anderson: usize,
+    /// Relative tolerance of the linearized contact systems.
+    pub contact_tolerance: f64,
+    /// Sweep cap of the linearized contact systems.
+    pub contact_max_sweeps: usize,
+    /// Unrolled mode: keep the forward pass's recordings of whole steps (iterates and
+    /// decompositions) up to this many bytes, so those steps need no replay in the backward
+    /// pass; the steps beyond it are replayed from their checkpoints. 0: pure checkpointing, as
+    /// the paper (memory: one state per step).
+    pub store_bytes: usize,
+    /// Return a gradient even when forward steps missed their tolerance (`settings.tolerance >
+    /// 0`) or, in unrolled mode, a replay deviates from the forward pass; the counts are in
+    /// [`DiffStats`]. Default `false`: such a run is an error ([`DiffError::Unconverged`],
+    /// [`DiffError::NotReplayable`]). A tolerance of 0 (a fixed iteration count, the smooth
+    /// forward the gradient checks use) is never an error.
+    pub allow_unconverged: bool,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Self {
+            mode: Mode::Unrolled,
+            implicit_tolerance: 1e-12,
+            implicit_max_iterations: 300,
+            implicit_anderson: 8,
+            contact_tolerance: 1e-14,
+            contact_max_sweeps: 100_000,
+            store_bytes: 0,
+            allow_unconverged: false,
+        }
+    }
+}
+
+impl Options {
+    /// Defaults with the given mode.
+    pub fn mode(mode: Mode) -> Self {
+        Self {
+            mode,
+            ..Self::default()
+        }
+    }
+}
+
+/// Initial positions and velocities of every vertex.
+pub type InitialState = (Vec<Vector3<f64>>, Vec<Vector3<f64>>);
+
+/// The controls of a run: the initial state and activations per step (`[step][group]`,
+/// overriding the groups' schedules).
+#[derive(Debug, Clone, Default)]
+pub struct Controls {
+    /// Initial positions and velocities (`None`: the model's rest positions and initial
+    /// velocities).
+    pub initial: Option<InitialState>,
+    /// Activation of each actuator group at each step (`None`: follow the schedules).
+    pub activations: Option<Vec<Vec<f64>>>,
+    /// Joint torque on each reduced coordinate at each step (`[step][coordinate]`, overriding
+    /// the bones' schedules; entries of coordinates that are not one-DoF joints must be 0).
+    pub torques: Option<Vec<Vec<f64>>>,
+}
+
+/// Cost and accuracy figures of one gradient evaluation.
+#[derive(Debug, Clone, Copy, Default, Serialize, schemars::JsonSchema)]
+pub struct DiffStats {
+    /// Forward pass wall time (ms).
+    pub forward_ms: f64,
+    /// Backward pass wall time (ms), replays included.
+    pub backward_ms: f64,
+    /// Of which replaying steps from their checkpoints (unrolled mode, ms).
+    pub replay_ms: f64,
+    /// Of which in the adjoints of the contact solves (ms).
+    pub contact_ms: f64,
+    /// Local-global iterations of the forward pass.
+    pub forward_iterations: usize,
+    /// Adjoint iterations of the backward pass.
+    pub backward_iterations: usize,
+    /// Forward steps that stopped at the iteration cap.
+    pub unconverged_steps: usize,
+    /// Forward steps that met the tolerance in their first local-global iteration (their first
+    /// iterate was already the fixed point, e.g. a body at rest or moving rigidly). Unrolled
+    /// mode differentiates the iterations run, so through such a step it returns one
+    /// iteration's derivative, not the converged step's (docs/gradients.md); implicit mode and
+    /// fixed iteration counts (tolerance 0) are unaffected.
+    pub one_iteration_steps: usize,
+    /// Implicit mode: largest final relative change of an adjoint fixed point (1).
+    pub implicit_residual: f64,
+    /// Gauss-Seidel sweeps of the linearized contact systems.
+    pub contact_sweeps: usize,
+    /// Largest final relative residual of a linearized contact system (1).
+    pub contact_residual: f64,
+    /// Unrolled mode: largest distance between a replayed step and its checkpoint (m).
+    pub replay_deviation: f64,
+    /// Bytes of stored checkpoints (states, activations, final contacts).
+    pub checkpoint_bytes: usize,
+    /// Bytes of whole-step recordings kept from the forward pass (see [`Options::store_bytes`]).
+    pub stored_bytes: usize,
+    /// Steps whose recording was kept (not replayed).
+    pub stored_steps: usize,
+}
+
+/// The loss and its gradient with respect to everything differentiable.
+#[derive(Debug, Clone)]
+pub struct Gradient {
+    /// Loss value.
+    pub loss: f64,
+    /// `dL/dq_0` per vertex.
+    pub q0: Vec<Vector3<f64>>,
+    /// `dL/dv_0` per vertex.
+    pub v0: Vec<Vector3<f64>>,
+    /// `dL/dw_rot` per tet.
+    pub w_rot: Vec<f64>,
+    /// `dL/dw_vol` per tet.
+    pub w_vol: Vec<f64>,
+    /// `dL/dm` per vertex.
+    pub mass: Vec<f64>,
+    /// `dL/da_ext` per vertex (external acceleration).
+    pub accel: Vec<Vector3<f64>>,
+    /// `dL/d target` per attachment (model order).
+    pub attachment_targets: Vec<Vector3<f64>>,
+    /// `dL/d activation`, `[step][group]`.
+    pub activations: Vec<Vec<f64>>,
+    /// `dL/d tau`, the joint torques (generalized forces) per step and reduced coordinate,
+    /// `[step][coordinate]` (empty without a skeleton; a free root's entries are the
+    /// derivatives with respect to generalized forces on its chart coordinates).
+    pub torques: Vec<Vec<f64>>,
+    /// `dL/dz_0`, the initial joint state in the joints' charts (angles, extensions; a free
+    /// root's rotation vector and translation increments); empty without a skeleton.
+    pub joints0: Vec<f64>,
+    /// Cost and accuracy figures.
+    pub stats: DiffStats,
+}
+
+impl Gradient {
+    /// `dL/dE_t` per tet (`w_rot = E V/(1+nu)`, `w_vol = nu E V/(1+nu)`).
+    pub fn youngs_modulus(&self, model: &Model) -> Vec<f64> {
+        let mut out = vec![0.0; model.tets.len()];
+        for b in &model.bodies {
+            let nu = b.material.poisson_ratio;
+            for t in b.tets.clone() {
+                let vol = model.fem.geometry[t].volume;
+                let mut d = self.w_rot[t] * vol / (1.0 + nu);
+                if b.volume_constraint {
+                    d += self.w_vol[t] * nu * vol / (1.0 + nu);
+                }
+                out[t] = d;
+            }
+        }
+        out
+    }
+
+    /// `dL/dnu_t` per tet.
+    pub fn poisson_ratio(&self, model: &Model) -> Vec<f64> {
+        let mut out = vec![0.0; model.tets.len()];
+        for b in &model.bodies {
+            let (e, nu) = (b.material.youngs_modulus, b.material.poisson_ratio);
+            for t in b.tets.clone() {
+                let vol = model.fem.geometry[t].volume;
+                let k = e * vol / ((1.0 + nu) * (1.0 + nu));
+                let mut d = -self.w_rot[t] * k;
+                if b.volume_constraint {
+                    d += self.w_vol[t] * k;
+                }
+                out[t] = d;
+            }
+        }
+        out
+    }
+
+    /// `dL/drho` per body (masses scale with density).
+    pub fn density(&self, model: &Model) -> Vec<f64> {
+        model
+            .bodies
+            .iter()
+            .map(|b| {
+                b.vertices
+                    .clone()
+                    .map(|i| self.mass[i] * model.mass[i] / b.density)
+                    .sum()
+            })
+            .collect()
+    }
+}
+
+crate::choice!(Mode {
+    Unrolled => "unrolled",
+    Implicit => "implicit",
+});

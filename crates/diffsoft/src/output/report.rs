@@ -1,0 +1,276 @@
+//! Versioned JSON files: every report and run log starts with a [`Header`] (schema name with
+//! version, crate version, provenance); written atomically.
+
+use serde::Serialize;
+use std::io::Write as _;
+use std::path::{Path, PathBuf};
+
+/// The crate version written into every report.
+pub const CRATE_VERSION: &str = env!("CARGO_PKG_VERSION");
+
+/// First fields of every report.
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
+pub struct Header {
+    /// Schema name and version, e.g. `diffsoft.bounds/1`.
+    pub schema: String,
+    /// Version of the crate that wrote the report.
+    pub crate_version: &'static str,
+    /// Where and how the report was made (its timings depend on it).
+    pub provenance: Provenance,
+}
+
+impl Header {
+    /// A header for the given schema name (e.g. `"diffsoft.bounds/1"`).
+    pub fn new(schema: &str) -> Self {
+        Self {
+            schema: schema.to_string(),
+            crate_version: CRATE_VERSION,
+            provenance: Provenance::now(),
+        }
+    }
+}
+
+/// Where and how a report was made: the code (crate version, git commit), the compiler, the
+/// machine (CPU model, worker threads, OS) and the time, so timings in it can be compared.
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
+pub struct Provenance {
+    /// `git rev-parse HEAD` of the working directory's repository when the report was written,
+    /// with `-dirty` if it had uncommitted changes (`null` outside a git checkout).
+    pub git_commit: Option<String>,
+    /// UTC date and time the report was written (ISO 8601, seconds).
+    pub date_utc: String,
+    /// Worker threads of the computation (rayon pool).
+    pub threads: usize,
+    /// CPU model (`/proc/cpuinfo`; `null` where unknown).
+    pub cpu_model: Option<String>,
+    /// Logical CPUs of the machine.
+    pub cpus: usize,
+    /// `rustc --version` of the build.
+    pub rustc_version: &'static str,
+    /// Operating system and architecture, e.g. `linux x86_64`.
+    pub os: String,
+}
+
+impl Provenance {
+    /// The provenance of a report written now (machine facts are read once per process).
+    pub fn now() -> Self {
+        static FIXED: std::sync::OnceLock<(Option<String>, Option<String>)> = std::sync::OnceLock::new();
+        let (git_commit, cpu_model) = FIXED.get_or_init(|| (git_commit(), cpu_model())).clone();
+        Self {
+            git_commit,
+            date_utc: utc_now(),
+            threads: rayon::current_num_threads(),
+            cpu_model,
+            cpus: std::thread::available_parallelism().map_or(1, |n| n.get()),
+            rustc_version: env!("DIFFSOFT_RUSTC_VERSION"),
+            os: format!("{} {}", std::env::consts::OS, std::env::consts::ARCH),
+        }
+    }
+}
+
+fn git_commit() -> Option<String> {
+    let git = |args: &[&str]| {
+        std::process::Command::new("git")
+            .args(args)
+            .stderr(std::process::Stdio::null())
+            .output()
+            .ok()
+            .filter(|o| o.status.success())
+            .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string())
+    };
+    let head = git(&["rev-parse", "HEAD"])?;
+    let dirty = git(&["status", "--porcelain", "--untracked-files=no"]).is_some_and(|s| !s.is_empty());
+    Some(if dirty { format!("{head}-dirty") } else { head })
+}
+
+fn cpu_model() -> Option<String> {
+    let text = std::fs::read_to_string("/proc/cpuinfo").ok()?;
+    let line = text.lines().find(|l| l.starts_with("model name"))?;
+    Some(line.split_once(':')?.1.trim().to_string())
+}
+
+/// The current UTC time as `YYYY-MM-DDTHH:MM:SSZ` (civil-from-days, proleptic Gregorian).
+fn utc_now() -> String {
+    let secs = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs());
+    utc_date(secs)
+}
+
+fn utc_date(secs: u64) -> String {
+    let (days, rem) = ((secs / 86_400) as i64, secs % 86_400);
+    // Howard Hinnant's days-to-civil algorithm.
+    let z = days + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z.rem_euclid(146_097);
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let day = doy - (153 * mp + 2) / 5 + 1;
+    let month = if mp < 10 { mp + 3 } else { mp - 9 };
+    let year = yoe + era * 400 + i64::from(month <= 2);
+    format!(
+        "{year:04}-{month:02}-{day:02}T{:02}:{:02}:{:02}Z",
+        rem / 3600,
+        rem % 3600 / 60,
+        rem % 60
+    )
+}
+
+/// Size of a simulated model in the global numbering.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, schemars::JsonSchema)]
+pub struct ModelSize {
+    /// Vertices (every body and cloth).
+    pub vertices: usize,
+    /// Tets (every soft body).
+    pub tets: usize,
+}
+
+impl ModelSize {
+    /// The size of `model`.
+    pub fn of(model: &crate::model::Model) -> Self {
+        Self {
+            vertices: model.n(),
+            tets: model.tets().len(),
+        }
+    }
+}
+
+/// A claim checked against a measurement.
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
+pub struct Verdict {
+    /// The claim, in words, with its source (paper equation or appendix).
+    pub claim: String,
+    /// Whether the claim holds on this input.
+    pub holds: bool,
+    /// The measured value the verdict rests on (its unit is in `claim` or `comparison`; 1 when none
+    /// is named).
+    pub measured: Option<f64>,
+    /// The value it is compared with, in the unit of `measured` (`null` when the claim is not a
+    /// comparison).
+    pub threshold: Option<f64>,
+    /// How the comparison reads, e.g. `measured <= threshold`.
+    pub comparison: String,
+}
+
+impl Verdict {
+    /// `holds` iff `measured <= threshold`.
+    pub fn at_most(claim: impl Into<String>, measured: f64, threshold: f64) -> Self {
+        Self {
+            claim: claim.into(),
+            holds: measured <= threshold,
+            measured: Some(measured),
+            threshold: Some(threshold),
+            comparison: "measured <= threshold".into(),
+        }
+    }
+
+    /// `holds` iff `measured < threshold`.
+    pub fn below(claim: impl Into<String>, measured: f64, threshold: f64) -> Self {
+        Self {
+            claim: claim.into(),
+            holds: measured < threshold,
+            measured: Some(measured),
+            threshold: Some(threshold),
+            comparison: "measured < threshold".into(),
+        }
+    }
+
+    /// A verdict with an explicit outcome and a description of the comparison.
+    pub fn new(
+        claim: impl Into<String>,
+        holds: bool,
+        measured: Option<f64>,
+        threshold: Option<f64>,
+        comparison: impl Into<String>,
+    ) -> Self {
+        Self {
+            claim: claim.into(),
+            holds,
+            measured,
+            threshold,
+            comparison: comparison.into(),
+        }
+    }
+}
+
+/// Write a report as pretty JSON, creating parent directories; atomically (a temporary file
+/// renamed over the target). Errors name the path.
+pub fn write_json<T: Serialize>(path: impl AsRef<Path>, report: &T) -> std::io::Result<()> {
+    let path = path.as_ref();
+    let named = |e: std::io::Error| std::io::Error::new(e.kind(), format!("{}: {e}", path.display()));
+    if let Some(dir) = path.parent() {
+        if !dir.as_os_str().is_empty() {
+            std::fs::create_dir_all(dir).map_err(named)?;
+        }
+    }
+    let mut text = serde_json::to_string_pretty(report).map_err(|e| named(std::io::Error::other(e)))?;
+    text.push('\n');
+    write_atomic(path, text.as_bytes())
+}
+
+/// Write `bytes` to `path` so that it is never seen half-written: the content goes to a
+/// temporary file beside the target, which is then renamed over it (atomic on POSIX file
+/// systems). Errors name the path.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    let named = |e: std::io::Error| std::io::Error::new(e.kind(), format!("{}: {e}", path.display()));
+    let tmp = temporary_name(path);
+    let result = (|| {
+        let mut f = std::fs::File::create(&tmp)?;
+        f.write_all(bytes)?;
+        f.flush()?;
+        drop(f);
+        std::fs::rename(&tmp, path)
+    })();
+    if result.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    result.map_err(named)
+}
+
+/// `dir/.name.tmp.PID`: hidden, in the target's directory (so the rename stays on one file
+/// system), unique per process.
+pub(crate) fn temporary_name(path: &Path) -> PathBuf {
+    let name = path
+        .file_name()
+        .map_or_else(|| "out".into(), |n| n.to_string_lossy().into_owned());
+    path.with_file_name(format!(".{name}.tmp.{}", std::process::id()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn replaces_the_file_and_leaves_no_temporary() {
+        let dir = std::env::temp_dir().join(format!("diffsoft-atomic-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let p = dir.join("a.json");
+        write_atomic(&p, b"old").unwrap();
+        write_atomic(&p, b"new").unwrap();
+        assert_eq!(std::fs::read(&p).unwrap(), b"new");
+        let names: Vec<_> = std::fs::read_dir(&dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        assert_eq!(names, vec![std::ffi::OsString::from("a.json")]);
+        let e = write_atomic(&dir.join("missing/b.json"), b"x").unwrap_err();
+        assert!(e.to_string().contains("missing/b.json"), "{e}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn utc_dates() {
+        assert_eq!(utc_date(0), "1970-01-01T00:00:00Z");
+        assert_eq!(utc_date(951_782_400), "2000-02-29T00:00:00Z");
+        assert_eq!(utc_date(1_795_651_199), "2026-11-25T23:59:59Z");
+    }
+
+    #[test]
+    fn provenance_names_the_machine_and_the_build() {
+        let p = Provenance::now();
+        assert!(p.threads >= 1 && p.cpus >= 1);
+        assert!(p.rustc_version.starts_with("rustc "), "{}", p.rustc_version);
+        assert_eq!(p.date_utc.len(), 20);
+    }
+}

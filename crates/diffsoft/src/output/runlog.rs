@@ -1,0 +1,97 @@
+//! The JSON run log of `diffsoft simulate` (`diffsoft.run/2`): scene, notes, settings,
+//! certificate, per-step statistics and a summary.
+
+use serde::Serialize;
+
+use crate::base::Body;
+use crate::cloth::ClothBody;
+use crate::output::report::{Header, ModelSize};
+use crate::solver::{Certificate, Settings, StepStats};
+
+/// Schema of the run log.
+pub const RUN_SCHEMA: &str = "diffsoft.run/2";
+
+/// Summary over all steps.
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
+pub struct RunSummary {
+    /// Steps taken.
+    pub steps: usize,
+    /// Simulated time (s).
+    pub simulated_time: f64,
+    /// Wall time of the steps (s).
+    pub wall_time_s: f64,
+    /// Median wall time per step (ms).
+    pub median_ms_per_step: f64,
+    /// Mean local-global iterations per step.
+    pub mean_iterations: f64,
+    /// Steps that met the tolerance before the iteration cap.
+    pub converged_steps: usize,
+    /// Steps with a global or contact solve that stopped unconverged (cap or stall).
+    pub steps_with_capped_solves: usize,
+    /// Deepest penetration over the run (m).
+    pub max_penetration: f64,
+    /// Largest number of contacts in a step.
+    pub max_contacts: usize,
+    /// Largest number of contacts between bodies in a step.
+    pub max_pair_contacts: usize,
+    /// Total energy after the first step (J; 0 without steps).
+    pub energy_first_step: f64,
+    /// Total energy after the last step (J; 0 without steps).
+    pub energy_last_step: f64,
+}
+
+/// The run log.
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
+pub struct RunLog {
+    /// Schema and crate version.
+    #[serde(flatten)]
+    pub header: Header,
+    /// Scene file.
+    pub scene: String,
+    /// What the importer did.
+    pub notes: Vec<String>,
+    /// Bodies.
+    pub bodies: Vec<Body>,
+    /// Cloth bodies.
+    pub cloth: Vec<ClothBody>,
+    /// Vertices and tets in total.
+    pub size: ModelSize,
+    /// Solver settings.
+    pub settings: Settings,
+    /// Certification outcome.
+    pub certificate: Certificate,
+    /// Summary.
+    pub summary: RunSummary,
+    /// Per-step statistics.
+    pub steps: Vec<StepStats>,
+    /// Frames written (relative to the output directory).
+    pub frames: Vec<String>,
+    /// How the run stands or ended (`running` while it goes on; the log is refreshed every
+    /// few seconds).
+    pub status: super::RunStatus,
+    /// Error that ended the run early, if any.
+    pub error: Option<String>,
+}
+
+impl RunSummary {
+    /// Summarise step statistics.
+    pub fn of(steps: &[StepStats]) -> Self {
+        let mut ms: Vec<f64> = steps.iter().map(|s| s.wall_ms).collect();
+        ms.sort_by(f64::total_cmp);
+        let median = if ms.is_empty() { 0.0 } else { ms[ms.len() / 2] };
+        Self {
+            steps: steps.len(),
+            simulated_time: steps.last().map_or(0.0, |s| s.time),
+            wall_time_s: ms.iter().sum::<f64>() / 1e3,
+            median_ms_per_step: median,
+            mean_iterations: steps.iter().map(|s| s.iterations as f64).sum::<f64>() / steps.len().max(1) as f64,
+            converged_steps: steps.iter().filter(|s| s.converged).count(),
+            steps_with_capped_solves: steps.iter().filter(|s| s.capped_solves > 0).count(),
+            max_penetration: steps.iter().map(|s| s.max_penetration).fold(0.0, f64::max),
+            max_contacts: steps.iter().map(|s| s.contacts).max().unwrap_or(0),
+            max_pair_contacts: steps.iter().map(|s| s.pair_contacts).max().unwrap_or(0),
+            energy_first_step: steps.first().map_or(0.0, |s| s.total_energy()),
+            energy_last_step: steps.last().map_or(0.0, |s| s.total_energy()),
+        }
+    }
+}

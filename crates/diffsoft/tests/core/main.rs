@@ -1,0 +1,15 @@
+//! The core crate's integration tests, one module per subject (one test binary).
+
+mod analysis_props;
+mod common;
+mod constraint_props;
+mod contact_props;
+mod fem_props;
+mod mesh_errors;
+mod mesh_formats;
+mod newton;
+mod reference_values;
+mod scenes;
+mod skeleton_adjoint;
+mod trajectory;
+mod vtk_frames;

@@ -1,0 +1,143 @@
+//! Scene files: the strict diffsoft format, the paper importer, and `diffsoft simulate`.
+
+use crate::common::{cube_scene, root, tmp_dir, write};
+use diffsoft::scene::{self, LoadOptions, SceneFormat};
+use diffsoft::solver::SolverKind;
+
+fn paper(name: &str) -> std::path::PathBuf {
+    root().join("verification/paper").join(name)
+}
+
+#[test]
+fn paper_scenes_import_with_the_reference_defaults() {
+    let s = scene::load(paper("bridgesus/bridgesus.json"), LoadOptions::default()).unwrap();
+    assert_eq!(s.format, SceneFormat::Paper);
+    assert_eq!((s.model.n(), s.model.tets().len()), (212, 668));
+    assert!((s.settings.dt - 0.005).abs() < 1e-15);
+    assert!((s.settings.damping - 0.9999).abs() < 1e-15);
+    assert_eq!(
+        s.model.fixed().iter().filter(|&&f| f).count(),
+        65,
+        "65 attach verts at 1e20 become Dirichlet"
+    );
+    assert!((s.model.bodies()[0].mass - 10.0).abs() < 1e-9, "default Mass 10");
+    assert!(s.notes.iter().any(|n| n.contains("Dirichlet")));
+    // The bridge has no "Scale": the reference's default 0.05 applies.
+    let b = scene::load(paper("bridge/bridge.json"), LoadOptions::default()).unwrap();
+    assert!(b.notes.iter().any(|n| n.contains("default 0.05")));
+    let (lo, hi) = diffsoft::mesh::TetMesh {
+        vertices: b.model.rest().to_vec(),
+        tets: vec![],
+    }
+    .bounding_box();
+    assert!(
+        ((hi - lo).x - 14.9 * 0.05).abs() < 0.01,
+        "scaled by 0.05: {}",
+        (hi - lo).x
+    );
+    // Baymax's ground is a triangle-mesh obstacle.
+    let y = scene::load(paper("baymax/baymax.json"), LoadOptions::default()).unwrap();
+    assert_eq!(y.model.obstacles().len(), 1);
+    assert!((y.settings.dt - 0.01).abs() < 1e-15);
+}
+
+#[test]
+fn paper_scenes_with_cloth_actuators_and_skeletons_load() {
+    // The ball-on-cloth scene: a tet ball, a triangle cloth, contacts between them.
+    let cb = scene::load(paper("cloth_ball/cloth_ball.json"), LoadOptions::default()).unwrap();
+    let cloth = cb.model.cloth().expect("cloth");
+    assert_eq!((cb.model.n(), cb.model.tets().len()), (43 + 81, 80));
+    assert_eq!((cloth.bodies.len(), cloth.num_triangles()), (1, 128));
+    assert_eq!(cloth.bodies[0].area_density, 3.0);
+    assert_eq!(cb.model.attachments().len(), 4);
+    let col = cb.model.collision().expect("collisions between bodies");
+    assert_eq!(col.names.len(), 2);
+    assert!((col.settings.friction - 0.1).abs() < 1e-15);
+    assert!(cb.notes.iter().any(|n| n.contains("edge springs")), "{:?}", cb.notes);
+    // Actuators are simulated: the drone and the octopus load (tests/actuators.rs).
+    for file in ["droneman/droneman.json", "octopus/octopus.json"] {
+        assert!(scene::load(paper(file), LoadOptions::default())
+            .unwrap()
+            .model
+            .actuators()
+            .is_some());
+    }
+    // fish.json has a trailing comma (invalid strict JSON): it still parses, with its skeleton.
+    let fish = scene::load(paper("fish/fish.json"), LoadOptions::default()).unwrap();
+    assert_eq!(fish.model.n(), 759);
+    assert_eq!(fish.model.skeleton().map(|s| s.bones.len()), Some(4));
+    assert!(fish.notes.iter().any(|n| n.contains("Is underwater")));
+}
+
+#[test]
+fn diffsoft_scenes_reject_unknown_keys_and_meaningless_values() {
+    let dir = tmp_dir("scene-errors");
+    let ok = cube_scene(&dir, r#", "density": 1000, "fixed": {"indices": [0]}"#, "");
+    let s = scene::load(&ok, LoadOptions::default()).unwrap();
+    assert_eq!(s.format, SceneFormat::Diffsoft);
+    assert_eq!(s.settings.solver, SolverKind::Auto);
+    for (body, top, expect) in [
+        (r#", "density": 1000, "colour": "red""#, "", "unknown field `colour`"),
+        (
+            r#", "density": 1000"#,
+            r#", "solver": {"dt": 0.1}"#,
+            "unknown field `dt`",
+        ),
+        ("", "", "exactly one of density and total_mass"),
+        (
+            r#", "density": 1000, "total_mass": 3"#,
+            "",
+            "exactly one of density and total_mass",
+        ),
+        (
+            r#", "density": -5"#,
+            "",
+            "density and total mass must be finite and positive",
+        ),
+        (
+            r#", "density": 1000, "fixed": {"indices": [9]}"#,
+            "",
+            "vertex 9 is not a vertex",
+        ),
+        (
+            r#", "density": 1000, "fixed": {"box": {"min": [5,5,5], "max": [6,6,6]}}"#,
+            "",
+            "contains no vertex",
+        ),
+        (
+            r#", "density": 1000"#,
+            r#", "obstacles": [{"plane": {"point": [0,0,0], "normal": [0,0,0]}, "friction": 0.3}]"#,
+            "normal must be non-zero",
+        ),
+        (
+            r#", "density": 1000"#,
+            r#", "obstacles": [{"plane": {"point": [0,0,0], "normal": [0,1,0]}, "friction": -1}]"#,
+            "friction",
+        ),
+    ] {
+        let p = cube_scene(&dir, body, top);
+        let e = scene::load(&p, LoadOptions::default()).unwrap_err().to_string();
+        assert!(
+            e.contains("scene.json") && e.contains(expect),
+            "expected '{expect}' in: {e}"
+        );
+    }
+    // serde names the line of an unknown key.
+    let p = cube_scene(&dir, r#", "density": 1000, "colour": "red""#, "");
+    let e = scene::load(&p, LoadOptions::default()).unwrap_err().to_string();
+    assert!(e.contains("line 7"), "{e}");
+    // A missing mesh names the mesh file.
+    let p = write(
+        &dir,
+        "missing.json",
+        r#"{"schema": "diffsoft.scene/1", "time_step": 0.01, "bodies": [{"name": "x", "mesh": "nope.msh", "material": {"youngs_modulus": 1, "poisson_ratio": 0.1}, "density": 1}]}"#,
+    );
+    let e = scene::load(&p, LoadOptions::default()).unwrap_err().to_string();
+    assert!(e.contains("nope.msh"), "{e}");
+    // Not a scene at all.
+    let p = write(&dir, "other.json", r#"{"hello": 1}"#);
+    assert!(scene::load(&p, LoadOptions::default())
+        .unwrap_err()
+        .to_string()
+        .contains("not a scene"));
+}

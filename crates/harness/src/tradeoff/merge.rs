@@ -1,0 +1,161 @@
+//! Assembly of the trade-off report: the partial reports of one scene's sweep (one per shard)
+//! are checked ([`crate::shard::check_partials`]) and joined ([`finalize`]); gradient
+//! errors against the reference gradients, then the fronts, recommendations and verdicts of
+//! [`super::assess`].
+
+use super::assess;
+use diffsoft::base::Choice;
+use std::collections::BTreeMap;
+
+use super::report::*;
+use super::{SceneSummary, TradeoffSpec};
+use crate::shard::{check_partials, check_same, ShardError};
+use diffsoft::solver::Integrator;
+
+fn rel_vec_error(a: &[f64], r: &[f64]) -> Option<f64> {
+    let scale = r.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    if a.len() != r.len() || scale <= 0.0 || scale.is_nan() {
+        return None;
+    }
+    Some(a.iter().zip(r).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max) / scale)
+}
+
+fn union_by_divisor<T: Clone + PartialEq>(
+    what: &str,
+    lists: Vec<(Vec<T>, &String)>,
+    divisor: impl Fn(&T) -> (Integrator, usize),
+    same: impl Fn(&T, &T) -> bool,
+) -> Result<Vec<T>, ShardError> {
+    let mut out: BTreeMap<(Integrator, usize), (T, String)> = BTreeMap::new();
+    for (list, path) in lists {
+        for x in list {
+            let d = divisor(&x);
+            if let Some((y, p)) = out.get(&d) {
+                if !same(y, &x) {
+                    return Err(ShardError::Mismatch(format!(
+                        "{what} ({}) at h/{} differs between {p} and {path} (different builds or inputs?)",
+                        d.0.name(),
+                        d.1
+                    )));
+                }
+            } else {
+                out.insert(d, (x, path.clone()));
+            }
+        }
+    }
+    Ok(out.into_values().map(|(x, _)| x).collect())
+}
+
+/// Assemble the partial reports of one sweep (every shard once; `paths` name them in errors)
+/// into the scene's study.
+pub fn finalize(parts: Vec<TradeoffPartial>, paths: &[String]) -> Result<SceneTradeoff, ShardError> {
+    check_partials(&parts, paths, PARTIAL_SCHEMA)?;
+    let specs: Vec<&TradeoffSpec> = parts.iter().map(|p| &p.spec).collect();
+    check_same("sweep inputs", &specs, paths)?;
+    let scenes: Vec<&SceneSummary> = parts.iter().map(|p| &p.scene).collect();
+    check_same("scenes", &scenes, paths)?;
+    let refs: Vec<&String> = parts.iter().map(|p| &p.reference.fingerprint).collect();
+    check_same("reference trajectories (fingerprints)", &refs, paths)?;
+    let first = &parts[0];
+    let spec = first.spec.clone();
+    let scene = first.scene.clone();
+    let reference = first.reference.clone();
+    let gradient_parameters = first.gradient_parameters.clone();
+    let total = first.total_rows;
+    let dt_references = union_by_divisor(
+        "the reference trajectory",
+        parts
+            .iter()
+            .zip(paths)
+            .map(|(p, path)| (p.dt_references.clone(), path))
+            .collect(),
+        |r| (r.integrator, r.dt_divisor),
+        |a, b| a.fingerprint == b.fingerprint,
+    )?;
+    let gradient_references = union_by_divisor(
+        "the reference gradient",
+        parts
+            .iter()
+            .zip(paths)
+            .map(|(p, path)| (p.gradient_references.clone(), path))
+            .collect(),
+        |r| (r.integrator, r.dt_divisor),
+        |a, b| a.gradient.values == b.gradient.values && a.gradient.message == b.gradient.message,
+    )?;
+    let mut rows: Vec<Row> = parts.iter().flat_map(|p| p.rows.iter().cloned()).collect();
+    rows.sort_by_key(|r| r.index);
+    if rows.len() != total || rows.iter().enumerate().any(|(i, r)| r.index != i) {
+        return Err(ShardError::Mismatch(format!(
+            "the shards hold {} rows, the grid has {total}",
+            rows.len()
+        )));
+    }
+    let workers: Vec<usize> = parts.iter().map(|p| p.workers).collect();
+    let wall_time_s = parts.iter().map(|p| p.wall_time_s).sum();
+    let grad_ref = |i: Integrator, d: usize| {
+        gradient_references
+            .iter()
+            .find(|g| g.dt_divisor == d && g.integrator == i)
+            .and_then(|g| g.gradient.values.clone())
+    };
+    let total_ref = grad_ref(spec.reference_integrator, spec.reference_divisor);
+    for r in rows.iter_mut() {
+        if let Some(v) = r.gradient.values.clone() {
+            r.gradient.error = total_ref.as_deref().and_then(|g| rel_vec_error(&v, g));
+            r.gradient.solver_error =
+                grad_ref(r.setting.integrator, r.setting.dt_divisor).and_then(|g| rel_vec_error(&v, &g));
+        }
+    }
+    let resolution = RESOLUTION_FACTOR * spec.reference_tolerance * scene.length_scale / reference.displacement_scale;
+    let (pareto, points, gpoints) = assess::fronts(&spec, &rows, &gradient_references);
+    let observed_orders = assess::observed_orders(&spec, &rows);
+    let order = assess::finest_order(&spec, &rows, &observed_orders);
+    let recommendations = assess::recommend(&spec, &rows, &points, &gpoints, order, &pareto);
+    let verdicts = assess::verdicts(&spec, &rows, &reference, &dt_references, resolution, &observed_orders);
+    let method = Method {
+        reference: format!(
+            "direct solver, tolerance {:e} (RMS change per iteration relative to the length scale {:.4} m), cap {} iterations, Anderson memory {}, {} at h/{} = {:e} s for the total error and each setting's integrator at every grid step h/d for the solver error; reference gradients: unrolled, same tolerance, no Anderson",
+            spec.reference_tolerance,
+            scene.length_scale,
+            spec.reference_max_iterations,
+            spec.reference_anderson,
+            spec.reference_integrator.name(),
+            spec.reference_divisor,
+            scene.dt / spec.reference_divisor as f64
+        ),
+        errors: format!(
+            "states compared at every multiple of h over {} steps of h ({:e} s), the velocity damping per step rescaled to the scene's damping per second; relative errors divide by the reference's largest vertex displacement from rest, {:.6e} m; gradient errors are max_k |g_k - g_ref_k| / max_k |g_ref_k| over p dL/dp for {} with loss {}",
+            spec.steps,
+            spec.steps as f64 * scene.dt,
+            reference.displacement_scale,
+            gradient_parameters.join(", "),
+            spec.loss
+        ),
+        timing: "each setting and reference runs on one thread (its own one-thread rayon pool); `workers` settings run at once; a setting's forward run is repeated until min_timing_s of CPU time is measured (the thread CPU clock, /proc/thread-self/schedstat, advances in scheduler ticks of a few ms); cpu_s is the total over the runs / runs, wall_s the median run; thread CPU time is not inflated by the concurrent settings or other processes, wall time is; the fronts use the time_axis".into(),
+        workers,
+        shards: parts.len(),
+        resolution,
+    };
+    Ok(SceneTradeoff {
+        name: spec.name.clone(),
+        inputs: spec,
+        scene,
+        method,
+        gradient_parameters,
+        reference,
+        dt_references,
+        gradient_references,
+        rows,
+        pareto,
+        recommendations,
+        observed_orders,
+        verdicts,
+        svg: Vec::new(),
+        wall_time_s,
+    })
+}
+
+/// Merge the partial reports of one sweep into a report.
+pub fn merge(parts: Vec<TradeoffPartial>, paths: &[String]) -> Result<TradeoffReport, ShardError> {
+    Ok(TradeoffReport::new(vec![finalize(parts, paths)?]))
+}

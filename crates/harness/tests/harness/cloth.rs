@@ -1,0 +1,213 @@
+//! Cloth bodies and contacts between bodies: the paper's ball-on-cloth scene from its file,
+//! gradients through soft-cloth contact against finite differences, and bad cloth input.
+
+use diffsoft::diff::Mode;
+use diffsoft_harness::gradients::check_case;
+
+#[test]
+fn ball_on_cloth_gradients_match_finite_differences() {
+    let case = diffsoft::testing::ball_on_cloth(12).unwrap();
+    let c = check_case(&case, 7);
+    assert!(c.error.is_none(), "{:?}", c.error);
+    let m = &c.modes[0];
+    assert_eq!(m.mode, Mode::Unrolled);
+    for g in &m.groups {
+        eprintln!(
+            "{}: analytic {:e}, best fd {:e} (step {:e}), rel {:e}",
+            g.group, g.analytic, g.fd_best, g.step_best, g.rel_error_best
+        );
+    }
+    for g in &m.groups {
+        assert!(
+            g.passes,
+            "{}: analytic {:e}, best fd {:e} (step {:e}), rel {:e}",
+            g.group, g.analytic, g.fd_best, g.step_best, g.rel_error_best
+        );
+    }
+}
+
+#[test]
+fn paper_ball_gradients_through_cloth_contact_match_finite_differences() {
+    let path = crate::common::root().join("verification/scenes/ball_on_cloth.json");
+    let case = diffsoft::testing::paper_ball_on_cloth(&path, 12).unwrap();
+    let c = check_case(&case, 7);
+    assert!(c.error.is_none(), "{:?}", c.error);
+    for g in &c.modes[0].groups {
+        eprintln!(
+            "{}: analytic {:e}, best fd {:e} (step {:e}), rel {:e}",
+            g.group, g.analytic, g.fd_best, g.step_best, g.rel_error_best
+        );
+        assert!(g.passes, "{}", g.group);
+    }
+}
+
+#[test]
+fn paper_ball_on_cloth_runs_from_its_file_without_penetration() {
+    use diffsoft_harness::cloth;
+    let path = crate::common::root().join("verification/paper/cloth_ball/cloth_ball.json");
+    // The reference's demo length is 100 steps; contact starts at step ~82.
+    let r = cloth::run(&path, 95, None).unwrap();
+    assert!(r.error.is_none(), "{:?}", r.error);
+    assert!(
+        r.first_contact_step.is_some_and(|s| s < 90),
+        "{:?}",
+        r.first_contact_step
+    );
+    assert_eq!(r.max_penetration, 0.0);
+    assert_eq!(r.intersections, 0);
+    let d = r.min_separation.expect("the surfaces come close");
+    assert!(d > 0.0 && d < 2.0 * r.thickness, "{d}");
+    for v in cloth::run_verdicts("cloth_ball", &r, 95) {
+        assert!(v.holds, "{}: {:?}", v.claim, v.measured);
+    }
+}
+
+#[test]
+fn trampoline_scene_keeps_the_ball_above_the_cloth() {
+    use diffsoft_harness::cloth;
+    let path = crate::common::root().join("verification/scenes/ball_on_cloth.json");
+    let r = cloth::run(&path, 120, None).unwrap();
+    for v in cloth::run_verdicts("ball_on_cloth", &r, 120) {
+        assert!(v.holds, "{}: {:?}", v.claim, v.measured);
+    }
+    // The ball bounces: it is moving up again at some step after the first contact.
+    assert!(r.max_pair_contacts > 0 && r.max_pair_contacts < 100);
+}
+
+/// A free cloth in free fall moves as a rigid sheet: implicit Euler's exact trajectory, no
+/// stretch.
+#[test]
+fn free_cloth_falls_rigidly() {
+    use diffsoft::cloth::ClothSpec;
+    use diffsoft::mesh::surface::parse_obj;
+    use diffsoft::{ModelBuilder, Settings, Simulator, SolverKind};
+    use nalgebra::Vector3;
+    let s = parse_obj(
+        "sheet.obj",
+        "v 0 0 0\nv 1 0 0\nv 1 0 1\nv 0 0 1\nv 0.5 0.1 0.5\nf 1 2 5\nf 2 3 5\nf 3 4 5\nf 4 1 5\n",
+    )
+    .unwrap();
+    let model = ModelBuilder::new()
+        .gravity(Vector3::new(0.0, -9.81, 0.0))
+        .cloth(ClothSpec::new("sheet", s, 100.0, 1e-3, 0.2))
+        .build()
+        .unwrap();
+    let h = 0.01;
+    let mut sim = Simulator::new(
+        model.clone(),
+        Settings {
+            dt: h,
+            solver: SolverKind::Direct,
+            tolerance: 1e-12,
+            max_iterations: 100,
+            ..Settings::default()
+        },
+    )
+    .unwrap();
+    for _ in 0..20 {
+        sim.step().unwrap();
+    }
+    // Implicit Euler: y_n = -g h^2 n (n + 1) / 2.
+    let expected = -9.81 * h * h * 20.0 * 21.0 / 2.0;
+    for (q, x) in sim.state().q.iter().zip(model.rest()) {
+        let d = q - x;
+        assert!(
+            (d.y - expected).abs() < 1e-9 && d.x.abs() < 1e-9 && d.z.abs() < 1e-9,
+            "{d}"
+        );
+    }
+    let (hi, lo) = model.cloth().unwrap().stretch_range(&sim.state().q);
+    assert!((hi - 1.0).abs() < 1e-9 && (lo - 1.0).abs() < 1e-9);
+}
+
+#[test]
+fn bad_cloth_scenes_are_rejected_with_a_message() {
+    use diffsoft::scene::{self, LoadOptions};
+    let dir = crate::common::tmp_dir("cloth-errors");
+    crate::common::write(
+        &dir,
+        "sheet.obj",
+        "v 0 0 0\nv 1 0 0\nv 1 0 1\nv 2 0 0\nf 1 2 3\nf 1 2 4\n",
+    );
+    let scene = |cloth: &str, extra: &str| {
+        crate::common::write(
+            &dir,
+            "scene.json",
+            &format!(
+                r#"{{ "schema": "diffsoft.scene/1", "time_step": 0.01,
+                     "cloths": [{{ "name": "s", "mesh": "sheet.obj", "stretching": 10, "area_density": 1{cloth} }}]{extra} }}"#
+            ),
+        )
+    };
+    let load = |p| {
+        scene::load(p, LoadOptions::default())
+            .map(|_| ())
+            .unwrap_err()
+            .to_string()
+    };
+    // Triangle 1 is degenerate (collinear vertices).
+    let e = load(scene("", ""));
+    assert!(e.contains("triangle 1") && e.contains("degenerate"), "{e}");
+    crate::common::write(
+        &dir,
+        "sheet.obj",
+        "v 0 0 0\nv 1 0 0\nv 1 0 1\nv 0 0 1\nf 1 2 3\nf 1 3 4\n",
+    );
+    let e = load(scene(r#", "stretch": 3"#, ""));
+    assert!(e.contains("unknown field `stretch`"), "{e}");
+    let e = load(scene(r#", "area_density": -1"#, ""));
+    assert!(e.contains("duplicate field") || e.contains("area density"), "{e}");
+    let e = load(scene(r#", "fixed": {"indices": [9]}"#, ""));
+    assert!(e.contains("vertex 9 out of range"), "{e}");
+    let e = load(scene("", r#", "collisions": { "thickness": 0.001, "friction": 0.1 }"#));
+    assert!(e.contains("at least two bodies"), "{e}");
+    let e = load(scene(r#", "bending": -1"#, ""));
+    assert!(e.contains("bending stiffness"), "{e}");
+    // A cloth alone loads and runs.
+    let ok = scene::load(scene("", ""), LoadOptions::default()).unwrap();
+    assert_eq!(ok.model.num_cloth_triangles(), 2);
+}
+
+#[test]
+fn detection_finds_the_resting_box_and_scales_with_the_mesh() {
+    use diffsoft_harness::cloth::detection_cost;
+    let small = detection_cost(8, 1).unwrap();
+    let large = detection_cost(32, 1).unwrap();
+    // Every vertex of the box's bottom face ((n/4 + 1)^2) and every cloth vertex under the
+    // box's footprint ([-0.23, 0.27] x [-0.27, 0.23] on a grid of spacing 1/n) has one
+    // candidate: 9 + 4 x 4 for n = 8, 81 + 16 x 16 for n = 32.
+    assert_eq!(small.candidates, 9 + 16);
+    assert_eq!(large.candidates, 81 + 256);
+    // Exact tests stay proportional to the surface (no all-pairs blow-up).
+    let ratio = large.tested as f64 / small.tested as f64;
+    let size = (large.triangles + large.edges) as f64 / (small.triangles + small.edges) as f64;
+    assert!(ratio < 2.0 * size, "tested {ratio:.1}x for {size:.1}x the surface");
+}
+
+/// A contact solve between bodies that stops at its sweep cap is counted in the step's
+/// `capped_solves` (the direct solver used to report every contact solve as converged), and a
+/// solve within its cap is not.
+#[test]
+fn a_capped_contact_solve_between_bodies_is_reported() {
+    use diffsoft::scene::{self, LoadOptions};
+    use diffsoft::solver::Simulator;
+    let path = crate::common::root().join("verification/scenes/ball_on_cloth.json");
+    let run = |cap: usize| {
+        let mut sc = scene::load(&path, LoadOptions::default()).unwrap();
+        sc.settings.inner_max_iterations = cap;
+        let mut sim = Simulator::new(sc.model, sc.settings).unwrap();
+        let mut in_contact = Vec::new();
+        for _ in 0..60 {
+            let st = sim.step().unwrap();
+            if st.pair_contacts > 0 {
+                in_contact.push((st.contact_iterations, st.capped_solves));
+            }
+        }
+        in_contact
+    };
+    let capped = run(1);
+    assert!(!capped.is_empty(), "the ball reaches the cloth within 60 steps");
+    assert!(capped.iter().any(|&(_, c)| c > 0), "{capped:?}");
+    let free = run(2000);
+    assert!(free.iter().all(|&(_, c)| c == 0), "{free:?}");
+}

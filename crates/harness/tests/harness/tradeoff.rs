@@ -1,0 +1,170 @@
+//! The trade-off study on a small cantilever: errors are monotone in each knob where theory
+//! says they must be; a sweep split into shards and merged gives the unsharded report (with the
+//! deterministic cost axis, timings excluded); the CLI's `--shard` and `merge` do the same.
+
+use std::path::Path;
+
+use diffsoft::solver::Integrator;
+use diffsoft_harness::shard::Shard;
+use diffsoft_harness::tradeoff::{
+    self, Cantilever, Family, Knob, SceneSource, Status, TimeAxis, TradeoffPartial, TradeoffSpec,
+};
+use serde_json::Value;
+
+fn small(steps: usize) -> TradeoffSpec {
+    let mut s = TradeoffSpec::new("cantilever", SceneSource::Cantilever(Cantilever::small()), steps);
+    s.time_axis = TimeAxis::Iterations;
+    s.min_timing_s = 0.0;
+    s
+}
+
+#[test]
+fn errors_are_monotone_in_each_knob() {
+    let mut spec = small(10);
+    spec.families = vec![Family::Direct];
+    spec.caps = vec![1, 2, 4, 8, 16];
+    spec.tolerances = vec![1e-3, 1e-5, 1e-7, 1e-9];
+    spec.dt_divisors = vec![1, 2, 4, 8];
+    spec.reference_divisor = 32;
+    let s = tradeoff::run_scene(&spec, Path::new("."), 2, false).unwrap();
+    assert!(s.rows.iter().all(|r| r.status == Status::Ran), "every setting runs");
+    // The reference's own resolution: differences below it are not ordered.
+    let res = s.method.resolution;
+    assert!(res > 0.0 && res < 1e-6, "resolution {res}");
+    let solver = |d: usize, k: Knob| {
+        s.rows
+            .iter()
+            .find(|r| r.setting.dt_divisor == d && r.setting.knob == k)
+            .and_then(|r| r.trajectory)
+            .unwrap()
+    };
+    for &d in &spec.dt_divisors {
+        // More iterations: the local-global iteration contracts towards the converged step.
+        for w in spec.caps.windows(2) {
+            let (a, b) = (solver(d, Knob::Cap(w[0])), solver(d, Knob::Cap(w[1])));
+            assert!(
+                b.solver_max_relative <= a.solver_max_relative + res,
+                "h/{d}: cap {} error {:e} > cap {} error {:e}",
+                w[1],
+                b.solver_max_relative,
+                w[0],
+                a.solver_max_relative
+            );
+        }
+        // A tighter tolerance.
+        for w in spec.tolerances.windows(2) {
+            let (a, b) = (solver(d, Knob::Tolerance(w[0])), solver(d, Knob::Tolerance(w[1])));
+            assert!(
+                b.solver_max_relative <= a.solver_max_relative + res,
+                "h/{d}: tolerance {:e} error {:e} > tolerance {:e} error {:e}",
+                w[1],
+                b.solver_max_relative,
+                w[0],
+                a.solver_max_relative
+            );
+        }
+        // The first cap is far from converged, the last much closer: the knob matters.
+        let (first, last) = (solver(d, Knob::Cap(1)), solver(d, Knob::Cap(16)));
+        assert!(last.solver_max_relative < 0.1 * first.solver_max_relative, "h/{d}");
+    }
+    // A smaller time step: implicit Euler converges to the small-step reference.
+    let tight = Knob::Tolerance(1e-9);
+    for w in spec.dt_divisors.windows(2) {
+        let (a, b) = (solver(w[0], tight), solver(w[1], tight));
+        assert!(
+            b.max_relative < a.max_relative,
+            "h/{} error {:e} not below h/{} error {:e}",
+            w[1],
+            b.max_relative,
+            w[0],
+            a.max_relative
+        );
+    }
+    // The report's own verdicts on the same claims agree.
+    for v in &s.verdicts {
+        if v.claim.contains("smaller error") {
+            assert!(v.holds, "{}: {:?} ({})", v.claim, v.measured, v.comparison);
+        }
+    }
+    // The front is sorted by cost and strictly improving in error, and each recommendation is
+    // within its target.
+    for w in s.pareto.trajectory.windows(2) {
+        assert!(w[0].time <= w[1].time && w[1].error < w[0].error);
+    }
+    for r in &s.recommendations {
+        if let Some(p) = &r.trajectory {
+            assert!(p.error <= r.target);
+        }
+    }
+}
+
+fn merge_spec() -> TradeoffSpec {
+    let mut spec = small(4);
+    spec.families = vec![Family::Direct, Family::Split, Family::Certified];
+    spec.caps = vec![1, 3];
+    spec.tolerances = vec![1e-6];
+    spec.dt_divisors = vec![1, 2];
+    spec.reference_divisor = 4;
+    spec.gradient_dt_divisors = vec![1];
+    // BDF2 rows with their own references and reference gradients, keyed by integrator.
+    spec.integrators = vec![Integrator::ImplicitEuler, Integrator::Bdf2];
+    spec.integrator_families = vec![Family::Direct];
+    spec
+}
+
+#[test]
+fn shards_merge_into_the_unsharded_report() {
+    let spec = merge_spec();
+    let base = Path::new(".");
+    let whole = tradeoff::run_shard(&spec, base, Shard::ALL, 2, false).unwrap();
+    let mut expected = serde_json::to_value(tradeoff::merge(vec![whole], &["all".into()]).unwrap()).unwrap();
+    let n = 3;
+    let mut parts = Vec::new();
+    let mut names = Vec::new();
+    for k in 0..n {
+        let p = tradeoff::run_shard(&spec, base, Shard { index: k, count: n }, 1, false).unwrap();
+        // Through JSON, as `diffsoft merge` reads them.
+        let text = serde_json::to_string(&p).unwrap();
+        parts.push(serde_json::from_str::<TradeoffPartial>(&text).unwrap());
+        names.push(format!("part{k}.json"));
+    }
+    let rows: usize = parts.iter().map(|p| p.rows.len()).sum();
+    assert_eq!(rows, spec.grid().len());
+    assert!(parts.iter().all(|p| p.rows.len() < rows), "each shard holds a part");
+    let mut merged = serde_json::to_value(tradeoff::merge(parts.clone(), &names).unwrap()).unwrap();
+    crate::common::strip_keys(&mut expected, crate::common::RUN_DEPENDENT_KEYS);
+    crate::common::strip_keys(&mut merged, crate::common::RUN_DEPENDENT_KEYS);
+    assert_eq!(crate::common::json_difference(&merged, &expected, ""), None);
+    // Gradients were computed and compared with the reference gradient.
+    let rows = expected["scenes"][0]["rows"].as_array().unwrap();
+    assert!(rows.iter().any(|r| r["gradient"]["error"].is_number()));
+    let bdf2 = |r: &&Value| r["id"].as_str().unwrap().starts_with("bdf2/direct/");
+    assert_eq!(rows.iter().filter(bdf2).count(), 3 * 2);
+    assert!(rows
+        .iter()
+        .filter(bdf2)
+        .any(|r| r["gradient"]["solver_error"].is_number()));
+    let refs = expected["scenes"][0]["dt_references"].as_array().unwrap();
+    assert!(refs.iter().any(|r| r["integrator"] == "bdf2"));
+    // Every reference gradient of this smooth scene is checked against central differences of
+    // its own loss and kept.
+    let grefs = expected["scenes"][0]["gradient_references"].as_array().unwrap();
+    assert!(!grefs.is_empty());
+    for g in grefs {
+        assert_eq!(g["fd_check"]["agrees"], true, "{g}");
+        assert!(g["gradient"]["values"].is_array(), "{g}");
+    }
+
+    // Missing, duplicate and foreign shards are refused with a message.
+    let e = tradeoff::merge(parts[..2].to_vec(), &names[..2])
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("missing shard(s) 2/3"), "{e}");
+    let dup = vec![parts[0].clone(), parts[0].clone(), parts[2].clone()];
+    let e = tradeoff::merge(dup, &names).unwrap_err().to_string();
+    assert!(e.contains("both shard 0/3"), "{e}");
+    let mut other = parts.clone();
+    other[1].spec.steps = 5;
+    let e = tradeoff::merge(other, &names).unwrap_err().to_string();
+    assert!(e.contains("sweep inputs differ") && e.contains("part1.json"), "{e}");
+}
