@@ -30,7 +30,7 @@ impl Run {
         let (states, n) = (r.times.len(), r.n);
         let stats = serde_json::json!({
             "schema": diffsoft::output::RUN_SCHEMA,
-            "crate_version": diffsoft::output::report::CRATE_VERSION,
+            "crate_version": diffsoft::report::CRATE_VERSION,
             "vertices": n,
             "settings": settings,
             "certificate": r.certificate,

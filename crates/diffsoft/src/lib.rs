@@ -80,6 +80,7 @@ pub mod kernel;
 pub mod mesh;
 pub mod model;
 pub mod output;
+pub mod report;
 pub mod scene;
 pub mod skeleton;
 pub mod solver;

@@ -2,4 +2,4 @@
 //! crate version, provenance) and states its claims as [`Verdict`]s; both live in the core crate
 //! (`diffsoft::output::report`), whose analysis reports use them too.
 
-pub use diffsoft::output::report::{write_atomic, write_json, Header, ModelSize, Provenance, Verdict, CRATE_VERSION};
+pub use diffsoft::report::{write_atomic, write_json, Header, ModelSize, Provenance, Verdict, CRATE_VERSION};

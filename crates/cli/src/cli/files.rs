@@ -3,7 +3,7 @@
 
 use super::prelude::*;
 use diffsoft::mesh;
-use diffsoft::output::report::write_json;
+use diffsoft::report::write_json;
 
 /// Print a report's summary and write its JSON if asked (never over one of `inputs`).
 pub(crate) fn emit<T: serde::Serialize>(

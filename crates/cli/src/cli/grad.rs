@@ -20,9 +20,8 @@ pub(crate) struct GradArgs {
     /// Loss: final_com.x|y|z, mean_com.x|y|z, joint_angle.BONE or mean_joint_angle.BONE.
     #[arg(long, default_value = "final_com.y")]
     loss: String,
-    /// Parameters to differentiate (repeatable): youngs_modulus, poisson_ratio, density,
-    /// initial_velocity.x|y|z, gravity.x|y|z.
-    #[arg(long, required = true)]
+    // The names come from the parameter registry (`diffsoft::diff::params`).
+    #[arg(long, required = true, help = param_help(), long_help = param_long_help())]
     param: Vec<String>,
     /// Override a parameter first, `NAME=VALUE` (repeatable; same names as --param).
     #[arg(long, value_name = "NAME=VALUE")]
@@ -48,6 +47,34 @@ pub(crate) struct GradArgs {
     implicit_tolerance: f64,
 }
 
+/// The help of `--param`: the scalar parameters of the registry, `initial_velocity.x|y|z` for
+/// the components of one vector.
+fn param_help() -> String {
+    let mut names: Vec<String> = Vec::new();
+    for name in diffsoft::diff::params::scalar_names() {
+        match (name.split_once('.'), names.last_mut()) {
+            (Some((base, axis)), Some(last)) if last.starts_with(&format!("{base}.")) => {
+                last.push('|');
+                last.push_str(axis);
+            }
+            _ => names.push(name.to_string()),
+        }
+    }
+    format!("Parameters to differentiate (repeatable): {}", names.join(", "))
+}
+
+/// The long help of `--param`: each scalar parameter with its unit and meaning.
+fn param_long_help() -> String {
+    format!(
+        "Parameters to differentiate (repeatable):\n{}",
+        diffsoft::diff::params::scalar_help()
+            .lines()
+            .map(|l| format!("  {l}"))
+            .collect::<Vec<_>>()
+            .join("\n")
+    )
+}
+
 /// A memory budget in MB as bytes.
 pub(crate) fn store_bytes(mb: f64) -> Result<usize> {
     if !(mb.is_finite() && mb >= 0.0) {
@@ -70,7 +97,7 @@ pub(crate) fn grad(a: GradArgs) -> Result<()> {
         );
     }
     let mut sc = diffsoft::scene::load(&scene, diffsoft::scene::LoadOptions::default())?;
-    a.overrides.apply(&mut sc.settings);
+    a.overrides.apply(&mut sc.settings)?;
     for s in &a.set {
         let (name, value) = s
             .split_once('=')
@@ -140,7 +167,7 @@ pub(crate) fn grad(a: GradArgs) -> Result<()> {
     }
     if let Some(path) = &a.json {
         let out = diffsoft::output::GradReport {
-            header: diffsoft::output::report::Header::new(diffsoft::output::GRAD_SCHEMA),
+            header: diffsoft::report::Header::new(diffsoft::output::GRAD_SCHEMA),
             scene: scene.display().to_string(),
             steps: a.steps,
             mode: a.mode,

@@ -22,7 +22,7 @@ pub(crate) fn simulate(
     out: RunOutput<'_>,
     activations: &[(String, f64)],
 ) -> Result<()> {
-    use diffsoft::output::report::Header;
+    use diffsoft::report::Header;
     use diffsoft::output::{FrameWriter, RunDir, RunLog, RunStatus, RunSummary, RUN_SCHEMA};
     use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
     use std::sync::atomic::Ordering;
@@ -36,7 +36,7 @@ pub(crate) fn simulate(
         Some(dir) => Some(RunDir::prepare(dir, &[sc.path.as_path()], out.overwrite)?),
         None => None,
     };
-    let model_size = diffsoft::output::report::ModelSize::of(&sc.model);
+    let model_size = diffsoft::report::ModelSize::of(&sc.model);
     let bodies = sc.model.bodies().to_vec();
     let cloth = sc.model.cloth().map_or(Vec::new(), |c| c.bodies.clone());
     say!(

@@ -24,7 +24,7 @@ use serde::Serialize;
 
 use super::{IterationSystem, Spectrum};
 use crate::fem::FemOperators;
-use crate::output::report::Verdict;
+use crate::report::Verdict;
 
 /// `24 sqrt(3)`, the constant of Eqs. 28-29.
 const EQ28_CONST: f64 = 41.569_219_381_653_05;

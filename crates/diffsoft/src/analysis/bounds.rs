@@ -12,7 +12,7 @@ use super::{positive, rho_split, AnalysisError, Attachments, IterationSystem, Sp
 use crate::fem::{sign_pattern, Coefficient, FemOperators, SignPattern};
 use crate::mesh::quality::{quality, MeshQuality};
 use crate::mesh::{MeshInfo, TetMesh};
-use crate::output::report::Header;
+use crate::report::Header;
 
 /// Schema name of the bounds report.
 pub const SCHEMA: &str = "diffsoft.bounds/1";

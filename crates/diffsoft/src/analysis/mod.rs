@@ -24,7 +24,6 @@
 pub mod appendix;
 pub mod bounds;
 pub mod empirical;
-mod memo;
 pub mod spectral;
 pub mod sweep;
 
@@ -314,21 +313,8 @@ impl Spectrum {
 /// `gamma = 2 / (2 - mu_min - mu_max)` of the split iteration, whose relaxed spectral radius
 /// `(mu_max - mu_min) / (2 - mu_min - mu_max)` is below 1 for every `h`.
 ///
-/// Results are remembered for the process's last few `(system, h, method)` inputs (a sweep or a
-/// trade-off study certifies the same matrix and step once per setting): a repeat returns the
-/// stored pair, bit-identical, without the eigenvalue computation.
 pub fn split_extremes(sys: &IterationSystem, h: f64, method: EigenMethod) -> Result<(f64, f64), AnalysisError> {
     positive("time step", h)?;
-    let key = memo::fingerprint(sys, h, method);
-    if let Some(pair) = memo::get(key) {
-        return Ok(pair);
-    }
-    let pair = split_extremes_uncached(sys, h, method)?;
-    memo::put(key, pair);
-    Ok(pair)
-}
-
-fn split_extremes_uncached(sys: &IterationSystem, h: f64, method: EigenMethod) -> Result<(f64, f64), AnalysisError> {
     let op = sys.op_g21(h);
     match method.resolve(op.n()) {
         EigenMethod::Krylov => {

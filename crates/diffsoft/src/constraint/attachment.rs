@@ -17,6 +17,10 @@ impl ConstraintSet for Attachments {
         "attachment"
     }
 
+    fn hessian_term(&self) -> super::HessianTerm {
+        super::HessianTerm::Constant
+    }
+
     fn add_blocks(&self, model: &Model, values: &mut [f64]) {
         for a in &model.attachments {
             values[model.fem.pattern.diag_slot[a.vertex]] += a.weight;

@@ -65,6 +65,10 @@ impl ConstraintSet for ClothBend {
         "cloth bending"
     }
 
+    fn hessian_term(&self) -> super::HessianTerm {
+        super::HessianTerm::Unsupported("cloth")
+    }
+
     fn add_blocks(&self, model: &Model, values: &mut [f64]) {
         let bends = &cloth(model).bends;
         for i in 0..bends.len() {

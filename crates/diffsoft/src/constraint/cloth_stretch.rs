@@ -50,6 +50,10 @@ impl ConstraintSet for ClothStretch {
         "cloth stretching"
     }
 
+    fn hessian_term(&self) -> super::HessianTerm {
+        super::HessianTerm::Unsupported("cloth")
+    }
+
     fn add_blocks(&self, model: &Model, values: &mut [f64]) {
         let cl = cloth(model);
         for ((g, slots), w) in cl.geometry.iter().zip(&cl.tri_slots).zip(&cl.w_stretch) {

@@ -77,6 +77,10 @@ impl ConstraintSet for Elasticity {
         "elasticity"
     }
 
+    fn hessian_term(&self) -> super::HessianTerm {
+        super::HessianTerm::ElasticTets
+    }
+
     fn tet_coefficients(&self, model: &Model, k: &mut [f64]) {
         for (t, k) in k.iter_mut().enumerate() {
             *k = (model.w_rot[t] + model.w_vol[t]) / model.fem.geometry[t].volume;

@@ -88,14 +88,37 @@ pub(crate) struct AdjointContext<'a, 'g> {
     pub grads: ParamGrads<'g>,
 }
 
+/// How a kind's constraints enter the Hessian of the step energy that Newton's method uses
+/// (docs/method.md Eq. S4, `H = A - J K~ J^T`): every kind declares it, so no kind can be left
+/// out of the Hessian by omission.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum HessianTerm {
+    /// The projection does not depend on the positions (an attachment's target): `K = 0`, the
+    /// kind's whole Hessian block `w G^T G` is in `A`.
+    Constant,
+    /// Tet elasticity: the per-tet linearization from the local step's decompositions, clamped
+    /// per tet for the projected Hessian (`solver::hessian::ElasticHessian`).
+    ElasticTets,
+    /// The exact `K` from the kind's own linearization and adjoint in the unprojected Hessian;
+    /// the projected Hessian leaves it out (the block `w G^T G` in `A` is positive
+    /// semidefinite).
+    Exact,
+    /// Newton's method cannot take this kind (the reason, for the error message).
+    Unsupported(&'static str),
+}
+
 /// One kind of projective constraint over every element of a model that has it.
 ///
 /// A set owns its buffers (sized once, on first use); the model's static data (tets, weights,
-/// cells, cloth) is passed in. Methods have do-nothing defaults so a kind implements only what
-/// it has.
+/// cells, cloth) is passed in. Methods other than [`ConstraintSet::name`] and
+/// [`ConstraintSet::hessian_term`] have do-nothing defaults so a kind implements only what it
+/// has.
 pub(crate) trait ConstraintSet: Send + Sync + std::fmt::Debug {
     /// Name of the kind (diagnostics).
     fn name(&self) -> &'static str;
+
+    /// How the kind enters Newton's Hessian (no default: a new kind must say).
+    fn hessian_term(&self) -> HessianTerm;
 
     /// Add the per-tet coefficients `w / V` of its isotropic tet terms `w A^T A` (Eq. 22) to
     /// `k` (the elasticity set comes first and overwrites).

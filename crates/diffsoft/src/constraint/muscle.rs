@@ -46,6 +46,10 @@ impl ConstraintSet for Muscle {
         "muscle"
     }
 
+    fn hessian_term(&self) -> super::HessianTerm {
+        super::HessianTerm::Exact
+    }
+
     fn add_blocks(&self, model: &Model, values: &mut [f64]) {
         // A fibre's constraint is on F m = sum_a x_a (a_a . m): a rank-one block.
         let act = actuators(model);

@@ -52,6 +52,10 @@ impl ConstraintSet for Pneumatic {
         "pneumatic"
     }
 
+    fn hessian_term(&self) -> super::HessianTerm {
+        super::HessianTerm::Exact
+    }
+
     fn tet_coefficients(&self, model: &Model, k: &mut [f64]) {
         let act = actuators(model);
         for &i in &self.cells {

@@ -36,6 +36,11 @@ impl Constraints {
         }
     }
 
+    /// How each kind enters Newton's Hessian, with its name.
+    pub(crate) fn hessian_terms(&self) -> impl Iterator<Item = (&'static str, super::HessianTerm)> + '_ {
+        self.sets.iter().map(|s| (s.name(), s.hessian_term()))
+    }
+
     /// `L` (per axis) as values in the model's stiffness pattern: the isotropic tet terms
     /// first (Eq. 22), then every set's other blocks.
     pub(crate) fn stiffness_values(model: &Model, sets: &[Box<dyn ConstraintSet>]) -> Vec<f64> {

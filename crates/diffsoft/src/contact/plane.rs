@@ -25,6 +25,10 @@ impl Plane {
 }
 
 impl Shape for Plane {
+    fn piecewise_planar(&self) -> bool {
+        true
+    }
+
     fn query(
         &self,
         _from: &Vector3<f64>,

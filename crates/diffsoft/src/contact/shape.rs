@@ -29,4 +29,12 @@ pub trait Shape: Send + Sync + std::fmt::Debug {
 
     /// A short name of the kind (messages).
     fn kind(&self) -> &'static str;
+
+    /// Whether the contact normal and the surface point of [`Shape::query`] stay fixed as the
+    /// vertex moves within a contact (a piecewise planar surface: a plane, a triangle mesh's
+    /// faces). The backward pass differentiates contacts with the normal held fixed
+    /// (docs/method.md section 7), which is exact only then; gradients through a model with a
+    /// curved shape, which has no normal derivative here, are refused with a message naming it.
+    /// No default: a new shape must say.
+    fn piecewise_planar(&self) -> bool;
 }

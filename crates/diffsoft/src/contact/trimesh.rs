@@ -319,6 +319,12 @@ impl TriMeshObstacle {
 }
 
 impl Shape for TriMeshObstacle {
+    /// Every query answers with a face's normal (also at edges and corners), so the normal is
+    /// constant within a contact.
+    fn piecewise_planar(&self) -> bool {
+        true
+    }
+
     fn query(
         &self,
         from: &Vector3<f64>,

@@ -3,28 +3,30 @@
 //! them either every recorded local-global iteration (unrolled mode, Eq. G1) or the converged
 //! step (implicit mode, see `implicit.rs`), or with a skeleton the reduced step (`skeletal.rs`).
 
+use std::sync::Arc;
 use std::time::Instant;
 
 use nalgebra::Vector3;
 
 use super::contact::{self, ContactAdjoint};
 use super::recording::Recording;
-use super::skeletal::SkeletalAdjoint;
+use super::skeletal_state::SkeletalAdjoint;
 use super::{DiffError, Gradient, Mode, Options};
 use crate::constraint::{Constraints, Linearize, ParamGrads};
 use crate::model::Model;
 use crate::solver::anderson::Anderson;
+use crate::solver::assembled::GlobalSystem;
 use crate::solver::direct::Direct;
 use crate::solver::free_contact::FreeContact;
 use crate::solver::global::InnerControl;
 use crate::solver::integrator::{Previous, Scheme};
-use crate::solver::system::GlobalSystem;
+use crate::solver::system::System;
 
 /// Buffers of the backward pass, sized once.
 pub(crate) struct Backward<'a> {
     pub(super) model: &'a Model,
     pub(super) integrator: Scheme,
-    pub(super) sys: GlobalSystem,
+    pub(super) sys: Arc<System>,
     pub(super) direct: Direct,
     pub(super) local: Constraints,
     pub(super) contact: ContactAdjoint,
@@ -85,17 +87,14 @@ pub(crate) struct StepInputs<'r> {
 }
 
 impl<'a> Backward<'a> {
-    /// Assemble and factor the system of `scheme` (the time step and integrator of the steps
-    /// it will differentiate) and allocate every buffer.
-    pub(crate) fn new(model: &'a Model, scheme: Scheme, opts: Options) -> Result<Self, DiffError> {
-        let sys = GlobalSystem::new(model, scheme.h_e())?;
-        let direct = Direct::new(
-            &sys,
-            InnerControl {
-                tolerance: 0.0,
-                max_iterations: 1,
-            },
-        )?;
+    /// The backward pass of steps of `scheme` (the time step and integrator of the steps it
+    /// will differentiate) on `sys`, the forward pass's system of that scheme (its factor is
+    /// shared, not recomputed); every buffer is allocated here.
+    pub(crate) fn new(model: &'a Model, scheme: Scheme, sys: Arc<System>, opts: Options) -> Result<Self, DiffError> {
+        let direct = sys.direct(InnerControl {
+            tolerance: 0.0,
+            max_iterations: 1,
+        })?;
         let (n, nf) = (model.n(), sys.n());
         let groups = model.actuators.as_ref().map_or(0, |a| a.groups.len());
         let mut b = Self {
@@ -134,7 +133,7 @@ impl<'a> Backward<'a> {
             n,
             nf,
         };
-        b.skel = SkeletalAdjoint::new(model, &b);
+        b.skel = SkeletalAdjoint::new(model, &b.sys, &b.direct);
         Ok(b)
     }
 

@@ -277,9 +277,11 @@ impl LossScratch {
     }
 }
 
-/// Run `steps` steps with `controls`, summing `loss`, keeping what `keep` asks for; `progress`
-/// hears of every step.
+/// Run `steps` steps of `sim` (set up for `model` and `settings`, at its initial state) with
+/// `controls`, summing `loss`, keeping what `keep` asks for; `progress` hears of every step.
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn forward(
+    sim: &mut Simulator,
     model: &Model,
     settings: &Settings,
     steps: usize,
@@ -294,7 +296,6 @@ pub(crate) fn forward(
         store_bytes,
     } = keep;
     loss.validate(model)?;
-    let mut sim = Simulator::new(model.clone(), settings.clone())?;
     if let Some((q, v)) = &controls.initial {
         sim.set_state_from(q, v)?;
     }
@@ -351,7 +352,7 @@ pub(crate) fn forward(
     };
     let mut joints = vec![0.0; dofs];
     for k in 0..steps {
-        set_controls(&mut sim, model, controls, k)?;
+        set_controls(sim, model, controls, k)?;
         let st = match recording.as_mut() {
             Some(r) => sim.step_observed(r)?,
             None => sim.step()?,
@@ -363,7 +364,7 @@ pub(crate) fn forward(
             joints.iter_mut().for_each(|j| *j = 0.0);
             sk.scalars(&mut joints);
         }
-        f.loss += scratch.term(model, loss, k + 1, steps, &sim, &joints);
+        f.loss += scratch.term(model, loss, k + 1, steps, sim, &joints);
         if let Some(a) = sim.activations() {
             f.activations.push(a);
         }

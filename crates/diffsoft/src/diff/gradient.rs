@@ -13,7 +13,8 @@ use super::recording::Recording;
 use super::{Controls, DiffError, DiffStats, Gradient, Mode, Options};
 use crate::model::Model;
 use crate::solver::integrator::Scheme;
-use crate::solver::{Integrator, Settings, Simulator, SolverKind};
+use crate::solver::Checkpoint;
+use crate::solver::{Integrator, Settings, Simulator, SolverKind, Systems};
 
 /// Where a gradient evaluation is (for progress reports and observers).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -26,6 +27,13 @@ pub enum Progress {
 }
 
 fn check_supported(model: &Model, settings: &Settings, mode: Mode) -> Result<(), DiffError> {
+    if let Some(o) = model.obstacles.iter().find(|o| !o.shape.piecewise_planar()) {
+        return Err(DiffError::Unsupported(format!(
+            "obstacle '{}' is a curved {} surface: the backward pass holds contact normals fixed, which is exact only on piecewise planar shapes (planes, triangle meshes)",
+            o.name,
+            o.shape.kind()
+        )));
+    }
     if mode == Mode::Unrolled && settings.anderson > 0 {
         return Err(DiffError::Unsupported(
             "unrolled gradients through Anderson acceleration; use anderson = 0 or --mode implicit".into(),
@@ -54,7 +62,31 @@ pub fn loss_value(
     controls: &Controls,
     loss: &dyn Loss,
 ) -> Result<f64, DiffError> {
-    Ok(forward(model, settings, steps, controls, loss, Keep::default(), &mut |_| {})?.loss)
+    loss_value_on(&Systems::new(), model, settings, steps, controls, loss)
+}
+
+/// [`loss_value`] on shared systems (see [`Simulator::with_systems`]): the repeated runs of a
+/// finite-difference check factor and certify once.
+pub fn loss_value_on(
+    systems: &Systems,
+    model: &Model,
+    settings: &Settings,
+    steps: usize,
+    controls: &Controls,
+    loss: &dyn Loss,
+) -> Result<f64, DiffError> {
+    let mut sim = Simulator::with_systems(model.clone(), settings.clone(), systems)?;
+    Ok(forward(
+        &mut sim,
+        model,
+        settings,
+        steps,
+        controls,
+        loss,
+        Keep::default(),
+        &mut |_| {},
+    )?
+    .loss)
 }
 
 /// The loss of `steps` steps and its gradient (see the module docs).
@@ -83,13 +115,32 @@ pub fn gradient_with(
     opts: Options,
     progress: &mut dyn FnMut(Progress),
 ) -> Result<Gradient, DiffError> {
+    gradient_on(&Systems::new(), model, settings, steps, controls, loss, opts, progress)
+}
+
+/// [`gradient_with`] on shared systems (see [`Simulator::with_systems`]). The forward pass,
+/// its replays and the backward pass use one global system per step size: assembled, certified
+/// and factored once.
+#[allow(clippy::too_many_arguments)]
+pub fn gradient_on(
+    systems: &Systems,
+    model: &Model,
+    settings: &Settings,
+    steps: usize,
+    controls: &Controls,
+    loss: &dyn Loss,
+    opts: Options,
+    progress: &mut dyn FnMut(Progress),
+) -> Result<Gradient, DiffError> {
     if steps == 0 {
         return Err(DiffError::Input("steps must be at least 1".into()));
     }
     check_supported(model, settings, opts.mode)?;
     let implicit = opts.mode == Mode::Implicit;
     let t0 = Instant::now();
+    let mut sim = Simulator::with_systems(model.clone(), settings.clone(), systems)?;
     let fwd = forward(
+        &mut sim,
         model,
         settings,
         steps,
@@ -141,9 +192,20 @@ pub fn gradient_with(
     // Every step's scheme but the first (BDF2 starts with implicit Euler, whose matrix differs:
     // its backward is built when step 0 is reached).
     let bdf2 = settings.integrator == Integrator::Bdf2;
+    // The backward pass solves with the forward's systems (one per scheme).
+    let system_of = |scheme: Scheme| match sim.system_for(scheme.h_e()) {
+        Some(s) => Ok(s),
+        None => sim.systems().get(model, scheme.h_e()),
+    };
     let mut bw = Backward::new(
         model,
         Scheme::for_step(settings.integrator, settings.dt, settings.damping, bdf2),
+        system_of(Scheme::for_step(
+            settings.integrator,
+            settings.dt,
+            settings.damping,
+            bdf2,
+        ))?,
         opts,
     )?;
     let mut bw_first: Option<Backward> = None;
@@ -151,8 +213,7 @@ pub fn gradient_with(
     let mut replayer = if implicit && model.skeleton.is_none() {
         None
     } else {
-        let sim = Simulator::new(model.clone(), settings.clone())?;
-        Some((sim, Recording::new(true)))
+        Some((sim.replayer()?, Recording::new(true)))
     };
     let (mut qbar, mut vbar) = (vec![Vector3::zeros(); n], vec![Vector3::zeros(); n]);
     // BDF2: a step's adjoints of the state before its start, added to the next (earlier)
@@ -182,18 +243,16 @@ pub fn gradient_with(
         let tr = Instant::now();
         let stored = fwd.stored.get(step).and_then(|r| r.as_ref());
         if let (Some((sim, replay)), None) = (replayer.as_mut(), stored) {
-            sim.set_state_from(fwd.q.row(step), fwd.v.row(step))?;
-            if let Some((q, v)) = previous {
-                sim.set_previous_state(q, v)?;
-            }
-            if let Some(st) = fwd.skeleton.get(step) {
-                sim.set_skeleton_state(st)?;
-            }
+            sim.restore(Checkpoint {
+                q: fwd.q.row(step),
+                v: fwd.v.row(step),
+                previous,
+                skeleton: fwd.skeleton.get(step),
+                time: fwd.time[step],
+                step,
+                activations: fwd.activations.row(step),
+            })?;
             set_controls(sim, model, controls, step)?;
-            sim.set_clock(fwd.time[step], step);
-            for (grp, a) in fwd.activations.row(step).iter().enumerate() {
-                sim.set_activation_of(grp, *a)?;
-            }
             sim.step_observed(replay)?;
             let dev = sim
                 .state()
@@ -221,7 +280,8 @@ pub fn gradient_with(
             let first = match bw_first.take() {
                 Some(b) => b,
                 None => {
-                    let mut b = Backward::new(model, Scheme::implicit_euler(settings.dt, settings.damping), opts)?;
+                    let ie = Scheme::implicit_euler(settings.dt, settings.damping);
+                    let mut b = Backward::new(model, ie, system_of(ie)?, opts)?;
                     // The skeleton's adjoint of z_1 carries over from the later steps.
                     if let (Some(dst), Some(src)) = (b.skel.as_mut(), bw.skel.as_ref()) {
                         dst.z_bar.copy_from_slice(&src.z_bar);

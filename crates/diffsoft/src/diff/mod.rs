@@ -45,6 +45,7 @@ pub mod params;
 pub(crate) mod recording;
 mod rollout;
 pub(crate) mod skeletal;
+mod skeletal_state;
 
 use nalgebra::Vector3;
 use serde::Serialize;
@@ -53,7 +54,7 @@ use crate::model::Model;
 use crate::solver::SolverError;
 
 pub use cotangent::{vjp, Cotangent};
-pub use gradient::{gradient, gradient_with, loss_value, Progress};
+pub use gradient::{gradient, gradient_on, gradient_with, loss_value, loss_value_on, Progress};
 pub use params::Param;
 pub use rollout::{rollout, Rollout};
 

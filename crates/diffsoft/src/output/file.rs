@@ -1,9 +1,9 @@
 //! Output paths checked before the work: writable, and never one of the command's inputs.
-//! (Files themselves are written atomically by [`crate::output::report::write_atomic`].)
+//! (Files themselves are written atomically by [`crate::report::write_atomic`].)
 
 use std::path::{Path, PathBuf};
 
-use crate::output::report::temporary_name;
+use crate::report::temporary_name;
 
 /// Check, before a long computation, that `path` can be written: its directory is created if
 /// needed and a probe file is written into it and removed. Errors name the path.

@@ -6,7 +6,7 @@ use std::collections::BTreeMap;
 use serde::Serialize;
 
 use crate::diff::{DiffStats, Mode};
-use crate::output::report::Header;
+use crate::report::Header;
 
 /// Schema of `diffsoft grad --json`.
 pub const GRAD_SCHEMA: &str = "diffsoft.grad/1";
@@ -27,11 +27,16 @@ pub struct GradReport {
     pub loss_name: String,
     /// Loss value (the loss's unit: m for centre-of-mass losses, rad for joint angles).
     pub loss: f64,
-    /// Value of each differentiated parameter, by name (its unit: Pa for `youngs_modulus`,
-    /// kg/m^3 for `density`, m/s for `initial_velocity.*`, m/s^2 for `gravity.*`, 1 for
-    /// `poisson_ratio`); parameters without a single value are left out.
+    /// Value of each differentiated parameter, by name, in its unit; parameters without a
+    /// single value are left out. The names and units are the registry's
+    /// ([`crate::diff::params::PARAMETERS`]), which the schema lists.
+    #[schemars(
+        schema_with = "crate::diff::params::values_schema",
+        description = crate::diff::params::values_description()
+    )]
     pub parameters: BTreeMap<String, f64>,
     /// `d loss / d parameter` for each parameter, by name (loss unit per parameter unit).
+    #[schemars(schema_with = "crate::diff::params::values_schema")]
     pub gradient: BTreeMap<String, f64>,
     /// Cost and accuracy of the forward and backward passes.
     pub stats: DiffStats,

@@ -4,14 +4,13 @@
 
 mod file;
 mod grad;
-pub mod report;
 mod run_dir;
 mod runlog;
 mod vtk;
 
+pub use crate::report::{write_atomic, write_json, Header, ModelSize, Provenance, Verdict};
 pub use file::{check_writable, refuse_input};
 pub use grad::{GradReport, GRAD_SCHEMA};
-pub use report::{write_atomic, write_json, Header, ModelSize, Provenance, Verdict};
 pub use run_dir::{RunDir, RunStatus, COLLECTION, RUN_LOG};
 
 pub use runlog::{RunLog, RunSummary, RUN_SCHEMA};

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use super::runlog::RunLog;
-use crate::output::report::write_atomic;
+use crate::report::write_atomic;
 
 /// Files a run writes into its directory.
 pub const RUN_LOG: &str = "run.json";

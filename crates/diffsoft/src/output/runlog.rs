@@ -5,7 +5,7 @@ use serde::Serialize;
 
 use crate::base::Body;
 use crate::cloth::ClothBody;
-use crate::output::report::{Header, ModelSize};
+use crate::report::{Header, ModelSize};
 use crate::solver::{Certificate, Settings, StepStats};
 
 /// Schema of the run log.

@@ -340,7 +340,7 @@ fn contact_impulses(sim: &Simulator, out: &mut [Vector3<f64>]) {
     out.fill(Vector3::zeros());
     let h = sim.integrator.h();
     let free = &sim.system.free;
-    if let Some(lambda) = sim.global.contact_impulses() {
+    if let Some(lambda) = sim.iteration.contact_impulses() {
         // The last solve's impulses belong to the first contacts of the list (a final contact
         // round may have appended contacts that were not solved: they get none).
         for (c, l) in sim.contacts.free.iter().zip(lambda) {

@@ -13,105 +13,17 @@
 
 use std::time::Instant;
 
-use serde::Serialize;
-
-use super::choose::Candidate;
+use super::certificate::{Certificate, CertifyPolicy, EigenvalueRange, REQUIRED_REDUCTION};
 use super::global::SolverKind;
-use super::system::GlobalSystem;
+use super::system::System;
 use super::SolverError;
+use crate::analysis::rho_split;
 use crate::analysis::spectral::{largest_eigenvalue, EigenMethod};
-use crate::analysis::{rho_split, split_extremes, IterationSystem};
-
-/// What to do when the chosen iteration would diverge.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, serde::Deserialize, schemars::JsonSchema)]
-#[serde(rename_all = "snake_case")]
-pub enum CertifyPolicy {
-    /// Do not check (the run detects divergence when it happens).
-    Off,
-    /// Stop with an error before stepping.
-    Refuse,
-    /// Use the direct solver instead.
-    Fallback,
-}
-
-/// The smallest and largest eigenvalue of an iteration matrix.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, schemars::JsonSchema)]
-pub struct EigenvalueRange {
-    /// Smallest eigenvalue (1).
-    pub smallest: f64,
-    /// Largest eigenvalue (1).
-    pub largest: f64,
-}
-
-/// The outcome of certification.
-#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
-pub struct Certificate {
-    /// Solver asked for.
-    pub requested: SolverKind,
-    /// Solver used.
-    pub used: SolverKind,
-    /// Policy.
-    pub policy: CertifyPolicy,
-    /// Time step certified (s).
-    pub dt: f64,
-    /// Spectral radius of the requested iteration (1; null for direct or when not checked;
-    /// auto: of the iteration chosen, split's possibly the row-sum bound, Chebyshev's `r`).
-    pub spectral_radius: Option<f64>,
-    /// Extreme eigenvalues of `G21` (Chebyshev only).
-    pub split_extremes: Option<EigenvalueRange>,
-    /// Relaxation of the iteration without contacts (1).
-    pub relaxation: f64,
-    /// Relaxation of the projected contact iteration (1).
-    pub contact_relaxation: f64,
-    /// Chebyshev's spectral radius parameter (1).
-    pub chebyshev_rho: Option<f64>,
-    /// Whether the requested iteration converges at this time step.
-    pub converges: Option<bool>,
-    /// Asymptotic error reduction per inner iteration (1; `rho`; Chebyshev: `r / (1 + sqrt(1 -
-    /// r^2))`).
-    pub asymptotic_rate: Option<f64>,
-    /// Inner iterations predicted for a `1e-10` error reduction, `ln(1e-10) / ln(rate)` (auto:
-    /// the chosen iteration's predicted iterations per warm-started solve, see `candidates`).
-    pub predicted_iterations: Option<f64>,
-    /// Auto only: each candidate solver's measured and predicted cost, from which the
-    /// cheapest was chosen (empty when a solver was requested).
-    pub candidates: Vec<Candidate>,
-    /// What happened, in words.
-    pub message: String,
-    /// Time spent on certification: the eigenvalue computation, and for auto the timings (ms).
-    pub elapsed_ms: f64,
-}
-
-impl Certificate {
-    /// A certificate that `requested` runs as requested, with nothing checked yet.
-    pub(crate) fn unchecked(requested: SolverKind, policy: CertifyPolicy, dt: f64) -> Self {
-        Self {
-            requested,
-            used: requested,
-            policy,
-            dt,
-            spectral_radius: None,
-            split_extremes: None,
-            relaxation: 1.0,
-            contact_relaxation: 1.0,
-            chebyshev_rho: None,
-            converges: None,
-            asymptotic_rate: None,
-            predicted_iterations: None,
-            candidates: Vec::new(),
-            message: String::new(),
-            elapsed_ms: 0.0,
-        }
-    }
-}
-
-/// Error reduction a global solve must be able to reach within its iteration cap.
-pub const REQUIRED_REDUCTION: f64 = 1e-10;
 
 /// Certify `requested` on `sys` (assembled for time step `h`) under `policy`: the iteration must converge (spectral radius
 /// below 1) and reach a [`REQUIRED_REDUCTION`] within `max_iterations` at its asymptotic rate.
 pub(crate) fn certify(
-    sys: &GlobalSystem,
+    sys: &System,
     h: f64,
     requested: SolverKind,
     policy: CertifyPolicy,
@@ -125,8 +37,7 @@ pub(crate) fn certify(
         cert.message = "direct sparse Cholesky: no convergence condition".into();
         return Ok(cert);
     }
-    let it = IterationSystem::from_parts(sys.l.clone(), sys.mass.clone(), sys.attachment.clone())
-        .map_err(|e| SolverError::input(e.to_string()))?;
+    let it = sys.iteration_system()?;
     let spectral = |e: crate::analysis::AnalysisError| SolverError::Certification(e.to_string());
     let need_check = policy != CertifyPolicy::Off || requested == SolverKind::Chebyshev;
     if !need_check {
@@ -143,7 +54,7 @@ pub(crate) fn certify(
             "split iteration (21): rho(G21)",
         ),
         SolverKind::Chebyshev => {
-            let (lo, hi) = split_extremes(&it, h, method).map_err(spectral)?;
+            let (lo, hi) = sys.split_extremes(method)?;
             let gamma = 2.0 / (2.0 - lo - hi);
             let r = (hi - lo) / (2.0 - lo - hi);
             cert.split_extremes = Some(EigenvalueRange {
@@ -204,9 +115,3 @@ pub(crate) fn certify(
         CertifyPolicy::Off => unreachable!(),
     }
 }
-
-crate::choice!(CertifyPolicy {
-    Off => "off",
-    Refuse => "refuse",
-    Fallback => "fallback",
-});

@@ -26,16 +26,15 @@
 use std::time::Instant;
 
 use nalgebra::Vector3;
-use serde::Serialize;
 
-use super::certify::{Certificate, EigenvalueRange, REQUIRED_REDUCTION};
+use super::assembled::GlobalSystem;
+use super::certificate::{Candidate, Certificate, EigenvalueRange, REQUIRED_REDUCTION};
 use super::direct::Direct;
 use super::global::{GlobalSolver, InnerControl, SolverKind};
 use super::stationary::Stationary;
-use super::system::GlobalSystem;
+use super::system::System;
 use super::SolverError;
 use crate::analysis::spectral::{EigenMethod, KRYLOV_MIN_N};
-use crate::analysis::{split_extremes, IterationSystem};
 
 /// Solves a run is assumed to make when the factorisation is amortised. A run makes a global
 /// solve per local-global iteration, so 100 solves are 10-20 steps at the 5-10 iterations a
@@ -67,26 +66,6 @@ const KRYLOV_ITERATION_EQUIVALENTS: f64 = 2000.0;
 /// Dense symmetric eigenvalues take about `n^3` times this (ms).
 const DENSE_MS_PER_N3: f64 = 1e-6;
 
-/// What one candidate solver is predicted to cost.
-#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
-pub struct Candidate {
-    /// The solver.
-    pub solver: SolverKind,
-    /// Whether it can run here (iterative: certified as a requested iteration would be, and
-    /// predicted within the inner iteration cap; direct: factored).
-    pub eligible: bool,
-    /// Predicted inner iterations per solve (iterative only).
-    pub predicted_iterations: Option<f64>,
-    /// Measured cost of one inner iteration (ms; iterative only).
-    pub cost_per_iteration_ms: Option<f64>,
-    /// Measured (direct) or predicted (iterative) cost of one solve (ms).
-    pub cost_per_solve_ms: Option<f64>,
-    /// One-off cost: the factorisation (direct) or the eigenvalue computation (iterative), ms.
-    pub setup_ms: f64,
-    /// Predicted cost of the setup and [`AMORTISED_SOLVES`] solves (ms).
-    pub predicted_ms: Option<f64>,
-}
-
 /// The measured costs of the candidates before any eigenvalue is known.
 struct Timings {
     /// The factored direct solver and its factorisation time (ms), if it factored.
@@ -109,13 +88,15 @@ fn timing_rhs(sys: &GlobalSystem) -> Vec<Vector3<f64>> {
         .collect()
 }
 
-/// Time the factorisation and the cheapest of [`TIMED_SOLVES`] solves.
-fn time_direct(sys: &GlobalSystem, control: InnerControl, b: &[Vector3<f64>]) -> (Option<(Direct, f64)>, f64) {
-    let t0 = Instant::now();
-    let Ok(mut direct) = Direct::new(sys, control) else {
+/// The factorisation's time (measured when the system was first factored) and the cheapest of
+/// [`TIMED_SOLVES`] solves.
+fn time_direct(sys: &System, control: InnerControl, b: &[Vector3<f64>]) -> (Option<(Direct, f64)>, f64) {
+    let Ok((_, factor_ms)) = sys.factor() else {
         return (None, f64::INFINITY);
     };
-    let factor_ms = ms(t0);
+    let Ok(mut direct) = sys.direct(control) else {
+        return (None, f64::INFINITY);
+    };
     let mut x = vec![Vector3::zeros(); sys.n()];
     let mut best = f64::INFINITY;
     for _ in 0..TIMED_SOLVES {
@@ -151,7 +132,7 @@ fn ms(t: Instant) -> f64 {
 }
 
 /// Measure every candidate's costs that need no eigenvalues.
-fn measure(sys: &GlobalSystem, control: InnerControl) -> Timings {
+fn measure(sys: &System, control: InnerControl) -> Timings {
     let b = timing_rhs(sys);
     let (direct, solve_ms) = time_direct(sys, control, &b);
     Timings {
@@ -292,8 +273,7 @@ fn cheapest(candidates: &[Candidate]) -> Option<&Candidate> {
 /// `tolerance` is the inner tolerance relative to the length scale, `control` the inner
 /// iteration's absolute control.
 pub(crate) fn choose(
-    sys: &GlobalSystem,
-    h: f64,
+    sys: &System,
     base: Certificate,
     method: EigenMethod,
     tolerance: f64,
@@ -336,10 +316,8 @@ pub(crate) fn choose(
         return Ok((cert, timings.direct.map(|(d, _)| d)));
     }
     // 4. Every candidate from the extremes of G21.
-    let it = IterationSystem::from_parts(sys.l.clone(), sys.mass.clone(), sys.attachment.clone())
-        .map_err(|e| SolverError::input(e.to_string()))?;
     let te = Instant::now();
-    let (lo, hi) = split_extremes(&it, h, method).map_err(|e| SolverError::Certification(e.to_string()))?;
+    let (lo, hi) = sys.split_extremes(method)?;
     let eigen_ms = ms(te);
     let rho = lo.abs().max(hi.abs());
     let (gamma, r, cheb_rate) = chebyshev_parameters(lo, hi);

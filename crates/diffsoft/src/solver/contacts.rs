@@ -4,8 +4,8 @@
 
 use nalgebra::Vector3;
 
+use super::assembled::GlobalSystem;
 use super::free_contact::{FreeContact, Stencil};
-use super::system::GlobalSystem;
 use crate::contact::pair::{BodyCollision, Detector, PairContact, Query as PairQuery};
 use crate::contact::{self, Contact};
 use crate::model::Model;

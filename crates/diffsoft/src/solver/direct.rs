@@ -10,6 +10,7 @@
 //! the iterative solvers, effective weight `1 / (A^-1)_{cc}`, finished by an active-set method).
 
 use std::collections::HashMap;
+use std::sync::Arc;
 
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::sparse::linalg::cholesky::{factorize_symbolic_cholesky, LltRef, SymbolicCholesky};
@@ -17,51 +18,27 @@ use faer::sparse::{SparseColMat, SymbolicSparseColMat};
 use faer::{Conj, Mat, Par, Side};
 use nalgebra::Vector3;
 
+use super::assembled::GlobalSystem;
 use super::contact_space::{ContactSpace, Problem};
 use super::free_contact::{FreeContact, Stencil};
 use super::global::{GlobalSolver, GlobalStats, InnerControl, SolverKind};
-use super::system::GlobalSystem;
 use super::SolverError;
 
 /// Free vertices from which the three axes are solved concurrently (below it, a one-column
 /// solve is too short to pay for the handoff between threads).
 const AXIS_PARALLEL_MIN: usize = 4000;
 
-/// Sparse Cholesky of `M/h^2 + L`.
-pub(crate) struct Direct {
+/// The sparse Cholesky factor of `M/h^2 + L` on the free vertices: computed once per
+/// [`System`](super::system::System) and shared by every solver that solves with it (the run's
+/// iterations, its backward pass, other runs on the same system).
+pub(crate) struct CholeskyFactor {
     symbolic: SymbolicCholesky<usize>,
     numeric: Vec<f64>,
-    solve_mem: MemBuffer,
-    /// Scratch of the two- and one-column solves when the axes are solved concurrently.
-    axis_mem: [MemBuffer; 2],
-    /// Solve the three axes concurrently (large systems with several worker threads).
-    axis_parallel: bool,
-    rhs: Mat<f64>,
-    /// Columns of `A^-1` at contact vertices (free index -> column).
-    delassus: HashMap<usize, Vec<f64>>,
-    control: InnerControl,
-    lambda: Vec<Vector3<f64>>,
-    // Contact buffers, reused across solves.
-    stencils: Vec<Stencil>,
-    dmat: Vec<f64>,
-    x_free: Vec<Vector3<f64>>,
-    space: ContactSpace,
-    /// The previous solve's impulses by contact vertices (warm starts).
-    previous: HashMap<(u8, [usize; 4]), Vector3<f64>>,
 }
 
-impl std::fmt::Debug for Direct {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("Direct")
-            .field("n", &self.rhs.nrows())
-            .field("factor_nnz", &self.numeric.len())
-            .finish()
-    }
-}
-
-impl Direct {
+impl CholeskyFactor {
     /// Analyse and factor the system.
-    pub(crate) fn new(sys: &GlobalSystem, control: InnerControl) -> Result<Self, SolverError> {
+    pub(crate) fn new(sys: &GlobalSystem) -> Result<Self, SolverError> {
         let n = sys.n();
         let mut values = sys.l.values.clone();
         for j in 0..n {
@@ -94,12 +71,56 @@ impl Direct {
                     "M/h^2 + L is not positive definite ({e:?}): check masses, stiffness and time step"
                 ))
             })?;
+        Ok(Self { symbolic, numeric })
+    }
+
+    fn llt(&self) -> LltRef<'_, usize, f64> {
+        LltRef::new(&self.symbolic, &self.numeric)
+    }
+}
+
+/// Sparse Cholesky solves of `M/h^2 + L` with a shared factor, and the contact solve on it.
+pub(crate) struct Direct {
+    factor: Arc<CholeskyFactor>,
+    solve_mem: MemBuffer,
+    /// Scratch of the two- and one-column solves when the axes are solved concurrently.
+    axis_mem: [MemBuffer; 2],
+    /// Solve the three axes concurrently (large systems with several worker threads).
+    axis_parallel: bool,
+    rhs: Mat<f64>,
+    /// Columns of `A^-1` at contact vertices (free index -> column).
+    delassus: HashMap<usize, Vec<f64>>,
+    control: InnerControl,
+    lambda: Vec<Vector3<f64>>,
+    // Contact buffers, reused across solves.
+    stencils: Vec<Stencil>,
+    dmat: Vec<f64>,
+    x_free: Vec<Vector3<f64>>,
+    space: ContactSpace,
+    /// The previous solve's impulses by contact vertices (warm starts).
+    previous: HashMap<(u8, [usize; 4]), Vector3<f64>>,
+}
+
+impl std::fmt::Debug for Direct {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Direct")
+            .field("n", &self.rhs.nrows())
+            .field("factor_nnz", &self.factor.numeric.len())
+            .finish()
+    }
+}
+
+impl Direct {
+    /// Solves with a shared `factor` of a system with `n` free vertices; every buffer is
+    /// allocated here.
+    pub(crate) fn with_factor(factor: Arc<CholeskyFactor>, n: usize, control: InnerControl) -> Self {
+        let par = Par::Seq;
+        let symbolic = &factor.symbolic;
         let solve_mem = MemBuffer::new(symbolic.solve_in_place_scratch::<f64>(3, par));
         let axis_mem = [2, 1].map(|k| MemBuffer::new(symbolic.solve_in_place_scratch::<f64>(k, par)));
         let axis_parallel = n >= AXIS_PARALLEL_MIN && rayon::current_num_threads() >= 2;
-        Ok(Self {
-            symbolic,
-            numeric,
+        Self {
+            factor,
             solve_mem,
             axis_mem,
             axis_parallel,
@@ -112,11 +133,11 @@ impl Direct {
             x_free: Vec::new(),
             space: ContactSpace::default(),
             previous: HashMap::new(),
-        })
+        }
     }
 
     fn solve_rhs(&mut self) {
-        let llt = LltRef::new(&self.symbolic, &self.numeric);
+        let llt = self.factor.llt();
         if self.axis_parallel {
             // The three axes share the factor: two axes on this thread (one pass over the
             // factor serves both), the third on another.
@@ -156,13 +177,14 @@ impl Direct {
         for (k, &i) in missing.iter().enumerate() {
             e[(i, k)] = 1.0;
         }
-        let mut mem = MemBuffer::new(self.symbolic.solve_in_place_scratch::<f64>(missing.len(), Par::Seq));
-        LltRef::new(&self.symbolic, &self.numeric).solve_in_place_with_conj(
-            Conj::No,
-            e.as_mut(),
-            Par::Seq,
-            MemStack::new(&mut mem),
+        let mut mem = MemBuffer::new(
+            self.factor
+                .symbolic
+                .solve_in_place_scratch::<f64>(missing.len(), Par::Seq),
         );
+        self.factor
+            .llt()
+            .solve_in_place_with_conj(Conj::No, e.as_mut(), Par::Seq, MemStack::new(&mut mem));
         for (k, &i) in missing.iter().enumerate() {
             self.delassus.insert(i, (0..n).map(|r| e[(r, k)]).collect());
         }
@@ -192,13 +214,14 @@ impl Direct {
 
     /// Solve with several right-hand sides given per axis as columns (`n x k`), in place.
     pub(crate) fn solve_columns(&self, cols: &mut Mat<f64>) {
-        let mut mem = MemBuffer::new(self.symbolic.solve_in_place_scratch::<f64>(cols.ncols(), Par::Seq));
-        LltRef::new(&self.symbolic, &self.numeric).solve_in_place_with_conj(
-            Conj::No,
-            cols.as_mut(),
-            Par::Seq,
-            MemStack::new(&mut mem),
+        let mut mem = MemBuffer::new(
+            self.factor
+                .symbolic
+                .solve_in_place_scratch::<f64>(cols.ncols(), Par::Seq),
         );
+        self.factor
+            .llt()
+            .solve_in_place_with_conj(Conj::No, cols.as_mut(), Par::Seq, MemStack::new(&mut mem));
     }
 
     /// The column of `A^-1` at free vertex `i` (cached; computed on first use).

@@ -11,8 +11,8 @@
 use nalgebra::Vector3;
 use serde::Serialize;
 
+use super::assembled::GlobalSystem;
 use super::free_contact::FreeContact;
-use super::system::GlobalSystem;
 use super::SolverError;
 
 /// Which global solver.
@@ -74,11 +74,6 @@ pub(crate) trait GlobalSolver: Send {
     /// The contact impulses the last solve ended with, one per contact in the order given
     /// (`None`: this solver projects contacts inside its iteration and keeps no impulses).
     fn impulses(&self) -> Option<&[Vector3<f64>]> {
-        None
-    }
-
-    /// The Newton solver, when this is one: its iterations replace the local-global ones.
-    fn as_newton(&mut self) -> Option<&mut super::newton::Newton> {
         None
     }
 

@@ -1,5 +1,6 @@
-//! The elastic part of the step energy's Hessian for Newton's method (docs/method.md Eq. S4),
-//! projected per tet so that it is positive semidefinite.
+//! The constraints' part of the step energy's Hessian for Newton's method (docs/method.md
+//! Eq. S4): [`ConstraintHessian`] from every kind's declared term, with the elastic part
+//! projected per tet so that it is positive semidefinite ([`ElasticHessian`]).
 //!
 //! A tet's constraint energy is `E_t(F) = w_rot/2 |F - U V^T|^2 + w_vol/2 |F - U X V^T|^2`, the
 //! squared distance of `F` to the rotations and to the unit-volume set. Its `F`-space Hessian
@@ -20,7 +21,7 @@
 use nalgebra::{Matrix3, SymmetricEigen, Vector3};
 use rayon::prelude::*;
 
-use crate::constraint::{gather_tets, TetSvd};
+use crate::constraint::{gather_tets, Constraints, HessianTerm, Linearize, ParamGrads, TetSvd};
 use crate::kernel::linearization::TetLinearization;
 use crate::model::Model;
 
@@ -112,6 +113,101 @@ impl ElasticHessian {
             .with_min_len(128)
             .for_each(|(t, k)| *k = lins[t].apply(&model.tet_deformation(t, y)));
         gather_tets(model, &self.per_tet, out);
+    }
+}
+
+/// Every constraint set's exact linearization `K` at the iterate, for kinds whose Hessian term
+/// is [`HessianTerm::Exact`], with scratch for the parameter adjoints its application also
+/// produces (discarded).
+struct ExactK {
+    constraints: Constraints,
+    w_rot: Vec<f64>,
+    w_vol: Vec<f64>,
+    activations: Vec<f64>,
+}
+
+/// The constraints' part `J K~ J^T` of the step Hessian `H = A - J K~ J^T` (Eq. S4), built from
+/// every kind's [`HessianTerm`]: the per-tet elastic linearization (clamped for the projected
+/// Hessian), and where a kind has an exact `K` of its own (actuators), every set's exact `K` for
+/// the unprojected Hessian (the projected one leaves those kinds' `K` out).
+pub(crate) struct ConstraintHessian {
+    elastic: ElasticHessian,
+    exact: Option<Box<ExactK>>,
+    unprojected: bool,
+}
+
+impl ConstraintHessian {
+    /// Buffers for `model`, whose kinds Newton's method supports (see
+    /// [`ConstraintHessian::unsupported`]).
+    pub(crate) fn new(model: &Model) -> Self {
+        let constraints = Constraints::new(model);
+        let needs_exact = constraints.hessian_terms().any(|(_, t)| t == HessianTerm::Exact);
+        let exact = needs_exact.then(|| {
+            Box::new(ExactK {
+                constraints,
+                w_rot: vec![0.0; model.tets.len()],
+                w_vol: vec![0.0; model.tets.len()],
+                activations: vec![0.0; model.actuators.as_ref().map_or(0, |a| a.groups.len())],
+            })
+        });
+        Self {
+            elastic: ElasticHessian::new(model),
+            exact,
+            unprojected: true,
+        }
+    }
+
+    /// The first kind of `model` that cannot enter the Hessian, with the reason.
+    pub(crate) fn unsupported(model: &Model) -> Option<&'static str> {
+        Constraints::new(model).hessian_terms().find_map(|(_, t)| match t {
+            HessianTerm::Unsupported(why) => Some(why),
+            _ => None,
+        })
+    }
+
+    /// Prepare the Hessian at the iterate `q` (every vertex; `rec` its decompositions):
+    /// unprojected (`K~ = K`) or projected (Eq. S4). Returns whether the unprojected one could
+    /// be linearized.
+    pub(crate) fn prepare(&mut self, model: &Model, rec: &[TetSvd], q: &[Vector3<f64>], unprojected: bool) -> bool {
+        self.unprojected = unprojected;
+        self.elastic.build(model, rec, !unprojected);
+        if let (true, Some(ex)) = (unprojected, self.exact.as_mut()) {
+            return ex.constraints.linearize(model, q).is_ok();
+        }
+        true
+    }
+
+    /// Whether the last [`ConstraintHessian::prepare`] was unprojected.
+    pub(crate) fn unprojected(&self) -> bool {
+        self.unprojected
+    }
+
+    /// `out = J K~ J^T y` on every vertex (`y` zero at fixed vertices) at the iterate `q`;
+    /// `false` where an actuator's projection is not differentiable.
+    pub(crate) fn apply(
+        &mut self,
+        model: &Model,
+        q: &[Vector3<f64>],
+        activations: &[f64],
+        y: &[Vector3<f64>],
+        out: &mut [Vector3<f64>],
+    ) -> bool {
+        match (self.unprojected, self.exact.as_mut()) {
+            (true, Some(ex)) => {
+                let grads = ParamGrads {
+                    w_rot: &mut ex.w_rot,
+                    w_vol: &mut ex.w_vol,
+                    activations: &mut ex.activations,
+                };
+                ex.constraints
+                    .adjoint(model, q, y, None, activations, Linearize::Cached, out, grads)
+                    .is_ok()
+            }
+            _ => {
+                self.elastic.apply(model, y, out);
+                true
+            }
+        }
     }
 }
 

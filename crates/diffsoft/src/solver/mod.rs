@@ -29,7 +29,9 @@
 //! line-search test, in `newton_rules.rs`).
 
 pub(crate) mod anderson;
-pub mod certify;
+pub(crate) mod assembled;
+pub mod certificate;
+pub(crate) mod certify;
 mod cholesky;
 pub mod choose;
 pub(crate) mod contact_space;
@@ -41,11 +43,9 @@ pub(crate) mod free_contact;
 pub(crate) mod global;
 pub(crate) mod hessian;
 pub(crate) mod integrator;
-pub(crate) mod newton;
-pub(crate) mod newton_contact;
-mod newton_rules;
-pub(crate) mod newton_skeletal;
+pub(crate) mod iteration;
 pub(crate) mod observer;
+pub(crate) mod problem;
 mod settings;
 mod simulator;
 pub(crate) mod skeletal;
@@ -54,18 +54,20 @@ mod stats;
 mod step;
 pub(crate) mod system;
 mod warm;
+pub(crate) mod work;
 
 use nalgebra::Vector3;
 
-pub use certify::{Certificate, CertifyPolicy, EigenvalueRange};
-pub use choose::Candidate;
+pub use certificate::{Candidate, Certificate, CertifyPolicy, EigenvalueRange};
 pub use contacts::{PAIR_OBSTACLE, PAIR_TOLERANCE};
 pub use error::SolverError;
 pub use global::{GlobalStats, SolverKind};
 pub use integrator::Integrator;
 pub use settings::Settings;
+pub(crate) use simulator::Checkpoint;
 pub use simulator::Simulator;
 pub use stats::StepStats;
+pub use system::Systems;
 
 /// Positions and velocities of all vertices.
 #[derive(Debug, Clone)]

@@ -3,28 +3,35 @@
 
 use serde::Serialize;
 
-use super::certify::CertifyPolicy;
+use super::certificate::CertifyPolicy;
 use super::global::SolverKind;
 use super::integrator::Integrator;
 use super::SolverError;
 use crate::analysis::spectral::EigenMethod;
+use crate::model::Model;
 
-/// Solver settings.
+/// Solver settings, documented once here: the scene file's `solver` section reads them (every
+/// key optional, unknown keys refused; see [`crate::scene::format::SceneFile`] for the time
+/// step), `diffsoft simulate` and `grad` override them (`--dt`, `--solver`, `--tolerance`, ...)
+/// and Python's `Scene.configure(**settings)` sets them, all by these names and through
+/// [`Settings::set`]; the run log (`run.json`) writes them back.
 #[derive(Debug, Clone, Serialize, serde::Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields, default)]
 pub struct Settings {
-    /// Time step (s).
+    /// Time step (s). A scene file may give it as its top-level `time_step` instead, the older
+    /// spelling.
     pub dt: f64,
-    /// Time integrator (default implicit Euler; `bdf2` is second order, docs/method.md
-    /// Eqs. T1-T3).
+    /// Time integrator: implicit Euler (the paper's, first order) or `bdf2` (second order,
+    /// docs/method.md Eqs. T1-T3; its first step is implicit Euler).
     pub integrator: Integrator,
     /// Global solver (default `auto`: the cheapest for the mesh and time step).
     pub solver: SolverKind,
-    /// Certification policy for iterative solvers.
+    /// Certification policy for iterative global solvers.
     pub certify: CertifyPolicy,
     /// Local-global iteration cap per step.
     pub max_iterations: usize,
-    /// Stop when the RMS change of the positions is below `tolerance x length scale` (1).
+    /// Local-global tolerance: a step stops when the RMS change of the positions is below
+    /// `tolerance x length scale` (1; 0: always run the cap, a smooth forward).
     pub tolerance: f64,
     /// Inner iterations stop when no coordinate moves more than this `x length scale` (1).
     pub inner_tolerance: f64,
@@ -39,7 +46,7 @@ pub struct Settings {
     /// Eigensolver for certification.
     pub eigen_method: EigenMethod,
     /// Anderson acceleration memory of the local-global iteration (0: off, the paper's plain
-    /// iteration).
+    /// iteration; unrolled mode differentiates plain iterations only).
     pub anderson: usize,
 }
 
@@ -65,7 +72,7 @@ impl Default for Settings {
 
 impl Settings {
     /// Check the settings are meaningful.
-    pub(crate) fn validate(&self) -> Result<(), SolverError> {
+    pub fn validate(&self) -> Result<(), SolverError> {
         let bad = |m: String| Err(SolverError::input(m));
         if !(self.dt.is_finite() && self.dt > 0.0) {
             return bad(format!("time step must be finite and positive, got {}", self.dt));
@@ -87,4 +94,75 @@ impl Settings {
         }
         Ok(())
     }
+
+    /// Set one setting by name to a JSON value (`"split"`, `1e-8`, `200`), as a scene file's
+    /// `solver` section would, and check the result ([`Settings::validate`]); on an error the
+    /// settings are unchanged. The command line's overrides and Python's `Scene.configure`
+    /// come through here. A number setting given `null` (how serde writes NaN and infinity)
+    /// is refused.
+    pub fn set(&mut self, name: &str, value: serde_json::Value) -> Result<(), SolverError> {
+        let mut fields = match serde_json::to_value(&*self) {
+            Ok(serde_json::Value::Object(fields)) => fields,
+            _ => return Err(SolverError::input("settings: cannot be written as JSON")),
+        };
+        if !fields.contains_key(name) {
+            return Err(SolverError::input(format!(
+                "unknown setting '{name}' (settings: {})",
+                Self::names().join(", ")
+            )));
+        }
+        if value.is_null() && fields[name].is_number() {
+            // JSON has no NaN or infinity: serde writes them as null.
+            return Err(SolverError::input(format!("{name} must be a finite number")));
+        }
+        fields.insert(name.to_string(), value);
+        let next: Settings = serde_json::from_value(serde_json::Value::Object(fields))
+            .map_err(|e| SolverError::input(format!("settings: {name}: {e}")))?;
+        next.validate()?;
+        *self = next;
+        Ok(())
+    }
+
+    /// The names of the settings, in declaration order.
+    pub fn names() -> Vec<String> {
+        schema()
+            .get("required")
+            .and_then(|r| r.as_array())
+            .map(|r| r.iter().filter_map(|n| n.as_str().map(str::to_string)).collect())
+            .unwrap_or_default()
+    }
+
+    /// The documentation of setting `name` on one line (its doc comment above, which is also
+    /// its description in the JSON Schemas), for help texts.
+    pub fn describe(name: &str) -> Option<String> {
+        let schema = schema();
+        let text = schema.pointer(&format!("/properties/{name}/description"))?.as_str()?;
+        Some(text.split_whitespace().collect::<Vec<_>>().join(" "))
+    }
+
+    /// The local-global tolerance in metres: `tolerance` is relative to the model's length
+    /// scale.
+    pub fn absolute_tolerance(&self, model: &Model) -> f64 {
+        self.tolerance * model.length_scale()
+    }
+
+    /// The inner iterations' tolerance in metres: `inner_tolerance` is relative to the model's
+    /// length scale.
+    pub fn inner_absolute_tolerance(&self, model: &Model) -> f64 {
+        self.inner_tolerance * model.length_scale()
+    }
+
+    /// The contact detection margin in metres: `contact_margin` is relative to the model's
+    /// length scale.
+    pub fn absolute_contact_margin(&self, model: &Model) -> f64 {
+        self.contact_margin * model.length_scale()
+    }
+}
+
+/// The JSON Schema of the settings as written (every field listed as required, in declaration
+/// order).
+fn schema() -> schemars::Schema {
+    let mut settings = schemars::generate::SchemaSettings::default();
+    settings.contract = schemars::generate::Contract::Serialize;
+    settings.into_generator().into_root_schema_for::<Settings>()
 }

@@ -4,115 +4,44 @@
 
 use nalgebra::Vector3;
 
-use super::anderson::Anderson;
-use super::certify::{self, Certificate};
-use super::choose;
+use super::certificate::Certificate;
 use super::contacts::StepContacts;
-use super::direct::Direct;
-use super::global::{GlobalSolver, InnerControl, SolverKind};
 use super::integrator::{Integrator, Scheme};
-use super::skeletal::Skeletal;
-use super::stationary::Stationary;
-use super::system::GlobalSystem;
+use super::iteration::{self, StepIteration};
+use std::sync::Arc;
+
+use super::system::{System, Systems};
+use super::work::{PreviousState, Work};
 use super::{Settings, SolverError, State};
 use crate::base::Choice;
 use crate::constraint::Constraints;
 use crate::model::Model;
 use crate::skeleton::Skeleton;
 
-/// The global step: any global solver on the free vertices, or with a skeleton the reduced step
-/// (Eqs. 7-8, 17-18), which needs the direct solver of the free block by type.
-pub(crate) enum GlobalStep {
-    /// Any [`GlobalSolver`].
-    Free(Box<dyn GlobalSolver>),
-    /// The skeleton's reduced step on the factored free block.
-    Skeletal {
-        /// Sparse Cholesky of the free block.
-        direct: Box<Direct>,
-        /// Schur complement and buffers of the reduced step.
-        reduced: Box<Skeletal>,
-        /// With `solver: newton`: Newton's method in the reduced coordinates
-        /// (`newton_skeletal.rs`); `None`: local-global iterations.
-        newton: Option<Box<super::newton_skeletal::NewtonSkeletal>>,
-    },
-}
-
-impl GlobalStep {
-    /// Which solver runs.
-    pub(crate) fn kind(&self) -> SolverKind {
-        match self {
-            GlobalStep::Free(s) => s.kind(),
-            GlobalStep::Skeletal { newton: Some(_), .. } => SolverKind::Newton,
-            GlobalStep::Skeletal { .. } => SolverKind::Direct,
-        }
-    }
-
-    /// The contact impulses of the last solve (see [`GlobalSolver::impulses`]).
-    pub(crate) fn impulses(&self) -> Option<&[Vector3<f64>]> {
-        match self {
-            GlobalStep::Free(s) => s.impulses(),
-            GlobalStep::Skeletal { direct, .. } => direct.impulses(),
-        }
-    }
-
-    /// The contact impulses of the last solve for output (see
-    /// [`GlobalSolver::contact_impulses`]).
-    pub(crate) fn contact_impulses(&self) -> Option<&[Vector3<f64>]> {
-        match self {
-            GlobalStep::Free(s) => s.contact_impulses(),
-            GlobalStep::Skeletal { direct, .. } => direct.contact_impulses(),
-        }
-    }
-}
-
-/// Per-step buffers of the iterations (full numbering unless noted).
-#[derive(Debug, Clone)]
-pub(crate) struct Work {
-    /// Positions at the start of the step.
-    pub q_start: Vec<Vector3<f64>>,
-    /// The inertial target `s_n` (Eq. 2).
-    pub s: Vec<Vector3<f64>>,
-    /// The current iterate on every vertex (fixed and bone vertices included).
-    pub full: Vec<Vector3<f64>>,
-    /// `J p` of the last local step.
-    pub gathered: Vec<Vector3<f64>>,
-    /// Free: the right-hand side's constant part `M s / h^2 + fixed pull + attachments`.
-    pub base: Vec<Vector3<f64>>,
-    /// Free: the global step's right-hand side.
-    pub rhs: Vec<Vector3<f64>>,
-    /// Free: the iterate.
-    pub x: Vec<Vector3<f64>>,
-    /// Free: the previous iterate.
-    pub x_prev: Vec<Vector3<f64>>,
-    /// Free: scratch of the Anderson mixing.
-    pub x_plain: Vec<Vector3<f64>>,
-    /// Bone vertices: the right-hand side and the positions of the reduced step.
-    pub b_rigid: Vec<Vector3<f64>>,
-    /// Bone vertices: their positions after the reduced step.
-    pub q_rigid: Vec<Vector3<f64>>,
-    /// Joint scalars at the start of the step and joint torques (skeleton DoF layout).
-    pub coords0: Vec<f64>,
-    /// Joint torques of the step.
-    pub torque: Vec<f64>,
-}
-
-/// The state one step before the current one, which BDF2 reads (docs/method.md Eq. T1).
-#[derive(Debug, Clone, Default)]
-pub(crate) struct PreviousState {
-    /// Positions `q_{n-1}` (empty for implicit Euler).
-    pub q: Vec<Vector3<f64>>,
-    /// Velocities `v_{n-1}`.
-    pub v: Vec<Vector3<f64>>,
-    /// Whether `q`, `v` hold the state before the current one (false at the start and after
-    /// the state was replaced).
-    pub valid: bool,
+/// The state a step is replayed from ([`Simulator::restore`]): what the forward pass
+/// checkpointed before it.
+pub(crate) struct Checkpoint<'a> {
+    /// Positions and velocities before the step.
+    pub q: &'a [Vector3<f64>],
+    /// Velocities before the step.
+    pub v: &'a [Vector3<f64>],
+    /// BDF2: the state one step earlier (`None`: the step is the run's first, implicit Euler).
+    pub previous: super::integrator::Previous<'a>,
+    /// The skeleton's raw joint state before the step (`None` without a skeleton).
+    pub skeleton: Option<&'a [f64]>,
+    /// Simulated time and steps taken before the step.
+    pub time: f64,
+    /// Steps taken before the step.
+    pub step: usize,
+    /// The activation of each actuator group the step used.
+    pub activations: &'a [f64],
 }
 
 /// A global system built for the scheme not in use, swapped in when the scheme changes.
 pub(crate) struct Alternate {
     scheme: Scheme,
-    system: GlobalSystem,
-    global: GlobalStep,
+    system: Arc<System>,
+    iteration: Box<dyn StepIteration>,
     certificate: Certificate,
 }
 
@@ -128,8 +57,12 @@ pub struct Simulator {
     /// BDF2: the other scheme's system, solver and certificate, kept once built (its first step
     /// runs implicit Euler, whose matrix differs).
     pub(crate) alternate: Option<Box<Alternate>>,
-    pub(crate) system: GlobalSystem,
-    pub(crate) global: GlobalStep,
+    /// The global system of the current scheme (shared with the backward pass and replays).
+    pub(crate) system: Arc<System>,
+    /// Where this run's systems come from and go (shared with runs of the same model).
+    pub(crate) systems: Systems,
+    /// The method that solves each contact round of a step (local-global or Newton).
+    pub(crate) iteration: Box<dyn StepIteration>,
     pub(crate) certificate: Certificate,
     pub(crate) constraints: Constraints,
     /// Activation of each actuator group in the current step.
@@ -140,8 +73,6 @@ pub struct Simulator {
     pub(crate) skeleton: Option<Skeleton>,
     pub(crate) contacts: StepContacts,
     pub(crate) work: Work,
-    /// Anderson acceleration of the local-global iteration.
-    pub(crate) anderson: Option<Anderson>,
     pub(crate) energy_scale: f64,
 }
 
@@ -150,134 +81,113 @@ impl std::fmt::Debug for Simulator {
         f.debug_struct("Simulator")
             .field("vertices", &self.model.n())
             .field("tets", &self.model.tets.len())
-            .field("solver", &self.global.kind())
+            .field("solver", &self.iteration.kind())
             .field("step", &self.state.step)
             .finish()
     }
 }
 
-/// Certify the requested solver for `system` and build the global step.
-fn build_global(
-    model: &Model,
-    settings: &Settings,
-    system: &GlobalSystem,
-    h: f64,
-) -> Result<(GlobalStep, Certificate), SolverError> {
-    if model.collision.is_some() && model.skeleton.is_some() {
-        return Err(SolverError::input(
-            "collisions between bodies with a skeleton are not supported yet (bone vertices in a pair contact)",
-        ));
-    }
-    let control = InnerControl {
-        tolerance: settings.inner_tolerance * model.length_scale,
-        max_iterations: settings.inner_max_iterations,
-    };
-    if settings.solver == SolverKind::Newton {
-        return super::newton::build(model, settings, system, control);
-    }
-    let (cert, factored) = certify_global(model, settings, system, h, control)?;
-    let global = match (&model.skeleton, cert.used) {
-        (Some(sk), _) => {
-            let direct = Box::new(Direct::new(system, control)?);
-            let reduced = Box::new(Skeletal::new(system, &direct, sk));
-            GlobalStep::Skeletal {
-                direct,
-                reduced,
-                newton: None,
-            }
-        }
-        (None, SolverKind::Direct) => GlobalStep::Free(Box::new(match factored {
-            Some(d) => d,
-            None => Direct::new(system, control)?,
-        })),
-        (None, kind) => GlobalStep::Free(Box::new(Stationary::new(
-            system,
-            if kind == SolverKind::Chebyshev {
-                SolverKind::Split
-            } else {
-                kind
-            },
-            cert.relaxation,
-            cert.contact_relaxation,
-            cert.chebyshev_rho,
-            control,
-        ))),
-    };
-    Ok((global, cert))
-}
-
-/// The direct solver's certificate when `why` forces it on a run that requested another.
-fn forced_direct(settings: &Settings, system: &GlobalSystem, h: f64, why: &str) -> Result<Certificate, SolverError> {
-    let mut c = certify::certify(
-        system,
-        h,
-        SolverKind::Direct,
-        settings.certify,
-        settings.eigen_method,
-        0,
-    )?;
-    c.requested = settings.solver;
-    c.message = format!("{:?} requested, but {why}: direct sparse Cholesky", settings.solver);
-    Ok(c)
-}
-
-/// Certify the requested solver (auto: choose it); with auto's choice of direct, its factor.
-fn certify_global(
-    model: &Model,
-    settings: &Settings,
-    system: &GlobalSystem,
-    h: f64,
-    control: InnerControl,
-) -> Result<(Certificate, Option<Direct>), SolverError> {
-    let requested = settings.solver;
-    if model.collision.is_some() && requested != SolverKind::Direct {
-        // A contact between two bodies couples several vertices through one impulse: the
-        // projected Gauss-Seidel runs on the factored matrix's Delassus operator.
-        let why = "contacts between bodies couple several vertices per impulse";
-        return Ok((forced_direct(settings, system, h, why)?, None));
-    }
-    if model.skeleton.is_some() && requested != SolverKind::Direct {
-        // The reduced step (Eqs. 17-18) eliminates the free vertices with the factored free
-        // block, so a skeleton always runs on the direct solver; no eigenvalue check is needed.
-        let why = "the skeleton's reduced step (Eqs. 17-18) factors the free block";
-        return Ok((forced_direct(settings, system, h, why)?, None));
-    }
-    if requested == SolverKind::Auto {
-        let base = Certificate::unchecked(requested, settings.certify, h);
-        return choose::choose(
-            system,
-            h,
-            base,
-            settings.eigen_method,
-            settings.inner_tolerance,
-            control,
-        );
-    }
-    let cert = certify::certify(
-        system,
-        h,
-        requested,
-        settings.certify,
-        settings.eigen_method,
-        settings.inner_max_iterations,
-    )?;
-    Ok((cert, None))
-}
-
 impl Simulator {
-    /// Set up a simulation from the model's initial state (rest positions, initial velocities).
+    /// Set up a simulation from the model's initial state (rest positions, initial velocities):
+    /// assemble, certify and factor its global system.
+    ///
+    /// ```
+    /// use diffsoft::mesh::generate::BoxSpec;
+    /// use diffsoft::{BodySpec, MassSpec, Material, ModelBuilder, Settings, Simulator};
+    ///
+    /// let mesh = BoxSpec::new([2, 1, 1], [0.2, 0.1, 0.1]).build()?;
+    /// let material = Material { youngs_modulus: 1e5, poisson_ratio: 0.3 };
+    /// let model = ModelBuilder::new()
+    ///     .gravity(nalgebra::Vector3::new(0.0, -9.81, 0.0))
+    ///     .body(BodySpec::new("box", mesh, material, MassSpec::Density(1000.0)))
+    ///     .build()?;
+    /// let mut sim = Simulator::new(model, Settings::default())?;
+    /// let stats = sim.step()?;
+    /// assert!(stats.converged && sim.state().q[0].y < 0.0);
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn new(model: Model, settings: Settings) -> Result<Self, SolverError> {
+        Self::with_systems(model, settings, &Systems::new())
+    }
+
+    /// [`Simulator::new`] taking its global systems from `systems` where one was built for an
+    /// identical matrix (its factor and certificates with it) and leaving the ones it builds
+    /// there: runs of the same model share the set-up (a sweep over solver settings, the
+    /// repeated runs of a finite-difference check).
+    ///
+    /// ```
+    /// use diffsoft::mesh::generate::BoxSpec;
+    /// use diffsoft::solver::Systems;
+    /// use diffsoft::{BodySpec, MassSpec, Material, ModelBuilder, Settings, Simulator};
+    ///
+    /// let mesh = BoxSpec::new([2, 1, 1], [0.2, 0.1, 0.1]).build()?;
+    /// let material = Material { youngs_modulus: 1e5, poisson_ratio: 0.3 };
+    /// let model = ModelBuilder::new()
+    ///     .body(BodySpec::new("box", mesh, material, MassSpec::Density(1000.0)))
+    ///     .build()?;
+    /// let systems = Systems::new();
+    /// let a = Simulator::with_systems(model.clone(), Settings::default(), &systems)?;
+    /// let b = Simulator::with_systems(model, Settings::default(), &systems)?;
+    /// assert_eq!(systems.len(), 1);
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
+    pub fn with_systems(model: Model, settings: Settings, systems: &Systems) -> Result<Self, SolverError> {
         settings.validate()?;
-        // BDF2 runs its own scheme from the second step on: build that system first (its
-        // certificate is the run's), the first step's implicit Euler when it is taken.
-        let scheme = Scheme::for_step(
+        let system = systems.get(&model, Self::first_scheme(&settings).h_e())?;
+        Self::with_system(model, settings, systems, system)
+    }
+
+    /// The scheme a run is set up for: BDF2 runs its own scheme from the second step on, so its
+    /// system is built first (its certificate is the run's), the first step's implicit Euler
+    /// when that step is taken.
+    fn first_scheme(settings: &Settings) -> Scheme {
+        Scheme::for_step(
             settings.integrator,
             settings.dt,
             settings.damping,
             settings.integrator == Integrator::Bdf2,
-        );
-        let system = GlobalSystem::new(&model, scheme.h_e())?;
-        let (global, certificate) = build_global(&model, &settings, &system, scheme.h_e())?;
+        )
+    }
+
+    /// A fresh simulator of the same model and settings on this one's systems (no assembly,
+    /// factorisation or certification: the systems keep theirs): the backward pass replays
+    /// steps from their checkpoints on one.
+    pub(crate) fn replayer(&self) -> Result<Self, SolverError> {
+        let scheme = Self::first_scheme(&self.settings);
+        let system = match self.system_for(scheme.h_e()) {
+            Some(s) => s,
+            None => self.systems.get(&self.model, scheme.h_e())?,
+        };
+        Self::with_system(self.model.clone(), self.settings.clone(), &self.systems, system)
+    }
+
+    /// The system this run built for step `h_e`, if it built one (the current scheme's or the
+    /// other scheme's of BDF2).
+    pub(crate) fn system_for(&self, h_e: f64) -> Option<Arc<System>> {
+        if self.system.h().to_bits() == h_e.to_bits() {
+            return Some(Arc::clone(&self.system));
+        }
+        self.alternate
+            .as_ref()
+            .filter(|a| a.system.h().to_bits() == h_e.to_bits())
+            .map(|a| Arc::clone(&a.system))
+    }
+
+    /// The systems this run takes its global systems from.
+    pub(crate) fn systems(&self) -> &Systems {
+        &self.systems
+    }
+
+    /// Set up on `system` (assembled for the first scheme's step).
+    fn with_system(
+        model: Model,
+        settings: Settings,
+        systems: &Systems,
+        system: Arc<System>,
+    ) -> Result<Self, SolverError> {
+        settings.validate()?;
+        let scheme = Self::first_scheme(&settings);
+        let (iteration, certificate) = iteration::build(&model, &settings, &system)?;
         let n = model.n();
         let nf = system.n();
         let nr = system.rigid.len();
@@ -328,13 +238,13 @@ impl Simulator {
                 torque: vec![0.0; dofs],
             },
             skeleton: model.skeleton.clone(),
-            anderson: (settings.anderson > 0).then(|| Anderson::new(settings.anderson, nf)),
             energy_scale: e_scale.max(f64::MIN_POSITIVE),
             model,
             settings,
             state,
             system,
-            global,
+            systems: systems.clone(),
+            iteration,
             certificate,
         })
     }
@@ -377,6 +287,23 @@ impl Simulator {
         // A new state has no history: BDF2's next step is implicit Euler (or see
         // `set_previous_state`).
         self.previous.valid = false;
+        Ok(())
+    }
+
+    /// Put the run where the forward pass was before a step: state, earlier state (BDF2), joint
+    /// state, clock and the step's activations, in one call.
+    pub(crate) fn restore(&mut self, c: Checkpoint<'_>) -> Result<(), SolverError> {
+        self.set_state_from(c.q, c.v)?;
+        if let Some((q, v)) = c.previous {
+            self.set_previous_state(q, v)?;
+        }
+        if let Some(st) = c.skeleton {
+            self.set_skeleton_state(st)?;
+        }
+        self.set_clock(c.time, c.step);
+        for (g, a) in c.activations.iter().enumerate() {
+            self.set_activation_of(g, *a)?;
+        }
         Ok(())
     }
 
@@ -427,12 +354,12 @@ impl Simulator {
         let alt = match self.alternate.take() {
             Some(a) if a.scheme == want => a,
             _ => {
-                let system = GlobalSystem::new(&self.model, want.h_e())?;
-                let (global, certificate) = build_global(&self.model, &self.settings, &system, want.h_e())?;
+                let system = self.systems.get(&self.model, want.h_e())?;
+                let (iteration, certificate) = iteration::build(&self.model, &self.settings, &system)?;
                 Box::new(Alternate {
                     scheme: want,
                     system,
-                    global,
+                    iteration,
                     certificate,
                 })
             }
@@ -440,7 +367,7 @@ impl Simulator {
         let mut alt = alt;
         std::mem::swap(&mut self.integrator, &mut alt.scheme);
         std::mem::swap(&mut self.system, &mut alt.system);
-        std::mem::swap(&mut self.global, &mut alt.global);
+        std::mem::swap(&mut self.iteration, &mut alt.iteration);
         std::mem::swap(&mut self.certificate, &mut alt.certificate);
         self.alternate = Some(alt);
         Ok(())
@@ -605,13 +532,13 @@ impl Simulator {
         s.dt = dt;
         s.validate()?;
         let scheme = Scheme::for_step(s.integrator, s.dt, s.damping, s.integrator == Integrator::Bdf2);
-        let system = GlobalSystem::new(&self.model, scheme.h_e())?;
-        let (global, cert) = build_global(&self.model, &s, &system, scheme.h_e())?;
+        let system = self.systems.get(&self.model, scheme.h_e())?;
+        let (iteration, cert) = iteration::build(&self.model, &s, &system)?;
         self.integrator = scheme;
         self.alternate = None;
         self.settings = s;
         self.system = system;
-        self.global = global;
+        self.iteration = iteration;
         self.certificate = cert;
         Ok(())
     }

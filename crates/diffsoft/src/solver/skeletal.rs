@@ -18,10 +18,10 @@
 use faer::Mat;
 use nalgebra::{DMatrix, DVector, Vector3};
 
+use super::assembled::GlobalSystem;
 use super::direct::Direct;
 use super::free_contact::FreeContact;
 use super::global::{GlobalStats, InnerControl};
-use super::system::GlobalSystem;
 use super::SolverError;
 use crate::contact::{project, Contact};
 use crate::skeleton::Skeleton;

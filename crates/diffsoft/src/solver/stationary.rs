@@ -6,9 +6,9 @@
 
 use nalgebra::Vector3;
 
+use super::assembled::GlobalSystem;
 use super::free_contact::FreeContact;
 use super::global::{GlobalSolver, GlobalStats, InnerControl, SolverKind};
-use super::system::GlobalSystem;
 use super::SolverError;
 use crate::contact::project;
 

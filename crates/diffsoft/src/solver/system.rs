@@ -1,133 +1,213 @@
-//! The global system of projective dynamics restricted to the free (non-Dirichlet) vertices:
-//! the per-axis matrix `M/h^2 + L` (docs/method.md Eq. 5), the pull of the fixed vertices, and
-//! with a skeleton the blocks between free and bone vertices (Eq. 18).
+//! The shared global system of a model at one step size ([`System`]): the assembled matrix
+//! ([`GlobalSystem`]), its sparse Cholesky factor and the certificates issued on it, built
+//! once and used by a run's iterations, its backward pass, its replays and other runs on the
+//! same matrix ([`Systems`]).
 
-use nalgebra::Vector3;
+use std::ops::Deref;
+use std::sync::{Arc, Mutex, OnceLock};
+use std::time::Instant;
 
+use super::assembled::GlobalSystem;
+use super::certificate::{Certificate, CertifyPolicy};
+use super::direct::{CholeskyFactor, Direct};
+use super::global::{InnerControl, SolverKind};
 use super::SolverError;
-use crate::fem::SymCsc;
+use crate::analysis::spectral::EigenMethod;
+use crate::analysis::{split_extremes, IterationSystem};
 use crate::model::Model;
 
-/// The global system restricted to the free (non-Dirichlet) vertices.
-#[derive(Debug, Clone)]
-pub(crate) struct GlobalSystem {
-    /// Free vertex -> global vertex.
-    pub free: Vec<usize>,
-    /// Global vertex -> free index (`usize::MAX` for fixed vertices).
-    pub index: Vec<usize>,
-    /// `L` on the free vertices (with attachment springs).
-    pub l: SymCsc,
-    /// Lumped mass of the free vertices.
-    pub mass: Vec<f64>,
-    /// `M/h^2` on the free vertices: the inertia term of the matrix.
-    pub mass_h2: Vec<f64>,
-    /// `diag(L)` on the free vertices.
-    pub l_diag: Vec<f64>,
-    /// Attachment weight per free vertex (empty without attachments).
-    pub attachment: Vec<f64>,
-    /// `-L_fd x_d`: the constant pull of the fixed vertices on the free ones.
-    pub coupling: Vec<Vector3<f64>>,
-    /// Bone vertices (global numbering, in the skeleton's order); empty without a skeleton.
-    pub rigid: Vec<usize>,
-    /// Global vertex -> index among the bone vertices (`usize::MAX` for others).
-    pub rigid_index: Vec<usize>,
-    /// For each bone vertex, its couplings `(free index, L value)` to free vertices.
-    pub l_rf: Vec<Vec<(usize, f64)>>,
-    /// `L` among bone vertices (dense, `n_rigid x n_rigid`, row-major).
-    pub l_rr: Vec<f64>,
-    /// `M/h^2` on the bone vertices.
-    pub mass_rigid_h2: Vec<f64>,
-    /// `-L_rd x_d` for the bone vertices.
-    pub coupling_rigid: Vec<Vector3<f64>>,
+/// A model's global system at one step size, shared: the assembled `M/h^2 + L` (Eq. 5,
+/// [`GlobalSystem`], which it dereferences to), its sparse Cholesky factor (computed on first
+/// use) and the results of certifying iterations on it (the extremes of `G21` per
+/// eigensolver). A run's iterations, its backward pass and its replays hold it by `Arc`; runs
+/// of the same model and step size share it through [`Systems`].
+pub(crate) struct System {
+    global: GlobalSystem,
+    /// The step `h_e` the matrix is assembled for (s).
+    h: f64,
+    /// The factor and the time it took to compute (ms).
+    factor: OnceLock<Result<(Arc<CholeskyFactor>, f64), SolverError>>,
+    /// `(eigensolver, (smallest, largest))` eigenvalues of `G21` computed so far.
+    extremes: Mutex<Vec<(EigenMethod, (f64, f64))>>,
+    /// The certificates issued on this system, by what they read besides it.
+    certificates: Mutex<Vec<(CertKey, Certificate)>>,
 }
 
-impl GlobalSystem {
-    /// Assemble `M/h^2 + L` for time step `h` (the step itself is kept by the simulator's
-    /// integrator; the system keeps only the assembled matrix).
-    pub fn new(model: &Model, h: f64) -> Result<Self, SolverError> {
-        if !(h.is_finite() && h > 0.0) {
-            return Err(SolverError::input(format!(
-                "time step must be finite and positive, got {h}"
-            )));
+/// What certifying a solver reads besides the system: the request, how it is checked, and the
+/// model features that force the direct solver.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct CertKey {
+    /// The requested solver.
+    pub solver: SolverKind,
+    /// The certification policy.
+    pub certify: CertifyPolicy,
+    /// The eigensolver.
+    pub eigen_method: EigenMethod,
+    /// The inner iteration cap.
+    pub inner_max_iterations: usize,
+    /// The inner tolerance (relative).
+    pub inner_tolerance: f64,
+    /// The model has collisions between bodies.
+    pub collision: bool,
+    /// The model has a skeleton.
+    pub skeleton: bool,
+}
+
+impl std::fmt::Debug for System {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("System")
+            .field("free", &self.global.n())
+            .field("h", &self.h)
+            .field("factored", &self.factor.get().is_some())
+            .finish()
+    }
+}
+
+impl Deref for System {
+    type Target = GlobalSystem;
+    fn deref(&self) -> &GlobalSystem {
+        &self.global
+    }
+}
+
+impl System {
+    fn from_global(global: GlobalSystem, h: f64) -> Self {
+        Self {
+            global,
+            h,
+            factor: OnceLock::new(),
+            extremes: Mutex::new(Vec::new()),
+            certificates: Mutex::new(Vec::new()),
         }
-        let n = model.n();
-        let full = model.fem.pattern.to_sym_csc(crate::constraint::stiffness_values(model));
-        let rigid: Vec<usize> = model.skeleton.as_ref().map_or(Vec::new(), |s| s.rigid.clone());
-        let mut rigid_index = vec![usize::MAX; n];
-        for (k, &v) in rigid.iter().enumerate() {
-            rigid_index[v] = k;
-        }
-        let keep: Vec<bool> = (0..n)
-            .map(|i| !model.fixed[i] && rigid_index[i] == usize::MAX)
-            .collect();
-        let (l, free) = full.principal_submatrix(&keep);
-        let mut index = vec![usize::MAX; n];
-        for (k, &v) in free.iter().enumerate() {
-            index[v] = k;
-        }
-        let mut coupling = vec![Vector3::zeros(); free.len()];
-        if model.fixed.iter().any(|&f| f) {
-            for (k, &j) in free.iter().enumerate() {
-                for (i, v) in full.column(j) {
-                    if model.fixed[i] {
-                        coupling[k] -= v * model.rest[i];
-                    }
-                }
-            }
-        }
-        let nr = rigid.len();
-        let mut l_rf = vec![Vec::new(); nr];
-        let mut l_rr = vec![0.0; nr * nr];
-        let mut coupling_rigid = vec![Vector3::zeros(); nr];
-        for (r, &v) in rigid.iter().enumerate() {
-            for (i, val) in full.column(v) {
-                if index[i] != usize::MAX {
-                    l_rf[r].push((index[i], val));
-                } else if rigid_index[i] != usize::MAX {
-                    l_rr[r * nr + rigid_index[i]] = val;
-                } else if model.fixed[i] {
-                    coupling_rigid[r] -= val * model.rest[i];
-                }
-            }
-        }
-        let mut attachment = Vec::new();
-        if !model.attachments.is_empty() {
-            attachment = vec![0.0; free.len()];
-            for a in &model.attachments {
-                if index[a.vertex] != usize::MAX {
-                    attachment[index[a.vertex]] += a.weight;
-                }
-            }
-        }
-        let ih2 = 1.0 / (h * h);
-        Ok(Self {
-            l_diag: l.diagonal(),
-            mass: free.iter().map(|&v| model.mass[v]).collect(),
-            mass_h2: free.iter().map(|&v| model.mass[v] * ih2).collect(),
-            free,
-            index,
-            l,
-            attachment,
-            coupling,
-            mass_rigid_h2: rigid.iter().map(|&v| model.mass[v] * ih2).collect(),
-            rigid,
-            rigid_index,
-            l_rf,
-            l_rr,
-            coupling_rigid,
-        })
     }
 
-    /// Number of free vertices.
-    pub fn n(&self) -> usize {
-        self.free.len()
+    /// The step the matrix is assembled for (s).
+    pub(crate) fn h(&self) -> f64 {
+        self.h
     }
 
-    /// `y = (M/h^2 + L) x`.
-    pub fn apply(&self, x: &[Vector3<f64>], y: &mut [Vector3<f64>]) {
-        self.l.matvec3(x, y);
-        for ((y, x), m) in y.iter_mut().zip(x).zip(&self.mass_h2) {
-            *y += x * *m;
+    /// The sparse Cholesky factor (computed on the first call) and the time its computation
+    /// took (ms).
+    pub(crate) fn factor(&self) -> Result<(Arc<CholeskyFactor>, f64), SolverError> {
+        self.factor
+            .get_or_init(|| {
+                let t0 = Instant::now();
+                let f = CholeskyFactor::new(&self.global)?;
+                Ok((Arc::new(f), t0.elapsed().as_secs_f64() * 1e3))
+            })
+            .clone()
+    }
+
+    /// A direct solver on the shared factor.
+    pub(crate) fn direct(&self, control: InnerControl) -> Result<Direct, SolverError> {
+        let (f, _) = self.factor()?;
+        Ok(Direct::with_factor(f, self.global.n(), control))
+    }
+
+    /// The matrices of the paper's iterations on this system (Eqs. 19, 21).
+    pub(crate) fn iteration_system(&self) -> Result<IterationSystem, SolverError> {
+        let g = &self.global;
+        IterationSystem::from_parts(g.l.clone(), g.mass.clone(), g.attachment.clone())
+            .map_err(|e| SolverError::input(e.to_string()))
+    }
+
+    /// The smallest and largest eigenvalue of `G21` with eigensolver `method`, computed once
+    /// per eigensolver and kept with the system.
+    pub(crate) fn split_extremes(&self, method: EigenMethod) -> Result<(f64, f64), SolverError> {
+        let known = self
+            .extremes
+            .lock()
+            .ok()
+            .and_then(|e| e.iter().find(|(m, _)| *m == method).map(|(_, p)| *p));
+        if let Some(p) = known {
+            return Ok(p);
         }
+        let pair = split_extremes(&self.iteration_system()?, self.h, method)
+            .map_err(|e| SolverError::Certification(e.to_string()))?;
+        if let Ok(mut e) = self.extremes.lock() {
+            e.push((method, pair));
+        }
+        Ok(pair)
+    }
+}
+
+impl System {
+    /// The certificate for `key`: the one issued before on this system, or `certify()`'s
+    /// (then kept), with the direct solver `certify` factored for it, if any.
+    pub(crate) fn certified(
+        &self,
+        key: CertKey,
+        certify: impl FnOnce() -> Result<(Certificate, Option<Direct>), SolverError>,
+    ) -> Result<(Certificate, Option<Direct>), SolverError> {
+        let known = self
+            .certificates
+            .lock()
+            .ok()
+            .and_then(|c| c.iter().find(|(k, _)| *k == key).map(|(_, c)| c.clone()));
+        if let Some(c) = known {
+            return Ok((c, None));
+        }
+        let (cert, direct) = certify()?;
+        if let Ok(mut c) = self.certificates.lock() {
+            c.push((key, cert.clone()));
+        }
+        Ok((cert, direct))
+    }
+}
+
+/// Largest number of systems a [`Systems`] keeps (the oldest is dropped first).
+const SYSTEMS_KEPT: usize = 8;
+
+/// The systems of one model's runs, shared: [`Simulator::with_systems`](super::Simulator::with_systems)
+/// assembles its matrix and takes the [`System`] built earlier for an identical matrix and step
+/// (its factor and certification results with it) instead of factoring and certifying again.
+/// A sweep over solver settings, or a finite-difference check that runs the same scene many
+/// times, holds one.
+///
+/// ```
+/// use diffsoft::solver::Systems;
+/// let systems = Systems::new();
+/// assert_eq!(systems.len(), 0);
+/// ```
+#[derive(Debug, Clone, Default)]
+pub struct Systems {
+    entries: Arc<Mutex<Vec<Arc<System>>>>,
+}
+
+impl Systems {
+    /// An empty set.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// How many systems it holds.
+    pub fn len(&self) -> usize {
+        self.entries.lock().map_or(0, |e| e.len())
+    }
+
+    /// Whether it holds none.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// The system of `model` at step `h`: a held one whose assembled matrix is identical, or a
+    /// new one (then held).
+    pub(crate) fn get(&self, model: &Model, h: f64) -> Result<Arc<System>, SolverError> {
+        let global = GlobalSystem::new(model, h)?;
+        let Ok(mut entries) = self.entries.lock() else {
+            return Ok(Arc::new(System::from_global(global, h)));
+        };
+        if let Some(s) = entries
+            .iter()
+            .find(|s| s.h.to_bits() == h.to_bits() && s.global == global)
+        {
+            return Ok(Arc::clone(s));
+        }
+        let s = Arc::new(System::from_global(global, h));
+        if entries.len() >= SYSTEMS_KEPT {
+            entries.remove(0);
+        }
+        entries.push(Arc::clone(&s));
+        Ok(s)
     }
 }

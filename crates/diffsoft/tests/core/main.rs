@@ -10,6 +10,7 @@ mod mesh_formats;
 mod newton;
 mod reference_values;
 mod scenes;
+mod shapes;
 mod skeleton_adjoint;
 mod trajectory;
 mod vtk_frames;

@@ -22,10 +22,10 @@ use crate::report::{write_json, CRATE_VERSION};
 use crate::shard::Shard;
 use diffsoft::diff::{self, loss::Loss, Controls, Mode, Options, Param};
 use diffsoft::model::Model;
-use diffsoft::solver::{Integrator, Settings, Simulator, SolverKind};
+use diffsoft::solver::{Integrator, Settings, Simulator, SolverKind, Systems};
 
 /// The gradient parameters: Young's modulus, Poisson ratio, density.
-pub const PARAMETERS: [Param; 3] = [Param::YoungsModulus, Param::PoissonRatio, Param::Density];
+pub const PARAMETERS: [Param; 3] = [Param::YOUNGS_MODULUS, Param::POISSON_RATIO, Param::DENSITY];
 
 /// Most forward runs timed per setting.
 const MAX_TIMING_RUNS: usize = 1000;
@@ -46,6 +46,9 @@ struct Ctx<'a> {
     loss: Box<dyn Loss>,
     e0: f64,
     e_scale: f64,
+    /// The scene's global systems, shared by every run of the sweep (each step size's matrix
+    /// is factored and certified once).
+    systems: Systems,
 }
 
 fn progress(len: usize, label: &str, show: bool) -> ProgressBar {
@@ -68,7 +71,8 @@ fn reference_run(ctx: &Ctx<'_>, (integrator, divisor): RefKey) -> Result<(Refere
     let spec = ctx.spec;
     let settings = reference_settings(ctx.base, spec, divisor, spec.reference_anderson, integrator);
     let t0 = Instant::now();
-    let mut sim = Simulator::new(ctx.model.clone(), settings.clone()).map_err(|e| e.to_string())?;
+    let mut sim =
+        Simulator::with_systems(ctx.model.clone(), settings.clone(), &ctx.systems).map_err(|e| e.to_string())?;
     let mut q = Vec::with_capacity(spec.steps);
     let out = advance(&mut sim, spec.steps * divisor, divisor, |_, x| q.push(x.to_vec())).map_err(|f| f.to_string())?;
     let energy_drift = (out.final_energy - ctx.e0) / ctx.e_scale;
@@ -97,7 +101,8 @@ fn reference_run(ctx: &Ctx<'_>, (integrator, divisor): RefKey) -> Result<(Refere
 fn gradient(ctx: &Ctx<'_>, settings: &Settings, steps: usize) -> GradientResult {
     let cpu0 = trajectory::thread_cpu_s();
     let t0 = Instant::now();
-    let g = diff::gradient(
+    let g = diff::gradient_on(
+        &ctx.systems,
         ctx.model,
         settings,
         steps,
@@ -113,6 +118,7 @@ fn gradient(ctx: &Ctx<'_>, settings: &Settings, steps: usize) -> GradientResult 
                 Mode::Unrolled
             })
         },
+        &mut |_| {},
     );
     let wall_s = Some(t0.elapsed().as_secs_f64());
     let cpu_s = match (cpu0, trajectory::thread_cpu_s()) {
@@ -181,7 +187,15 @@ fn reference_check(ctx: &Ctx<'_>, settings: &Settings, steps: usize, analytic: f
     let loss_at = |value: f64| -> Option<f64> {
         let mut model = ctx.model.clone();
         p.set(&mut model, value).ok()?;
-        diff::loss_value(&model, settings, steps, &Controls::default(), ctx.loss.as_ref()).ok()
+        diff::loss_value_on(
+            &ctx.systems,
+            &model,
+            settings,
+            steps,
+            &Controls::default(),
+            ctx.loss.as_ref(),
+        )
+        .ok()
     };
     let mut central = Vec::new();
     for e in REFERENCE_CHECK_STEPS {
@@ -230,7 +244,7 @@ fn run_row(ctx: &Ctx<'_>, refs: &HashMap<RefKey, RefStates>, index: usize, setti
         gradient: GradientResult::default(),
     };
     let t0 = Instant::now();
-    let mut sim = match Simulator::new(ctx.model.clone(), settings.clone()) {
+    let mut sim = match Simulator::with_systems(ctx.model.clone(), settings.clone(), &ctx.systems) {
         Ok(s) => s,
         Err(e) => {
             row.status = Status::Rejected;
@@ -282,7 +296,7 @@ fn run_row(ctx: &Ctx<'_>, refs: &HashMap<RefKey, RefStates>, index: usize, setti
     let mut cpu_total = first.cpu_s;
     let measured = |walls: &[f64], cpu: Option<f64>| cpu.unwrap_or_else(|| walls.iter().sum());
     while walls.len() < MAX_TIMING_RUNS && measured(&walls, cpu_total) < spec.min_timing_s {
-        let Ok(mut again) = Simulator::new(ctx.model.clone(), settings.clone()) else {
+        let Ok(mut again) = Simulator::with_systems(ctx.model.clone(), settings.clone(), &ctx.systems) else {
             break;
         };
         match advance(&mut again, steps, d, |_, _| {}) {
@@ -356,6 +370,7 @@ pub fn run_shard(
         loss,
         e0: trajectory::initial_energy(&model),
         e_scale: trajectory::energy_scale(&model),
+        systems: Systems::new(),
     };
     let grid = spec.grid();
     let owned: Vec<(usize, Setting)> = grid

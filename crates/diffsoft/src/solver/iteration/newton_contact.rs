@@ -35,8 +35,8 @@
 
 use nalgebra::Vector3;
 
-use super::free_contact::FreeContact;
 use crate::contact::{project, Contact, ContactState};
+use crate::solver::free_contact::FreeContact;
 
 /// A contact's state in the active set.
 #[derive(Debug, Clone, Copy, PartialEq)]

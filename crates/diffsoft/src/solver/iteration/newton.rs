@@ -36,20 +36,21 @@ use std::time::Instant;
 
 use nalgebra::Vector3;
 
-use super::certify::Certificate;
-use super::direct::Direct;
-use super::free_contact::FreeContact;
-use super::global::{GlobalSolver, GlobalStats, InnerControl, SolverKind};
-use super::hessian::ElasticHessian;
+use super::newton_cg::{self, CgWork, Direction, NewtonOperator};
 use super::newton_contact::NewtonContacts;
-use super::observer::{SolveInfo, StepObserver};
-use super::simulator::{GlobalStep, Simulator};
-use super::system::GlobalSystem;
-use super::{Settings, SolverError, StepStats};
-use crate::constraint::{Constraints, Linearize, ParamGrads, TetSvd};
+use super::newton_rules::{accepts, ABSOLUTE_FRACTION, MAX_HALVINGS};
+use super::{StepContext, StepIteration};
+use crate::constraint::{Constraints, TetSvd};
 use crate::model::Model;
-
-use super::newton_rules::{accepts, forcing, ABSOLUTE_FRACTION, MAX_HALVINGS};
+use crate::solver::certificate::Certificate;
+use crate::solver::direct::Direct;
+use crate::solver::free_contact::FreeContact;
+use crate::solver::global::{GlobalSolver, InnerControl, SolverKind};
+use crate::solver::hessian::ConstraintHessian;
+use crate::solver::observer::{SolveInfo, StepObserver};
+use crate::solver::problem::StepProblem;
+use crate::solver::system::System;
+use crate::solver::{Settings, SolverError, StepStats};
 
 /// Why Newton's method cannot run a model, or `Ok` (see the module docs' scope).
 pub(crate) fn check_supported(model: &Model, settings: &Settings) -> Result<(), SolverError> {
@@ -64,8 +65,9 @@ pub(crate) fn check_supported(model: &Model, settings: &Settings) -> Result<(), 
     if model.collision.is_some() {
         return unsupported("collisions between bodies");
     }
-    if model.cloth.is_some() {
-        return unsupported("cloth");
+    // Every constraint kind declares how it enters the Hessian; those that cannot are refused.
+    if let Some(what) = ConstraintHessian::unsupported(model) {
+        return unsupported(what);
     }
     if settings.anderson > 0 {
         return unsupported("Anderson acceleration (anderson > 0; Newton needs none)");
@@ -73,56 +75,34 @@ pub(crate) fn check_supported(model: &Model, settings: &Settings) -> Result<(), 
     Ok(())
 }
 
-/// Check the model, build the Newton solver and its certificate (no spectral certification:
-/// the line search makes every iteration descend).
-pub(crate) fn build(
-    model: &Model,
-    settings: &Settings,
-    system: &GlobalSystem,
-    control: InnerControl,
-) -> Result<(GlobalStep, Certificate), SolverError> {
-    check_supported(model, settings)?;
-    if model.skeleton.is_some() {
-        return super::newton_skeletal::build(model, settings, system, control);
-    }
-    let t0 = Instant::now();
-    let newton = Newton::new(model, system, control)?;
+/// The certificate of a Newton run (no spectral certification: the line search makes every
+/// iteration descend); `t0`: when its set-up began.
+pub(crate) fn certificate(settings: &Settings, t0: Instant) -> Certificate {
     let mut cert = Certificate::unchecked(SolverKind::Newton, settings.certify, settings.dt);
     cert.message = "Newton's method on the step energy (Eqs. S3-S5): projected Hessian, conjugate gradients preconditioned with the factored M/h^2 + L, Armijo line search; no spectral certification needed".into();
     cert.elapsed_ms = t0.elapsed().as_secs_f64() * 1e3;
-    Ok((GlobalStep::Free(Box::new(newton)), cert))
+    cert
 }
 
 /// Newton's method's factor, Hessian and buffers (free numbering unless noted).
 pub(crate) struct Newton {
     /// Sparse Cholesky of `A = M/h^2 + L` (the preconditioner).
     direct: Direct,
-    /// The projected elastic Hessian at the current iterate.
-    hessian: ElasticHessian,
+    /// The constraints' part of the Hessian at the current iterate.
+    hessian: ConstraintHessian,
     /// Every tet's decomposition at the last local step.
     record: Vec<TetSvd>,
     /// Inner iteration cap.
     control: InnerControl,
     /// `grad E` at the current iterate.
     grad: Vec<Vector3<f64>>,
-    /// The Newton direction.
-    dir: Vec<Vector3<f64>>,
-    /// Conjugate gradients' residual, preconditioned residual, search direction, `H p`, `A p`.
-    r: Vec<Vector3<f64>>,
-    z: Vec<Vector3<f64>>,
-    p: Vec<Vector3<f64>>,
-    hp: Vec<Vector3<f64>>,
-    ap: Vec<Vector3<f64>>,
+    /// Conjugate gradients' vectors; the Newton direction ends in `cg.dir`.
+    cg: CgWork<Vec<Vector3<f64>>>,
     /// The iterate at the start of the line search.
     x0: Vec<Vector3<f64>>,
     /// Every vertex: a free vector scattered (zero at fixed vertices) and `J K~ J^T` of it.
     y_full: Vec<Vector3<f64>>,
     out_full: Vec<Vector3<f64>>,
-    /// With actuators: the exact `K` of every constraint set (the backward pass's linearization)
-    /// for the unprojected Hessian; `None` without (the elastic one serves).
-    exact: Option<Box<ExactK>>,
-    /// Whether the direction solve uses the unprojected Hessian.
-    unprojected: bool,
     /// The active set of the step's obstacle contacts.
     contacts: NewtonContacts,
     /// Line searches that failed and were replaced by a projective-dynamics step (diagnostics).
@@ -147,73 +127,29 @@ fn rms(a: &[Vector3<f64>]) -> f64 {
     (dot(a, a) / a.len().max(1) as f64).sqrt()
 }
 
-/// Every constraint set's linearization `K` at the iterate (actuated models), with scratch for
-/// the parameter adjoints its application also produces (discarded).
-struct ExactK {
-    constraints: Constraints,
-    w_rot: Vec<f64>,
-    w_vol: Vec<f64>,
-    activations: Vec<f64>,
-}
-
-/// What one direction solve did.
-#[derive(Debug, Clone, Copy)]
-struct Direction {
-    /// Conjugate-gradient iterations.
-    iterations: usize,
-    /// Whether the stopping rule was met before the cap.
-    met: bool,
-    /// `|A^-1 grad E|` (RMS): the length of the projective-dynamics step from this iterate.
-    z0: f64,
-    /// The Hessian showed non-positive curvature along a search direction (the unprojected
-    /// Hessian is indefinite there).
-    indefinite: bool,
-}
-
-/// What the Newton loop reads from the simulator besides its own buffers.
+/// What the Newton loop reads besides its own buffers: the step's problem and its contacts.
 struct Ctx<'a> {
-    model: &'a Model,
-    sys: &'a GlobalSystem,
-    activations: &'a [f64],
-    /// The inertial target `s_n` (every vertex).
-    s: &'a [Vector3<f64>],
-    /// `1/h^2`.
-    ih2: f64,
-    /// The right-hand side's constant part `M s / h^2 + fixed pull + attachments` (free).
-    base: &'a [Vector3<f64>],
+    /// The step's energy, gradient and Hessian.
+    p: StepProblem<'a>,
     /// The step's contacts (obstacle contacts on free vertices).
     contacts: &'a [FreeContact],
 }
 
 impl Newton {
     /// Factor `A` and allocate every buffer.
-    pub(crate) fn new(model: &Model, sys: &GlobalSystem, control: InnerControl) -> Result<Self, SolverError> {
+    pub(crate) fn new(model: &Model, sys: &System, control: InnerControl) -> Result<Self, SolverError> {
         let (n, nf) = (model.n(), sys.n());
         let free = || vec![Vector3::zeros(); nf];
         Ok(Self {
-            direct: Direct::new(sys, control)?,
-            hessian: ElasticHessian::new(model),
+            direct: sys.direct(control)?,
+            hessian: ConstraintHessian::new(model),
             record: vec![TetSvd::default(); model.tets.len()],
             control,
             grad: free(),
-            dir: free(),
-            r: free(),
-            z: free(),
-            p: free(),
-            hp: free(),
-            ap: free(),
+            cg: CgWork::new(free()),
             x0: free(),
             y_full: vec![Vector3::zeros(); n],
             out_full: vec![Vector3::zeros(); n],
-            exact: model.actuators.as_ref().map(|a| {
-                Box::new(ExactK {
-                    constraints: Constraints::new(model),
-                    w_rot: vec![0.0; model.tets.len()],
-                    w_vol: vec![0.0; model.tets.len()],
-                    activations: vec![0.0; a.groups.len()],
-                })
-            }),
-            unprojected: true,
             contacts: NewtonContacts::default(),
             fallbacks: 0,
         })
@@ -230,17 +166,10 @@ impl Newton {
         x: &[Vector3<f64>],
         full: &mut [Vector3<f64>],
     ) -> Result<(f64, f64), SolverError> {
-        for (k, &v) in cx.sys.free.iter().enumerate() {
+        for (k, &v) in cx.p.sys.free.iter().enumerate() {
             full[v] = x[k];
         }
-        let elastic = constraints.project(cx.model, full, cx.activations, Some(&mut self.record))?;
-        let mut e = elastic;
-        for ((qi, si), m) in full.iter().zip(cx.s).zip(&cx.model.mass) {
-            e += 0.5 * cx.ih2 * m * (qi - si).norm_squared();
-        }
-        for a in &cx.model.attachments {
-            e += a.energy(&full[a.vertex]);
-        }
+        let (mut e, elastic) = cx.p.energy(constraints, full, None, &mut self.record)?;
         e -= self.contacts.friction_work(cx.contacts, x);
         Ok((e, elastic))
     }
@@ -249,70 +178,21 @@ impl Newton {
     /// `gathered` (every vertex); with contacts, their impulses are recorded and the gradient
     /// becomes the held problem's, `P (grad E - f)` (Eq. S6).
     fn gradient(&mut self, cx: &Ctx<'_>, constraints: &Constraints, x: &[Vector3<f64>], gathered: &mut [Vector3<f64>]) {
-        constraints.gather(cx.model, gathered);
-        cx.sys.apply(x, &mut self.grad);
-        for (k, &v) in cx.sys.free.iter().enumerate() {
-            self.grad[k] -= cx.base[k] + gathered[v];
-        }
+        cx.p.gradient(constraints, x, &[], &[], gathered, &mut self.grad, &mut []);
         if !cx.contacts.is_empty() {
             self.contacts.constrain_gradient(cx.contacts, &mut self.grad);
         }
     }
 
-    /// Prepare the Hessian at the iterate `q` (every vertex; `rec` its decompositions):
-    /// unprojected (`K~_t = K_t`; with actuators every set's `K`) or projected (Eq. S4; the
-    /// actuators' `K` is then left out, i.e. their blocks are the projective-dynamics
-    /// `w A^T A`). Returns whether the unprojected one could be linearized.
+    /// Prepare the Hessian at the iterate `q` (every vertex; its decompositions are in
+    /// `record`): unprojected (`K~_t = K_t`; with actuators every set's `K`) or projected
+    /// (Eq. S4). Returns whether the unprojected one could be linearized.
     fn prepare(&mut self, model: &Model, q: &[Vector3<f64>], unprojected: bool) -> bool {
-        self.unprojected = unprojected;
-        self.hessian.build(model, &self.record, !unprojected);
-        if let (true, Some(ex)) = (unprojected, self.exact.as_mut()) {
-            return ex.constraints.linearize(model, q).is_ok();
-        }
-        true
+        self.hessian.prepare(model, &self.record, q, unprojected)
     }
 
-    /// `hp = H p = A p - J K~ J^T p` (Eq. S4) for the search direction `p` (`q`: the iterate,
-    /// every vertex). `false` where an actuator's projection is not differentiable.
-    fn apply_hessian(&mut self, cx: &Ctx<'_>, q: &[Vector3<f64>]) -> bool {
-        cx.sys.apply(&self.p, &mut self.ap);
-        for (k, &v) in cx.sys.free.iter().enumerate() {
-            self.y_full[v] = self.p[k];
-        }
-        match (self.unprojected, self.exact.as_mut()) {
-            (true, Some(ex)) => {
-                let grads = ParamGrads {
-                    w_rot: &mut ex.w_rot,
-                    w_vol: &mut ex.w_vol,
-                    activations: &mut ex.activations,
-                };
-                let r = ex.constraints.adjoint(
-                    cx.model,
-                    q,
-                    &self.y_full,
-                    None,
-                    cx.activations,
-                    Linearize::Cached,
-                    &mut self.out_full,
-                    grads,
-                );
-                if r.is_err() {
-                    return false;
-                }
-            }
-            _ => self.hessian.apply(cx.model, &self.y_full, &mut self.out_full),
-        }
-        for (k, &v) in cx.sys.free.iter().enumerate() {
-            self.hp[k] = self.ap[k] - self.out_full[v];
-        }
-        self.contacts.project(cx.contacts, &mut self.hp);
-        true
-    }
-
-    /// `H d = -grad E` by conjugate gradients preconditioned with `A^-1` from `d = 0` (Eq. S5):
-    /// stop when the preconditioned residual's RMS is below `max(eta |A^-1 grad E|, floor)`,
-    /// with the forcing term `eta` of [`forcing`] (`min(0.1, sqrt(|A^-1 grad E| / z_first))`, `z_first`:
-    /// that length at the step's first iterate, `NaN` there).
+    /// The Newton direction at the iterate `q` (every vertex) by conjugate gradients
+    /// preconditioned with the factored `A` (Eq. S5, [`newton_cg::direction`]); in `cg.dir`.
     fn direction(
         &mut self,
         cx: &Ctx<'_>,
@@ -320,110 +200,94 @@ impl Newton {
         z_first: f64,
         floor: f64,
     ) -> Result<Direction, SolverError> {
-        for (r, g) in self.r.iter_mut().zip(&self.grad) {
+        for (r, g) in self.cg.r.iter_mut().zip(&self.grad) {
             *r = -g;
         }
-        self.dir.iter_mut().for_each(|d| *d = Vector3::zeros());
-        self.direct.solve_free(&self.r, &mut self.z)?;
-        self.contacts.project(cx.contacts, &mut self.z);
-        let z0 = rms(&self.z);
-        let eta = forcing(z0, z_first);
-        let stop = (eta * z0).max(floor);
-        if z0 <= floor {
-            // Already within the floor: the preconditioned gradient step is the direction.
-            self.dir.copy_from_slice(&self.z);
-            return Ok(Direction {
-                iterations: 0,
-                met: true,
-                z0,
-                indefinite: false,
-            });
-        }
-        self.p.copy_from_slice(&self.z);
-        let mut rz = dot(&self.r, &self.z);
-        for it in 1..=self.control.max_iterations {
-            let ok = self.apply_hessian(cx, q);
-            let php = dot(&self.p, &self.hp);
-            if !ok || php.is_nan() || php <= 0.0 {
-                // Only the unprojected Hessian can get here (the projected one is positive
-                // definite up to round-off): keep what was found, or the projective-dynamics
-                // step if nothing was, and tell the caller.
-                if it == 1 {
-                    self.dir.copy_from_slice(&self.z);
-                }
-                return Ok(Direction {
-                    iterations: it,
-                    met: false,
-                    z0,
-                    indefinite: true,
-                });
-            }
-            let alpha = rz / php;
-            for k in 0..self.dir.len() {
-                self.dir[k] += self.p[k] * alpha;
-                self.r[k] -= self.hp[k] * alpha;
-            }
-            self.direct.solve_free(&self.r, &mut self.z)?;
-            self.contacts.project(cx.contacts, &mut self.z);
-            if rms(&self.z) <= stop {
-                return Ok(Direction {
-                    iterations: it,
-                    met: true,
-                    z0,
-                    indefinite: false,
-                });
-            }
-            let rz_new = dot(&self.r, &self.z);
-            let beta = rz_new / rz;
-            rz = rz_new;
-            for (p, z) in self.p.iter_mut().zip(&self.z) {
-                *p = z + *p * beta;
-            }
-        }
-        Ok(Direction {
-            iterations: self.control.max_iterations,
-            met: false,
-            z0,
-            indefinite: false,
-        })
+        let mut op = FreeOperator {
+            cx,
+            q,
+            direct: &mut self.direct,
+            hessian: &mut self.hessian,
+            contacts: &self.contacts,
+            y_full: &mut self.y_full,
+            out_full: &mut self.out_full,
+        };
+        newton_cg::direction(&mut op, &mut self.cg, z_first, floor, self.control.max_iterations)
     }
 }
 
-impl Simulator {
-    /// Phase 3 with `solver: newton`: Newton iterations (see the module docs) from the first
-    /// iterate `begin_step` set, until the RMS change of the free positions is below
-    /// `tolerance x length scale` (with contacts: and no contact changed state, Eq. S6) or
-    /// `max_iterations`. With contacts, the first iteration is a projective-dynamics one, whose
-    /// impulses seed the contacts' states; the last iterate's impulses go to `observer`.
-    pub(super) fn newton_iterate(
+/// Newton's system on the free vertices: `H = A - J K~ J^T` on the held contacts' complement,
+/// preconditioned with the factored `A`.
+struct FreeOperator<'a, 'c> {
+    cx: &'a Ctx<'c>,
+    /// The iterate (every vertex).
+    q: &'a [Vector3<f64>],
+    direct: &'a mut Direct,
+    hessian: &'a mut ConstraintHessian,
+    contacts: &'a NewtonContacts,
+    y_full: &'a mut Vec<Vector3<f64>>,
+    out_full: &'a mut Vec<Vector3<f64>>,
+}
+
+impl NewtonOperator for FreeOperator<'_, '_> {
+    type V = Vec<Vector3<f64>>;
+
+    fn precondition(&mut self, r: &Self::V, z: &mut Self::V) -> Result<(), SolverError> {
+        self.direct.solve_free(r, z)?;
+        self.contacts.project(self.cx.contacts, z);
+        Ok(())
+    }
+
+    fn measure(&mut self, z: &Self::V) -> f64 {
+        rms(z)
+    }
+
+    /// `hp = H p = A p - J K~ J^T p` (Eq. S4); `false` where an actuator's projection is not
+    /// differentiable.
+    fn apply(&mut self, p: &Self::V, hp: &mut Self::V) -> bool {
+        let cx = self.cx;
+        if !cx
+            .p
+            .hessian_product(self.hessian, self.q, p, &[], hp, &mut [], self.y_full, self.out_full)
+        {
+            return false;
+        }
+        self.contacts.project(cx.contacts, hp);
+        true
+    }
+}
+
+impl StepIteration for Newton {
+    fn kind(&self) -> SolverKind {
+        SolverKind::Newton
+    }
+
+    /// Newton iterations (see the module docs) from the first iterate `begin_step` set, until
+    /// the RMS change of the free positions is below `tolerance x length scale` (with
+    /// contacts: and no contact changed state, Eq. S6) or `max_iterations`. With contacts, the
+    /// first iteration is a projective-dynamics one, whose impulses seed the contacts' states;
+    /// the last iterate's impulses go to `observer`.
+    fn iterate(
         &mut self,
+        cx: &mut StepContext<'_>,
         stats: &mut StepStats,
         observer: &mut dyn StepObserver,
     ) -> Result<(), SolverError> {
-        let Simulator {
-            model,
-            settings,
-            integrator,
-            system,
-            global,
-            constraints,
-            activations,
-            contacts,
-            work: w,
-            ..
-        } = self;
-        let GlobalStep::Free(solver) = global else {
-            unreachable!("Newton runs without a skeleton");
-        };
-        let nw = solver.as_newton().expect("solver newton holds the Newton solver");
-        let cs = &contacts.free[..];
+        let (model, settings, system) = (cx.model, cx.settings, cx.system);
+        let (constraints, w) = (&mut *cx.constraints, &mut *cx.work);
+        let nw = self;
+        let cs = &cx.contacts.free[..];
         let cx = Ctx {
-            model,
-            sys: system,
-            activations,
-            s: &w.s,
-            ih2: integrator.inv_h2(),
-            base: &w.base,
+            p: StepProblem {
+                model,
+                sys: system,
+                activations: cx.activations,
+                s: &w.s,
+                ih2: cx.scheme.inv_h2(),
+                base: &w.base,
+                coords0: &[],
+                torque: &[],
+            },
             contacts: cs,
         };
         let tol = settings.tolerance * model.length_scale;
@@ -464,12 +328,7 @@ impl Simulator {
             let mut dir = if nw.prepare(model, &w.full, true) {
                 nw.direction(&cx, &w.full, z_first, floor)?
             } else {
-                Direction {
-                    iterations: 0,
-                    met: false,
-                    z0: f64::NAN,
-                    indefinite: true,
-                }
+                Direction::undefined()
             };
             if dir.indefinite {
                 stats.global_iterations += dir.iterations;
@@ -487,20 +346,20 @@ impl Simulator {
             // Backtracking line search on E (Armijo), no further than where a separated
             // contact meets its plane.
             let tl = Instant::now();
-            let gd = dot(&nw.grad, &nw.dir);
+            let gd = dot(&nw.grad, &nw.cg.dir);
             nw.x0.copy_from_slice(&w.x);
-            let block = nw.contacts.blocking(cs, &nw.x0, &nw.dir);
+            let block = nw.contacts.blocking(cs, &nw.x0, &nw.cg.dir);
             let mut alpha = block.map_or(1.0, |(a, _)| a);
             let mut accepted = false;
             // Only a full Newton step can end the iteration: a step shortened by the line
             // search says nothing about the distance to the minimum.
             let mut full_step = true;
             let mut state_changed = false;
-            if rms(&nw.dir) <= floor && block.is_none() {
+            if rms(&nw.cg.dir) <= floor && block.is_none() {
                 // A direction below what the step resolves (the iterate is the minimiser up to
                 // round-off, e.g. a rigid motion with no elastic force): take it as it is.
                 for k in 0..nf {
-                    w.x[k] = nw.x0[k] + nw.dir[k];
+                    w.x[k] = nw.x0[k] + nw.cg.dir[k];
                 }
                 (e, elastic) = nw.energy(&cx, constraints, &w.x, &mut w.full)?;
                 accepted = true;
@@ -512,7 +371,7 @@ impl Simulator {
             } else if gd < 0.0 {
                 for halving in 0..MAX_HALVINGS {
                     for k in 0..nf {
-                        w.x[k] = nw.x0[k] + nw.dir[k] * alpha;
+                        w.x[k] = nw.x0[k] + nw.cg.dir[k] * alpha;
                     }
                     let (et, el) = nw.energy(&cx, constraints, &w.x, &mut w.full)?;
                     if accepts(alpha, gd, e, et) {
@@ -599,32 +458,6 @@ impl Simulator {
             skeletal: None,
         });
         Ok(())
-    }
-}
-
-impl GlobalSolver for Newton {
-    fn kind(&self) -> SolverKind {
-        SolverKind::Newton
-    }
-
-    /// The projective-dynamics global step with the factored `A` (Newton's own step runs in
-    /// [`Simulator::newton_iterate`] instead of the local-global iteration).
-    fn solve(
-        &mut self,
-        sys: &GlobalSystem,
-        b: &[Vector3<f64>],
-        x: &mut [Vector3<f64>],
-        contacts: &[FreeContact],
-    ) -> Result<GlobalStats, SolverError> {
-        self.direct.solve(sys, b, x, contacts)
-    }
-
-    fn parallel_inside(&self) -> bool {
-        self.direct.parallel_inside()
-    }
-
-    fn as_newton(&mut self) -> Option<&mut Newton> {
-        Some(self)
     }
 
     /// The impulses of the step's contacts at Newton's last iterate.
