@@ -41,7 +41,7 @@ fn simulate_writes_vtk_frames_and_a_run_log() {
         assert!(dir.join(f).exists(), "{f}");
     }
     // The frame is a VTK XML unstructured grid with the mesh's points and tets (its arrays are
-    // decoded and checked in tests/vtk_frames.rs).
+    // decoded and checked in crates/diffsoft/tests/core/vtk_frames.rs).
     let vtu = std::fs::read_to_string(dir.join("frame_00002.vtu")).unwrap();
     assert!(
         vtu.contains("<VTKFile type=\"UnstructuredGrid\""),

@@ -27,7 +27,7 @@
 //!
 //! Obstacles with a skeleton are refused (`newton::check_supported`). Every buffer is allocated
 //! in [`NewtonSkeletal::new`] (the skeleton's transforms go to scratch buffers too), so a step
-//! allocates nothing once warm (`tests/allocations.rs`).
+//! allocates nothing once warm (`crates/diffsoft/tests/allocations.rs`).
 
 use std::time::Instant;
 
