@@ -5,7 +5,7 @@
 //!
 //! 1. factor `M/h^2 + L` and time the factorisation and two solves (the factor is kept: if
 //!    direct wins, the simulator runs on it); time a few iterations of the split and of the
-//!    Chebyshev iteration (the actual [`Stationary`] solvers, so the cost per iteration
+//!    Chebyshev iteration (the actual `Stationary` solvers, so the cost per iteration
 //!    includes everything an inner iteration does);
 //! 2. bound `rho(G21)` by the row sums of `|G21|` (`O(nnz)`, no eigenvalues): when the bound
 //!    certifies the split iteration (as in step 4, at the bound's rate) and its predicted cost
@@ -153,8 +153,8 @@ fn eigen_method(method: EigenMethod, n: usize) -> EigenMethod {
     }
 }
 
-/// Predicted cost of the eigenvalue computation (ms): [`KRYLOV_ITERATION_EQUIVALENTS`] split
-/// iterations for Krylov, [`DENSE_MS_PER_N3`]` n^3` for the dense eigendecomposition.
+/// Predicted cost of the eigenvalue computation (ms): `KRYLOV_ITERATION_EQUIVALENTS` (2000) split
+/// iterations for Krylov, `DENSE_MS_PER_N3 n^3` (1e-6 ms) for the dense eigendecomposition.
 pub fn eigen_estimate_ms(method: EigenMethod, n: usize, iteration_ms: f64) -> f64 {
     match method {
         EigenMethod::Krylov => KRYLOV_ITERATION_EQUIVALENTS * iteration_ms,

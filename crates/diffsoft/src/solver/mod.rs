@@ -13,20 +13,28 @@
 //!    bounded number of rounds);
 //! 4. `v_{n+1} = damping (q_{n+1} - q_n) / h` (Eq. 4).
 //!
-//! The system matrix depends only on `h` and the weights, so it is built and (for the direct
-//! solver) factored once, and certified once (see [`certify`]). Every buffer is allocated in
-//! [`Simulator::new`]. Non-finite values, exploding energy and divergent iterations end the run
-//! with a [`SolverError`] that says what happened.
+//! The system matrix depends only on `h` and the weights, so it is assembled, factored and
+//! certified once per model and step size (`System`, shared through [`Systems`]); Newton's method
+//! replaces step 2's iterations by Newton iterations on the same energy (`iteration/`). Every
+//! buffer is allocated in [`Simulator::new`]. Non-finite values, exploding energy and divergent
+//! iterations end the run with a [`SolverError`] that says what happened.
 //!
-//! Files: [`Simulator`] (`simulator.rs`) and its step as named phases (`step.rs`); the integrator's
-//! explicit phases (`integrator.rs`); the contact phase (`contacts.rs`); the global system
-//! (`system.rs`) and the global solvers behind one trait (`global.rs`: `direct.rs`,
-//! `stationary.rs`), the skeleton's reduced step (`skeletal.rs`); certification (`certify.rs`) and
-//! the default solver's choice (`choose.rs`), Anderson acceleration (`anderson.rs`), small dense
-//! Cholesky solves in place (`cholesky.rs`), observers of a step (`observer.rs`); Newton's method
-//! on the step energy instead of local-global iterations (`newton.rs`, with its projected Hessian
-//! in `hessian.rs`; with a skeleton `newton_skeletal.rs`; the rules both share, forcing term and
-//! line-search test, in `newton_rules.rs`).
+//! Files, by job:
+//!
+//! * the run: [`Simulator`] (`simulator.rs`), its step as named phases (`step.rs`), the
+//!   integrator's explicit phases (`integrator.rs`), its buffers (`work.rs`), settings and stats;
+//! * the system: the assembled matrix (`assembled.rs`), the shared `System` with its factor and
+//!   certificates (`system.rs`); certification (`certificate.rs`, `certify.rs`) and the default
+//!   solver's choice (`choose.rs`);
+//! * linear solves: the global solvers behind one trait (`global.rs`: `direct.rs`,
+//!   `stationary.rs`), the skeleton's reduced step (`skeletal.rs`), small dense Cholesky and LU
+//!   (`cholesky.rs`, `dense_lu.rs`);
+//! * contacts: the contact phase (`contacts.rs`), contacts on free vertices (`free_contact.rs`),
+//!   the contact-space solve (`contact_space.rs`);
+//! * the problem and its iterations: the step's energy, gradient and Hessian (`problem.rs`,
+//!   `hessian.rs`), the iterations that minimise it (`iteration/`: local-global with Anderson
+//!   acceleration (`anderson.rs`), Newton, Newton with a skeleton, one Newton-CG), observers of a
+//!   step (`observer.rs`).
 
 pub(crate) mod anderson;
 pub(crate) mod assembled;

@@ -159,7 +159,7 @@ impl System {
 const SYSTEMS_KEPT: usize = 8;
 
 /// The systems of one model's runs, shared: [`Simulator::with_systems`](super::Simulator::with_systems)
-/// assembles its matrix and takes the [`System`] built earlier for an identical matrix and step
+/// assembles its matrix and takes the `System` built earlier for an identical matrix and step
 /// (its factor and certification results with it) instead of factoring and certifying again.
 /// A sweep over solver settings, or a finite-difference check that runs the same scene many
 /// times, holds one.
