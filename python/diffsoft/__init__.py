@@ -17,7 +17,8 @@ trajectory as a differentiable tensor / array (imported on first use, so neither
 needed for the rest of the package).
 
 Parameters are named as on the command line (``diffsoft.SCALAR_PARAMETERS``) plus the arrays of
-``diffsoft.ARRAY_PARAMETERS`` (name, shape, meaning).
+``diffsoft.ARRAY_PARAMETERS`` (name, shape, meaning); both lists are read from the library's
+parameter registry.
 """
 
 from __future__ import annotations
@@ -37,9 +38,10 @@ from ._diffsoft import (
     simulate_batch,
 )
 
-#: Names of the scalar parameters (``Scene.set``/``get``/``grad``), as the CLI's ``--set``.
+#: Names of the scalar parameters (``Scene.set``/``get``/``grad``), as the CLI's ``--set``
+#: (from the library's parameter registry).
 SCALAR_PARAMETERS: list[str] = list(_diffsoft.scalar_parameters())
-#: ``(name, shape, meaning)`` of the array parameters.
+#: ``(name, shape, meaning (unit))`` of the array parameters (from the registry).
 ARRAY_PARAMETERS: list[tuple[str, str, str]] = list(_diffsoft.array_parameters())
 
 __all__ = [

@@ -38,12 +38,14 @@ class Scene:
         and column) if it is malformed."""
     def set(self, name: str, value: ParamValue) -> None:
         """Set a scalar (``youngs_modulus``, ``gravity.y``, ...) or array parameter
-        (``initial_positions``, ``youngs_modulus_per_tet``, ``activations``, ...)."""
+        (``initial_positions``, ``youngs_modulus_per_tet``, ``activations``, ...): a name of
+        ``scalar_parameters()`` or ``array_parameters()``."""
     def get(self, name: str) -> float | FloatArray | None:
         """A parameter's value (``None``: per-step controls that follow the schedules)."""
     def configure(self, **settings: Any) -> None:
         """Change solver settings by their scene-file names (``solver``, ``tolerance``,
-        ``max_iterations``, ``dt``, ``anderson``, ...)."""
+        ``max_iterations``, ``dt``, ``anderson``, ...), each checked as it is set; a call that
+        fails (``ValueError`` naming the setting) changes nothing."""
     @property
     def settings(self) -> dict[str, Any]:
         """The solver settings."""
@@ -139,5 +141,9 @@ def gradcheck(
 def jacobians(seed: int = 2021) -> dict[str, Any]:
     """The ``diffsoft jacobians`` report (joint and ``B = dq/dz`` Jacobians)."""
 
-def scalar_parameters() -> list[str]: ...
-def array_parameters() -> list[tuple[str, str, str]]: ...
+def scalar_parameters() -> list[str]:
+    """Names of the scalar parameters, from the library's parameter registry (as the CLI's
+    ``--param`` and ``--set``; ``diffsoft grad --help`` gives their units)."""
+def array_parameters() -> list[tuple[str, str, str]]:
+    """``(name, shape, description (unit))`` of the array parameters, from the library's
+    parameter registry."""

@@ -3,6 +3,7 @@
 
 use diffsoft::analysis::bounds::{analyze, BoundsParams};
 use diffsoft::analysis::spectral::EigenMethod;
+use diffsoft::diff::params::ArrayParam;
 use diffsoft::testing::{gradcheck_settings, Case, Group};
 use diffsoft_harness::gradients;
 use pyo3::prelude::*;
@@ -76,13 +77,17 @@ pub fn gradcheck<'py>(
         .into_iter()
         .map(|n| match n {
             Name::Scalar(p) => Ok(Group::Scalar(p)),
-            Name::InitialPositions => Ok(Group::InitialPositions),
-            Name::InitialVelocities => Ok(Group::InitialVelocities),
-            Name::YoungsPerTet => Ok(Group::YoungsPerTet),
-            Name::AttachmentTargets => Ok(Group::AttachmentTargets),
-            Name::Activations => Ok(Group::Activations),
-            Name::Torques => Ok(Group::Torques),
-            Name::InitialJointState => Err(errors::value("gradcheck: initial_joint_state cannot be perturbed")),
+            Name::Array(a) => match a {
+                ArrayParam::InitialPositions => Ok(Group::InitialPositions),
+                ArrayParam::InitialVelocities => Ok(Group::InitialVelocities),
+                ArrayParam::YoungsModulusPerTet => Ok(Group::YoungsPerTet),
+                ArrayParam::AttachmentTargets => Ok(Group::AttachmentTargets),
+                ArrayParam::Activations => Ok(Group::Activations),
+                ArrayParam::Torques => Ok(Group::Torques),
+                ArrayParam::InitialJointState => {
+                    Err(errors::value("gradcheck: initial_joint_state cannot be perturbed"))
+                }
+            },
         })
         .collect::<PyResult<Vec<_>>>()?;
     let case = Case {

@@ -12,16 +12,20 @@ mod scene;
 
 use pyo3::prelude::*;
 
-/// Names and shapes of the array parameters, `[(name, shape, description)]`.
+/// Names and shapes of the array parameters, `[(name, shape, description (unit))]`, from the
+/// library's parameter registry.
 #[pyfunction]
-fn array_parameters() -> Vec<(&'static str, &'static str, &'static str)> {
-    params::ARRAYS.to_vec()
+fn array_parameters() -> Vec<(&'static str, &'static str, String)> {
+    diffsoft::diff::params::arrays()
+        .map(|p| (p.name, p.shape, p.summary()))
+        .collect()
 }
 
-/// Names of the scalar parameters (those of the CLI's `--set` and `--param`).
+/// Names of the scalar parameters (those of the CLI's `--set` and `--param`), from the
+/// library's parameter registry.
 #[pyfunction]
 fn scalar_parameters() -> Vec<&'static str> {
-    diffsoft::diff::params::NAMES.to_vec()
+    diffsoft::diff::params::scalar_names()
 }
 
 #[pymodule]

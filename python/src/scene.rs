@@ -3,9 +3,9 @@
 //! runs.
 
 use diffsoft::diff::{self, Cotangent, Options};
-use diffsoft::{scene as lib_scene, Mode, Model, Settings};
+use diffsoft::{scene as lib_scene, Mode, Model};
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyTuple};
+use pyo3::types::{PyDict, PyFloat, PyTuple};
 
 use crate::arrays;
 use crate::errors;
@@ -147,24 +147,28 @@ impl Scene {
         params::get(py, &self.inner.model, &self.inputs, name)
     }
 
-    /// Change solver settings by their scene-file names (`solver`, `tolerance`,
-    /// `max_iterations`, `dt`, `anderson`, ...).
+    /// Change solver settings by name (`solver`, `tolerance`, `max_iterations`, `dt`,
+    /// `anderson`, ...: the fields of the library's `Settings`, as in a scene file's `solver`
+    /// section and the CLI's overrides), each checked as it is set; on an error the settings
+    /// are unchanged.
     #[pyo3(signature = (**settings))]
     fn configure(&mut self, py: Python<'_>, settings: Option<&Bound<'_, PyDict>>) -> PyResult<()> {
         let Some(settings) = settings else { return Ok(()) };
-        let mut current = serde_json::to_value(&self.inner.settings).map_err(errors::other)?;
+        let mut next = self.inner.settings.clone();
         let json = py.import("json")?;
         for (k, v) in settings.iter() {
             let key: String = k.extract()?;
-            let text: String = json.call_method1("dumps", (v,))?.extract()?;
-            let value: serde_json::Value = serde_json::from_str(&text).map_err(errors::other)?;
-            if current.get(&key).is_none() {
-                return Err(errors::value(format!("unknown setting '{key}'")));
-            }
-            current[&key] = value;
+            let value: serde_json::Value = match v.cast::<PyFloat>() {
+                // JSON has no NaN or infinity: `Settings::set` refuses them as null.
+                Ok(f) if !f.value().is_finite() => serde_json::Value::Null,
+                _ => {
+                    let text: String = json.call_method1("dumps", (v,))?.extract()?;
+                    serde_json::from_str(&text).map_err(errors::other)?
+                }
+            };
+            next.set(&key, value).map_err(errors::solver)?;
         }
-        let s: Settings = serde_json::from_value(current).map_err(|e| errors::value(format!("settings: {e}")))?;
-        self.inner.settings = s;
+        self.inner.settings = next;
         Ok(())
     }
 

@@ -156,12 +156,6 @@ enum Command {
         overwrite: bool,
         #[command(flatten)]
         overrides: SolverOverrides,
-        /// Override the certification policy.
-        #[arg(long, value_parser = choice::<diffsoft::solver::CertifyPolicy>())]
-        certify: Option<diffsoft::solver::CertifyPolicy>,
-        /// Override the time step (s).
-        #[arg(long)]
-        dt: Option<f64>,
         /// Paper scenes: drop features this version cannot simulate, with a note, instead of
         /// failing (every feature of the paper's own files is simulated now).
         #[arg(long)]
@@ -466,20 +460,12 @@ fn run(command: Command) -> Result<()> {
             out,
             every,
             overrides,
-            certify,
-            dt,
             passive,
             activation,
             overwrite,
         } => {
             let mut sc = diffsoft::scene::load(&scene, diffsoft::scene::LoadOptions { passive })?;
-            overrides.apply(&mut sc.settings);
-            if let Some(c) = certify {
-                sc.settings.certify = c;
-            }
-            if let Some(h) = dt {
-                sc.settings.dt = h;
-            }
+            overrides.apply(&mut sc.settings)?;
             let mut held = Vec::new();
             for a in &activation {
                 let (name, value) = a

@@ -1,47 +1,54 @@
-//! The solver settings `simulate` and `grad` both let the command line override.
+//! The solver settings `simulate` and `grad` both let the command line override. Each flag is a
+//! field of [`Settings`], spelled as in scene files and Python's `Scene.configure`, documented
+//! by that field's doc comment and written through [`Settings::set`], which checks it.
 
 use super::choice::choice;
-use diffsoft::solver::{Integrator, SolverKind};
+use diffsoft::solver::{CertifyPolicy, Integrator, SolverKind};
 use diffsoft::Settings;
+
+/// The help of the flag that overrides setting `name`: the setting's documentation.
+fn help(name: &str) -> String {
+    let doc = Settings::describe(name).unwrap_or_default();
+    format!("Override the scene's solver setting `{name}`: {doc}")
+}
 
 /// Overrides of a scene's solver settings (each left as the scene has it when absent).
 #[derive(clap::Args, Debug, Clone, Default)]
 pub(crate) struct SolverOverrides {
-    /// Override the global solver.
-    #[arg(long, value_parser = choice::<SolverKind>())]
+    #[arg(long, value_parser = choice::<SolverKind>(), help = help("solver"))]
     pub(crate) solver: Option<SolverKind>,
-    /// Override the time integrator (bdf2: second order; its first step is implicit Euler).
-    #[arg(long, value_parser = choice::<Integrator>())]
+    #[arg(long, value_parser = choice::<Integrator>(), help = help("integrator"))]
     pub(crate) integrator: Option<Integrator>,
-    /// Override the local-global iteration cap.
-    #[arg(long)]
+    #[arg(long, value_parser = choice::<CertifyPolicy>(), help = help("certify"))]
+    pub(crate) certify: Option<CertifyPolicy>,
+    #[arg(long, help = help("dt"))]
+    pub(crate) dt: Option<f64>,
+    #[arg(long, help = help("max_iterations"))]
     pub(crate) max_iterations: Option<usize>,
-    /// Override the local-global tolerance (0: always run the cap, a smooth forward).
-    #[arg(long)]
+    #[arg(long, help = help("tolerance"))]
     pub(crate) tolerance: Option<f64>,
-    /// Override the Anderson memory of the local-global iteration (0: off; unrolled mode
-    /// differentiates plain iterations with 0).
-    #[arg(long)]
+    #[arg(long, help = help("anderson"))]
     pub(crate) anderson: Option<usize>,
 }
 
 impl SolverOverrides {
-    /// Write the given overrides into `settings`.
-    pub(crate) fn apply(&self, settings: &mut Settings) {
-        if let Some(s) = self.solver {
-            settings.solver = s;
+    /// Write the given overrides into `settings` (an error names a setting that is not
+    /// meaningful).
+    pub(crate) fn apply(&self, settings: &mut Settings) -> anyhow::Result<()> {
+        let given = [
+            ("solver", self.solver.map(|v| serde_json::json!(v))),
+            ("integrator", self.integrator.map(|v| serde_json::json!(v))),
+            ("certify", self.certify.map(|v| serde_json::json!(v))),
+            ("dt", self.dt.map(|v| serde_json::json!(v))),
+            ("max_iterations", self.max_iterations.map(|v| serde_json::json!(v))),
+            ("tolerance", self.tolerance.map(|v| serde_json::json!(v))),
+            ("anderson", self.anderson.map(|v| serde_json::json!(v))),
+        ];
+        for (name, value) in given {
+            if let Some(v) = value {
+                settings.set(name, v)?;
+            }
         }
-        if let Some(i) = self.integrator {
-            settings.integrator = i;
-        }
-        if let Some(m) = self.max_iterations {
-            settings.max_iterations = m;
-        }
-        if let Some(t) = self.tolerance {
-            settings.tolerance = t;
-        }
-        if let Some(m) = self.anderson {
-            settings.anderson = m;
-        }
+        Ok(())
     }
 }

@@ -93,3 +93,79 @@ fn grad_cli_agrees_with_outside_finite_differences() {
     }
     assert!(best < 1e-6, "best relative difference {best:e} (gradient {g:e})");
 }
+
+/// `grad --param`'s help lists the registry's scalars with their units, and the solver flags of
+/// `simulate` and `grad` are documented by the settings they override; both commands take
+/// them, and `grad --dt` reaches the run.
+#[test]
+fn cli_names_come_from_the_registry_and_the_settings() {
+    let help = |args: &[&str]| {
+        let out = Command::new(env!("CARGO_BIN_EXE_diffsoft"))
+            .args(args)
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    };
+    let grad = help(&["grad", "--help"]);
+    for p in diffsoft::diff::params::scalars() {
+        assert!(
+            grad.contains(&format!("{} ({})", p.name, p.units)),
+            "{} missing in:\n{grad}",
+            p.name
+        );
+    }
+    let short = help(&["grad", "-h"]);
+    assert!(
+        short.contains("youngs_modulus, poisson_ratio, density, initial_velocity.x|y|z, gravity.x|y|z"),
+        "{short}"
+    );
+    let simulate = help(&["simulate", "--help"]);
+    for name in [
+        "solver",
+        "integrator",
+        "certify",
+        "dt",
+        "max_iterations",
+        "tolerance",
+        "anderson",
+    ] {
+        let doc = diffsoft::Settings::describe(name).unwrap();
+        let first = doc.split_whitespace().take(4).collect::<Vec<_>>().join(" ");
+        let flag = format!("--{}", name.replace('_', "-"));
+        for (cmd, text) in [("simulate", &simulate), ("grad", &grad)] {
+            let at = text
+                .find(&format!("{flag} <"))
+                .unwrap_or_else(|| panic!("{cmd}: no {flag}"));
+            let flat = text[at..].split_whitespace().take(40).collect::<Vec<_>>().join(" ");
+            assert!(flat.contains(&first), "{cmd} {flag}: expected '{first}' in: {flat}");
+        }
+    }
+    let dir = crate::common::tmp_dir("grad-dt");
+    let scene = crate::common::root().join("verification/paper/bridgesus/bridgesus.json");
+    let run = |dt: &str| {
+        Command::new(env!("CARGO_BIN_EXE_diffsoft"))
+            .args(["--threads", "1", "grad"])
+            .arg(&scene)
+            .args([
+                "--steps",
+                "2",
+                "--param",
+                "density",
+                "--tolerance",
+                "0",
+                "--max-iterations",
+                "3",
+            ])
+            .args(["--dt", dt, "--json"])
+            .arg(dir.join(format!("g{dt}.json")))
+            .output()
+            .unwrap()
+    };
+    let ok = run("0.001");
+    assert!(ok.status.success(), "{}", String::from_utf8_lossy(&ok.stderr));
+    let bad = run("-1");
+    assert_eq!(bad.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert!(err.contains("time step must be finite and positive, got -1"), "{err}");
+}

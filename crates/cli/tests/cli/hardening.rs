@@ -37,7 +37,7 @@ fn an_unconverged_forward_is_an_error_unless_allowed() {
     let scene = cube_scene(&dir, DENSITY, "");
     let sc = diffsoft::scene::load(&scene, Default::default()).unwrap();
     let mut model = sc.model.clone();
-    Param::YoungsModulus.set(&mut model, 1e20).unwrap();
+    Param::YOUNGS_MODULUS.set(&mut model, 1e20).unwrap();
     let loss = diff::loss::by_name("final_com.y").unwrap();
     assert!(sc.settings.tolerance > 0.0);
     let e = diff::gradient(

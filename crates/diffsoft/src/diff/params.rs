@@ -1,79 +1,424 @@
-//! Named scalar parameters of a model (`youngs_modulus`, `density`, `gravity.y`, ...): read,
-//! override (`--set`) and pick their derivative out of a [`Gradient`].
+//! The parameter registry: [`PARAMETERS`] is the one table of everything a caller can set, read
+//! or differentiate by name (`youngs_modulus`, `gravity.y`, `initial_positions`, ...), with its
+//! shape, units and meaning. A scalar's entry also holds how it is read from a [`Model`], set in
+//! one and picked out of a [`Gradient`]; [`Param`] is a handle to such an entry.
+//!
+//! Everything that names parameters reads this table: `diffsoft grad --param`/`--set` (their
+//! help and validation), Python's `Scene.set`/`get`/`grad`/`vjp`, `diffsoft.SCALAR_PARAMETERS`
+//! and `diffsoft.ARRAY_PARAMETERS` and their error messages, and the JSON Schema of
+//! `diffsoft grad --json` ([`values_schema`]). A new differentiable scalar is one entry here
+//! plus the adjoint code that fills the [`Gradient`] field its `derivative` reads.
 
 use std::fmt;
 use std::str::FromStr;
+
+use nalgebra::Vector3;
 
 use crate::model::Model;
 
 use super::{DiffError, Gradient};
 
-/// A scalar parameter shared by every body of a model.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Param {
-    /// Young's modulus of every body (Pa).
-    YoungsModulus,
-    /// Poisson ratio of every body.
-    PoissonRatio,
-    /// Density of every body (kg/m^3).
-    Density,
-    /// A component of every vertex's initial velocity (m/s).
-    InitialVelocity(usize),
-    /// A component of gravity (m/s^2), on bodies with gravity.
-    Gravity(usize),
+/// One parameter of the registry.
+#[derive(Debug)]
+pub struct ParamSpec {
+    /// Name: `--param`/`--set`, Python's `Scene.set`/`get`/`grad` and the reports spell it so.
+    pub name: &'static str,
+    /// Shape in words: [`SCALAR`] for a scalar, `(n, 3)`, `(tets,)`, `(steps, groups)`, ...
+    pub shape: &'static str,
+    /// Unit (`1`: dimensionless).
+    pub units: &'static str,
+    /// What it is, in a phrase (units apart).
+    pub description: &'static str,
+    /// How it is read, set and differentiated.
+    pub kind: ParamKind,
 }
 
-/// The names `diffsoft grad --param` accepts.
-pub const NAMES: &[&str] = &[
-    "youngs_modulus",
-    "poisson_ratio",
-    "density",
-    "initial_velocity.x",
-    "initial_velocity.y",
-    "initial_velocity.z",
-    "gravity.x",
-    "gravity.y",
-    "gravity.z",
+/// The shape of a scalar parameter.
+pub const SCALAR: &str = "()";
+
+/// How a parameter is read, set and differentiated.
+#[derive(Debug)]
+pub enum ParamKind {
+    /// One value shared by every body (or vertex) of a model. `set` receives a finite value.
+    Scalar {
+        /// The value in a model (an error if bodies disagree or nothing has it).
+        get: Getter,
+        /// Set the value in a model, updating what depends on it.
+        set: Setter,
+        /// `dL/d(parameter)` from a gradient of the model.
+        derivative: Derivative,
+    },
+    /// An array: initial state, per-tet or per-attachment values, or per-step controls (the
+    /// bindings hold the arrays that are not part of the model).
+    Array(ArrayParam),
+}
+
+/// Reads a scalar parameter from a model.
+pub type Getter = fn(&Model) -> Result<f64, DiffError>;
+/// Sets a scalar parameter in a model (given a finite value).
+pub type Setter = fn(&mut Model, f64) -> Result<(), DiffError>;
+/// Picks `dL/d(parameter)` out of a gradient of a model.
+pub type Derivative = fn(&Model, &Gradient) -> f64;
+
+/// The array parameters.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ArrayParam {
+    /// Positions before the first step (the controls' initial state).
+    InitialPositions,
+    /// Velocities before the first step (the controls' initial state).
+    InitialVelocities,
+    /// Young's modulus of every tet ([`youngs_modulus_per_tet`]).
+    YoungsModulusPerTet,
+    /// The attachments' targets ([`attachment_targets`]).
+    AttachmentTargets,
+    /// Activations per step and group (the controls).
+    Activations,
+    /// Joint torques per step and reduced coordinate (the controls).
+    Torques,
+    /// The initial joint state (a gradient only).
+    InitialJointState,
+}
+
+/// Every parameter: the scalars, then the arrays.
+pub static PARAMETERS: &[ParamSpec] = &[
+    ParamSpec {
+        name: "youngs_modulus",
+        shape: SCALAR,
+        units: "Pa",
+        description: "Young's modulus of every body",
+        kind: ParamKind::Scalar {
+            get: |m| uniform("youngs_modulus", m.bodies.iter().map(|b| b.material.youngs_modulus)),
+            set: |m, v| set_material(m, |mat| mat.youngs_modulus = v),
+            derivative: |m, g| g.youngs_modulus(m).iter().sum(),
+        },
+    },
+    ParamSpec {
+        name: "poisson_ratio",
+        shape: SCALAR,
+        units: "1",
+        description: "Poisson ratio of every body",
+        kind: ParamKind::Scalar {
+            get: |m| uniform("poisson_ratio", m.bodies.iter().map(|b| b.material.poisson_ratio)),
+            set: |m, v| set_material(m, |mat| mat.poisson_ratio = v),
+            derivative: |m, g| g.poisson_ratio(m).iter().sum(),
+        },
+    },
+    ParamSpec {
+        name: "density",
+        shape: SCALAR,
+        units: "kg/m^3",
+        description: "density of every body (the lumped masses scale with it)",
+        kind: ParamKind::Scalar {
+            get: |m| uniform("density", m.bodies.iter().map(|b| b.density)),
+            set: set_density,
+            derivative: |m, g| g.density(m).iter().sum(),
+        },
+    },
+    initial_velocity::<0>("initial_velocity.x", "x component of every vertex's initial velocity"),
+    initial_velocity::<1>("initial_velocity.y", "y component of every vertex's initial velocity"),
+    initial_velocity::<2>("initial_velocity.z", "z component of every vertex's initial velocity"),
+    gravity::<0>("gravity.x", "x component of gravity, on the bodies with gravity"),
+    gravity::<1>("gravity.y", "y component of gravity, on the bodies with gravity"),
+    gravity::<2>("gravity.z", "z component of gravity, on the bodies with gravity"),
+    ParamSpec {
+        name: "initial_positions",
+        shape: "(n, 3)",
+        units: "m",
+        description: "positions of every vertex before the first step",
+        kind: ParamKind::Array(ArrayParam::InitialPositions),
+    },
+    ParamSpec {
+        name: "initial_velocities",
+        shape: "(n, 3)",
+        units: "m/s",
+        description: "velocities of every vertex before the first step",
+        kind: ParamKind::Array(ArrayParam::InitialVelocities),
+    },
+    ParamSpec {
+        name: "youngs_modulus_per_tet",
+        shape: "(tets,)",
+        units: "Pa",
+        description: "Young's modulus of every tet",
+        kind: ParamKind::Array(ArrayParam::YoungsModulusPerTet),
+    },
+    ParamSpec {
+        name: "attachment_targets",
+        shape: "(attachments, 3)",
+        units: "m",
+        description: "target of every attachment",
+        kind: ParamKind::Array(ArrayParam::AttachmentTargets),
+    },
+    ParamSpec {
+        name: "activations",
+        shape: "(steps, groups)",
+        units: "1",
+        description: "activation of every actuator group at every step",
+        kind: ParamKind::Array(ArrayParam::Activations),
+    },
+    ParamSpec {
+        name: "torques",
+        shape: "(steps, dofs)",
+        units: "N m or N",
+        description: "torque on every joint coordinate at every step, one-DoF joints only",
+        kind: ParamKind::Array(ArrayParam::Torques),
+    },
+    ParamSpec {
+        name: "initial_joint_state",
+        shape: "(dofs,)",
+        units: "rad or m",
+        description: "initial joint coordinates, a gradient only",
+        kind: ParamKind::Array(ArrayParam::InitialJointState),
+    },
 ];
 
-impl FromStr for Param {
-    type Err = DiffError;
-    fn from_str(s: &str) -> Result<Self, DiffError> {
-        let axis = |a: &str| match a {
-            "x" => Some(0),
-            "y" => Some(1),
-            "z" => Some(2),
-            _ => None,
-        };
-        Ok(match s {
-            "youngs_modulus" => Param::YoungsModulus,
-            "poisson_ratio" => Param::PoissonRatio,
-            "density" => Param::Density,
-            _ => match s.split_once('.') {
-                Some(("initial_velocity", a)) if axis(a).is_some() => Param::InitialVelocity(axis(a).unwrap_or(0)),
-                Some(("gravity", a)) if axis(a).is_some() => Param::Gravity(axis(a).unwrap_or(0)),
-                _ => {
-                    return Err(DiffError::Input(format!(
-                        "unknown parameter '{s}' (known: {})",
-                        NAMES.join(", ")
-                    )))
-                }
+/// The entry of `initial_velocity.<axis>`, axis `K`.
+const fn initial_velocity<const K: usize>(name: &'static str, description: &'static str) -> ParamSpec {
+    ParamSpec {
+        name,
+        shape: SCALAR,
+        units: "m/s",
+        description,
+        kind: ParamKind::Scalar {
+            get: |m| uniform(AXES[K].0, m.initial_velocity.iter().map(|v| v[K])),
+            set: |m, v| {
+                m.initial_velocity.iter_mut().for_each(|x| x[K] = v);
+                Ok(())
             },
-        })
+            derivative: |_, g| g.v0.iter().map(|v| v[K]).sum(),
+        },
+    }
+}
+
+/// The entry of `gravity.<axis>`, axis `K`: the external acceleration of the bodies with
+/// gravity.
+const fn gravity<const K: usize>(name: &'static str, description: &'static str) -> ParamSpec {
+    ParamSpec {
+        name,
+        shape: SCALAR,
+        units: "m/s^2",
+        description,
+        kind: ParamKind::Scalar {
+            get: |m| uniform(AXES[K].1, with_gravity(m).map(|i| m.accel[i][K])),
+            set: |m, v| {
+                for b in m.bodies.iter().filter(|b| b.gravity) {
+                    for i in b.vertices.clone() {
+                        m.accel[i][K] = v;
+                    }
+                }
+                Ok(())
+            },
+            derivative: |m, g| with_gravity(m).map(|i| g.accel[i][K]).sum(),
+        },
+    }
+}
+
+/// The names of the per-axis scalars: `(initial_velocity.<axis>, gravity.<axis>)`.
+const AXES: [(&str, &str); 3] = [
+    ("initial_velocity.x", "gravity.x"),
+    ("initial_velocity.y", "gravity.y"),
+    ("initial_velocity.z", "gravity.z"),
+];
+
+/// The entry named `name`.
+pub fn lookup(name: &str) -> Option<&'static ParamSpec> {
+    PARAMETERS.iter().find(|p| p.name == name)
+}
+
+/// The scalar parameters, in registry order.
+pub fn scalars() -> impl Iterator<Item = &'static ParamSpec> {
+    PARAMETERS.iter().filter(|p| p.is_scalar())
+}
+
+/// The array parameters, in registry order.
+pub fn arrays() -> impl Iterator<Item = &'static ParamSpec> {
+    PARAMETERS.iter().filter(|p| !p.is_scalar())
+}
+
+/// The names of the scalar parameters (`diffsoft grad --param`), in registry order.
+pub fn scalar_names() -> Vec<&'static str> {
+    scalars().map(|p| p.name).collect()
+}
+
+/// The names of the array parameters, in registry order.
+pub fn array_names() -> Vec<&'static str> {
+    arrays().map(|p| p.name).collect()
+}
+
+impl ParamSpec {
+    /// Whether it is a scalar.
+    pub fn is_scalar(&self) -> bool {
+        matches!(self.kind, ParamKind::Scalar { .. })
+    }
+
+    /// Which array it is (`None` for a scalar).
+    pub fn array(&self) -> Option<ArrayParam> {
+        match self.kind {
+            ParamKind::Array(a) => Some(a),
+            ParamKind::Scalar { .. } => None,
+        }
+    }
+
+    /// The description with the unit: `Young's modulus of every body (Pa)`.
+    pub fn summary(&self) -> String {
+        format!("{} ({})", self.description, self.units)
+    }
+}
+
+/// A scalar parameter: a handle to its entry in [`PARAMETERS`], parsed from its name
+/// (`"gravity.y".parse::<Param>()`) or one of the constants.
+#[derive(Clone, Copy)]
+pub struct Param(&'static ParamSpec);
+
+impl Param {
+    /// `youngs_modulus`.
+    pub const YOUNGS_MODULUS: Param = Param::named("youngs_modulus");
+    /// `poisson_ratio`.
+    pub const POISSON_RATIO: Param = Param::named("poisson_ratio");
+    /// `density`.
+    pub const DENSITY: Param = Param::named("density");
+    /// `initial_velocity.x`.
+    pub const INITIAL_VELOCITY_X: Param = Param::named("initial_velocity.x");
+    /// `initial_velocity.y`.
+    pub const INITIAL_VELOCITY_Y: Param = Param::named("initial_velocity.y");
+    /// `initial_velocity.z`.
+    pub const INITIAL_VELOCITY_Z: Param = Param::named("initial_velocity.z");
+    /// `gravity.x`.
+    pub const GRAVITY_X: Param = Param::named("gravity.x");
+    /// `gravity.y`.
+    pub const GRAVITY_Y: Param = Param::named("gravity.y");
+    /// `gravity.z`.
+    pub const GRAVITY_Z: Param = Param::named("gravity.z");
+
+    /// The scalar named `name` (at compile time: a constant naming no scalar does not build).
+    const fn named(name: &str) -> Param {
+        let mut i = 0;
+        while i < PARAMETERS.len() {
+            let p = &PARAMETERS[i];
+            if const_eq(p.name, name) && matches!(p.kind, ParamKind::Scalar { .. }) {
+                return Param(p);
+            }
+            i += 1;
+        }
+        panic!("no scalar parameter of that name in PARAMETERS");
+    }
+
+    /// The scalar of an entry (`None` for an array).
+    pub fn of(spec: &'static ParamSpec) -> Option<Param> {
+        spec.is_scalar().then_some(Param(spec))
+    }
+
+    /// Its entry in the registry.
+    pub fn spec(&self) -> &'static ParamSpec {
+        self.0
+    }
+
+    /// Its name.
+    pub fn name(&self) -> &'static str {
+        self.0.name
+    }
+
+    /// The axis of an `initial_velocity.<axis>` parameter: it sets that component of every
+    /// vertex's initial velocity, wherever a caller keeps them (`None` for the others).
+    pub fn initial_velocity_axis(&self) -> Option<usize> {
+        AXES.iter().position(|a| a.0 == self.name())
+    }
+
+    fn access(&self) -> (Getter, Setter, Derivative) {
+        match self.0.kind {
+            ParamKind::Scalar { get, set, derivative } => (get, set, derivative),
+            ParamKind::Array(_) => unreachable!("a Param is made only from a scalar entry"),
+        }
+    }
+
+    /// The parameter's value in `model` (an error if bodies disagree).
+    pub fn get(&self, model: &Model) -> Result<f64, DiffError> {
+        (self.access().0)(model)
+    }
+
+    /// Set the parameter in `model` (every body), updating what depends on it.
+    pub fn set(&self, model: &mut Model, value: f64) -> Result<(), DiffError> {
+        if !value.is_finite() {
+            return Err(DiffError::Input(format!("{self}: value must be finite, got {value}")));
+        }
+        (self.access().1)(model, value)
+    }
+
+    /// `dL/d(parameter)` from a gradient of `model`.
+    pub fn derivative(&self, model: &Model, g: &Gradient) -> f64 {
+        (self.access().2)(model, g)
+    }
+}
+
+const fn const_eq(a: &str, b: &str) -> bool {
+    let (a, b) = (a.as_bytes(), b.as_bytes());
+    if a.len() != b.len() {
+        return false;
+    }
+    let mut i = 0;
+    while i < a.len() {
+        if a[i] != b[i] {
+            return false;
+        }
+        i += 1;
+    }
+    true
+}
+
+impl PartialEq for Param {
+    fn eq(&self, other: &Self) -> bool {
+        self.name() == other.name()
+    }
+}
+
+impl Eq for Param {}
+
+impl fmt::Debug for Param {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "Param({})", self.name())
     }
 }
 
 impl fmt::Display for Param {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let ax = |k: &usize| ["x", "y", "z"][*k];
-        match self {
-            Param::YoungsModulus => write!(f, "youngs_modulus"),
-            Param::PoissonRatio => write!(f, "poisson_ratio"),
-            Param::Density => write!(f, "density"),
-            Param::InitialVelocity(k) => write!(f, "initial_velocity.{}", ax(k)),
-            Param::Gravity(k) => write!(f, "gravity.{}", ax(k)),
-        }
+        f.write_str(self.name())
     }
+}
+
+impl FromStr for Param {
+    type Err = DiffError;
+    fn from_str(s: &str) -> Result<Self, DiffError> {
+        lookup(s).and_then(Param::of).ok_or_else(|| {
+            DiffError::Input(format!(
+                "unknown parameter '{s}' (known: {})",
+                scalar_names().join(", ")
+            ))
+        })
+    }
+}
+
+/// The scalar parameters in words, one per line: `name (units): description`.
+pub fn scalar_help() -> String {
+    scalars()
+        .map(|p| format!("{} ({}): {}", p.name, p.units, p.description))
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
+/// The JSON Schema of a map from scalar parameter names to numbers (the `parameters` and
+/// `gradient` of `diffsoft grad --json`): any subset of the scalars of [`PARAMETERS`].
+pub fn values_schema(generator: &mut schemars::SchemaGenerator) -> schemars::Schema {
+    let mut schema = <std::collections::BTreeMap<String, f64> as schemars::JsonSchema>::json_schema(generator);
+    schema.insert("propertyNames".into(), serde_json::json!({ "enum": scalar_names() }));
+    schema
+}
+
+/// The description of the `parameters` of `diffsoft grad --json`, with each scalar's unit.
+pub fn values_description() -> String {
+    let units: Vec<String> = scalars().map(|p| format!("`{}` ({})", p.name, p.units)).collect();
+    format!(
+        "Value of each differentiated parameter, by name, in its unit: {}; parameters without a single value are left out.",
+        units.join(", ")
+    )
 }
 
 fn uniform(name: &str, values: impl Iterator<Item = f64>) -> Result<f64, DiffError> {
@@ -92,95 +437,48 @@ fn uniform(name: &str, values: impl Iterator<Item = f64>) -> Result<f64, DiffErr
     first.ok_or_else(|| DiffError::Input(format!("the model has nothing that '{name}' applies to")))
 }
 
-impl Param {
-    /// The parameter's value in `model` (an error if bodies disagree).
-    pub fn get(&self, model: &Model) -> Result<f64, DiffError> {
-        let name = self.to_string();
-        match *self {
-            Param::YoungsModulus => uniform(&name, model.bodies.iter().map(|b| b.material.youngs_modulus)),
-            Param::PoissonRatio => uniform(&name, model.bodies.iter().map(|b| b.material.poisson_ratio)),
-            Param::Density => uniform(&name, model.bodies.iter().map(|b| b.density)),
-            Param::InitialVelocity(k) => uniform(&name, model.initial_velocity.iter().map(|v| v[k])),
-            Param::Gravity(k) => uniform(
-                &name,
-                model
-                    .bodies
-                    .iter()
-                    .filter(|b| b.gravity)
-                    .flat_map(|b| b.vertices.clone())
-                    .map(|i| model.accel[i][k]),
-            ),
+/// Change every body's material, updating the tets' rotation and volume weights.
+fn set_material(model: &mut Model, change: impl Fn(&mut crate::base::Material)) -> Result<(), DiffError> {
+    for b in &mut model.bodies {
+        let mut m = b.material;
+        change(&mut m);
+        m.validate(&b.name).map_err(|e| DiffError::Input(e.to_string()))?;
+        b.material = m;
+        for t in b.tets.clone() {
+            let vol = model.fem.geometry[t].volume;
+            model.w_rot[t] = m.rotation_stiffness() * vol;
+            model.w_vol[t] = if b.volume_constraint {
+                m.volume_stiffness() * vol
+            } else {
+                0.0
+            };
         }
     }
+    Ok(())
+}
 
-    /// Set the parameter in `model` (every body), updating what depends on it.
-    pub fn set(&self, model: &mut Model, value: f64) -> Result<(), DiffError> {
-        if !value.is_finite() {
-            return Err(DiffError::Input(format!("{self}: value must be finite, got {value}")));
-        }
-        match *self {
-            Param::YoungsModulus | Param::PoissonRatio => {
-                for b in &mut model.bodies {
-                    let mut m = b.material;
-                    if *self == Param::YoungsModulus {
-                        m.youngs_modulus = value;
-                    } else {
-                        m.poisson_ratio = value;
-                    }
-                    m.validate(&b.name).map_err(|e| DiffError::Input(e.to_string()))?;
-                    b.material = m;
-                    for t in b.tets.clone() {
-                        let vol = model.fem.geometry[t].volume;
-                        model.w_rot[t] = m.rotation_stiffness() * vol;
-                        model.w_vol[t] = if b.volume_constraint {
-                            m.volume_stiffness() * vol
-                        } else {
-                            0.0
-                        };
-                    }
-                }
-            }
-            Param::Density => {
-                if value <= 0.0 {
-                    return Err(DiffError::Input(format!("density must be positive, got {value}")));
-                }
-                for b in &mut model.bodies {
-                    let scale = value / b.density;
-                    for i in b.vertices.clone() {
-                        model.mass[i] *= scale;
-                    }
-                    b.mass *= scale;
-                    b.density = value;
-                }
-            }
-            Param::InitialVelocity(k) => model.initial_velocity.iter_mut().for_each(|v| v[k] = value),
-            Param::Gravity(k) => {
-                for b in model.bodies.iter().filter(|b| b.gravity) {
-                    for i in b.vertices.clone() {
-                        model.accel[i][k] = value;
-                    }
-                }
-            }
-        }
-        Ok(())
+fn set_density(model: &mut Model, value: f64) -> Result<(), DiffError> {
+    if value <= 0.0 {
+        return Err(DiffError::Input(format!("density must be positive, got {value}")));
     }
+    for b in &mut model.bodies {
+        let scale = value / b.density;
+        for i in b.vertices.clone() {
+            model.mass[i] *= scale;
+        }
+        b.mass *= scale;
+        b.density = value;
+    }
+    Ok(())
+}
 
-    /// `dL/d(parameter)` from a gradient of `model`.
-    pub fn derivative(&self, model: &Model, g: &Gradient) -> f64 {
-        match *self {
-            Param::YoungsModulus => g.youngs_modulus(model).iter().sum(),
-            Param::PoissonRatio => g.poisson_ratio(model).iter().sum(),
-            Param::Density => g.density(model).iter().sum(),
-            Param::InitialVelocity(k) => g.v0.iter().map(|v| v[k]).sum(),
-            Param::Gravity(k) => model
-                .bodies
-                .iter()
-                .filter(|b| b.gravity)
-                .flat_map(|b| b.vertices.clone())
-                .map(|i| g.accel[i][k])
-                .sum(),
-        }
-    }
+/// The vertices of the bodies with gravity.
+fn with_gravity(model: &Model) -> impl Iterator<Item = usize> + '_ {
+    model
+        .bodies
+        .iter()
+        .filter(|b| b.gravity)
+        .flat_map(|b| b.vertices.clone())
 }
 
 /// Young's modulus of every tet (Pa), read back from the tets' weights (`w_rot = E V/(1+nu)`,
@@ -228,12 +526,12 @@ pub fn set_youngs_modulus_per_tet(model: &mut Model, values: &[f64]) -> Result<(
 }
 
 /// The attachments' targets, in model order.
-pub fn attachment_targets(model: &Model) -> Vec<nalgebra::Vector3<f64>> {
+pub fn attachment_targets(model: &Model) -> Vec<Vector3<f64>> {
     model.attachments.iter().map(|a| a.target).collect()
 }
 
 /// Move the attachments' targets (`targets` in model order, finite).
-pub fn set_attachment_targets(model: &mut Model, targets: &[nalgebra::Vector3<f64>]) -> Result<(), DiffError> {
+pub fn set_attachment_targets(model: &mut Model, targets: &[Vector3<f64>]) -> Result<(), DiffError> {
     if targets.len() != model.attachments.len() {
         return Err(DiffError::Input(format!(
             "attachment_targets: {} targets for {} attachments",

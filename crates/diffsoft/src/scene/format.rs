@@ -1,11 +1,12 @@
 //! The diffsoft scene format (`schema: "diffsoft.scene/1"`): JSON, every key checked (unknown
 //! keys are errors that name the key, line and column). A scene names only what it needs: a body
-//! without pins has no `fixed`, a scene without obstacles runs no collision code.
+//! without pins has no `fixed`, a scene without obstacles runs no collision code. The `solver`
+//! section is [`Settings`]; the time step is its `dt`, or the top-level `time_step`, the older
+//! spelling every scene file written so far uses.
 //!
 //! ```json
 //! {
 //!   "schema": "diffsoft.scene/1",
-//!   "time_step": 0.005,
 //!   "gravity": [0, -9.81, 0],
 //!   "bodies": [{
 //!     "name": "beam", "mesh": "beam.msh",
@@ -14,7 +15,7 @@
 //!     "fixed": { "box": { "min": [-1, -1, -1], "max": [0.001, 1, 1] } }
 //!   }],
 //!   "obstacles": [{ "plane": { "point": [0, -1, 0], "normal": [0, 1, 0] }, "friction": 0.5 }],
-//!   "solver": { "solver": "auto", "certify": "fallback", "max_iterations": 30 }
+//!   "solver": { "dt": 0.005, "solver": "auto", "certify": "fallback", "max_iterations": 30 }
 //! }
 //! ```
 
@@ -22,7 +23,7 @@ use std::path::PathBuf;
 
 use serde::Deserialize;
 
-use crate::solver::{CertifyPolicy, Integrator, Settings, SolverKind};
+use crate::solver::Settings;
 
 /// Schema name of the scene format.
 pub const SCENE_SCHEMA: &str = "diffsoft.scene/1";
@@ -36,8 +37,10 @@ pub struct SceneFile {
     /// What the scene is for, in words (not read by the solver).
     #[serde(default)]
     pub description: Option<String>,
-    /// Time step (s).
-    pub time_step: f64,
+    /// Time step (s): the older spelling of `solver.dt`, which every scene file written so far
+    /// uses. Give one of the two.
+    #[serde(default)]
+    pub time_step: Option<f64>,
     /// Gravitational acceleration (m/s^2).
     #[serde(default)]
     pub gravity: [f64; 3],
@@ -53,59 +56,27 @@ pub struct SceneFile {
     /// Static obstacles.
     #[serde(default)]
     pub obstacles: Vec<ObstacleFile>,
-    /// Solver settings (the time step is `time_step`).
+    /// Solver settings, every key optional (the defaults listed); the time step is `dt` here or
+    /// the top-level `time_step`.
     #[serde(default)]
-    pub solver: SolverFile,
+    pub solver: Settings,
 }
 
-/// Solver settings of a scene; every field is optional (defaults of [`Settings`]).
-#[derive(Debug, Clone, Default, Deserialize, schemars::JsonSchema)]
-#[serde(deny_unknown_fields)]
-pub struct SolverFile {
-    /// Global solver: `auto` (default: the cheapest for the mesh and time step), `direct`,
-    /// `plain`, `split`, `chebyshev`.
-    pub solver: Option<SolverKind>,
-    /// Time integrator: `implicit_euler` (default) or `bdf2` (second order; its first step is
-    /// implicit Euler).
-    pub integrator: Option<Integrator>,
-    /// Certification: `off`, `refuse`, `fallback`.
-    pub certify: Option<CertifyPolicy>,
-    /// Local-global iteration cap.
-    pub max_iterations: Option<usize>,
-    /// Relative RMS change tolerance (1: relative to the length scale).
-    pub tolerance: Option<f64>,
-    /// Inner iteration tolerance (1: relative to the length scale).
-    pub inner_tolerance: Option<f64>,
-    /// Inner iteration cap.
-    pub inner_max_iterations: Option<usize>,
-    /// Velocity damping factor per step (1; 1 = none).
-    pub damping: Option<f64>,
-    /// Contact margin (1: a fraction of the length scale).
-    pub contact_margin: Option<f64>,
-    /// Contact rounds per step.
-    pub contact_rounds: Option<usize>,
-    /// Anderson acceleration memory (0: off).
-    pub anderson: Option<usize>,
-}
-
-impl SolverFile {
-    /// Settings with these overrides and time step `dt`.
-    pub fn settings(&self, dt: f64) -> Settings {
-        let d = Settings::default();
-        Settings {
-            dt,
-            solver: self.solver.unwrap_or(d.solver),
-            integrator: self.integrator.unwrap_or(d.integrator),
-            certify: self.certify.unwrap_or(d.certify),
-            max_iterations: self.max_iterations.unwrap_or(d.max_iterations),
-            tolerance: self.tolerance.unwrap_or(d.tolerance),
-            inner_tolerance: self.inner_tolerance.unwrap_or(d.inner_tolerance),
-            inner_max_iterations: self.inner_max_iterations.unwrap_or(d.inner_max_iterations),
-            damping: self.damping.unwrap_or(d.damping),
-            contact_margin: self.contact_margin.unwrap_or(d.contact_margin),
-            contact_rounds: self.contact_rounds.unwrap_or(d.contact_rounds),
-            eigen_method: d.eigen_method,
-            anderson: self.anderson.unwrap_or(d.anderson),
+impl SceneFile {
+    /// The solver settings with the time step, from `solver.dt` or the top-level `time_step`
+    /// (`solver_gives_dt`: whether the `solver` section has a `dt` key); an error unless
+    /// exactly one of them is given.
+    pub fn settings(&self, solver_gives_dt: bool) -> Result<Settings, String> {
+        match (self.time_step, solver_gives_dt) {
+            (Some(dt), false) => Ok(Settings {
+                dt,
+                ..self.solver.clone()
+            }),
+            (None, true) => Ok(self.solver.clone()),
+            (Some(_), true) => Err(
+                "the time step is given twice, as `solver.dt` and as `time_step` (its older spelling): give one".into(),
+            ),
+            (None, false) => Err("no time step: give `solver.dt` (or the top-level `time_step`)".into()),
         }
     }
 }

@@ -200,7 +200,8 @@ pub fn load(path: impl AsRef<Path>, opts: LoadOptions) -> Result<Scene, SceneErr
             path: shown.clone(),
             message: e.to_string(),
         })?;
-        from_diffsoft(path, file)
+        let solver_gives_dt = value.pointer("/solver/dt").is_some();
+        from_diffsoft(path, file, solver_gives_dt)
     } else if value.get("Meshes").is_some() || value.get("Parameters").is_some() {
         paper::import(path, &value, opts)
     } else {
@@ -458,7 +459,7 @@ fn finite3(scene: &str, what: &str, v: &[f64; 3]) -> Result<Vector3<f64>, SceneE
     }
 }
 
-fn from_diffsoft(path: &Path, file: SceneFile) -> Result<Scene, SceneError> {
+fn from_diffsoft(path: &Path, file: SceneFile, solver_gives_dt: bool) -> Result<Scene, SceneError> {
     let scene = path.display().to_string();
     let dir = path.parent().unwrap_or(Path::new("."));
     let invalid = |message: String| SceneError::Invalid {
@@ -471,6 +472,7 @@ fn from_diffsoft(path: &Path, file: SceneFile) -> Result<Scene, SceneError> {
             file.schema
         )));
     }
+    let settings = file.settings(solver_gives_dt).map_err(&invalid)?;
     let mut builder = ModelBuilder::new().gravity(finite3(&scene, "gravity", &file.gravity)?);
     let mut meshes = Vec::new();
     for b in &file.bodies {
@@ -572,7 +574,7 @@ fn from_diffsoft(path: &Path, file: SceneFile) -> Result<Scene, SceneError> {
         path: path.to_path_buf(),
         format: SceneFormat::Diffsoft,
         model,
-        settings: file.solver.settings(file.time_step),
+        settings,
         meshes,
         notes: Vec::new(),
     })

@@ -33,7 +33,7 @@ impl Simulator {
         let t0 = Instant::now();
         self.prepare_scheme()?;
         self.begin_step();
-        let margin = self.settings.contact_margin * self.model.length_scale;
+        let margin = self.settings.absolute_contact_margin(&self.model);
         self.contacts
             .candidates(&self.model, &self.system, &self.work.q_start, &self.work.s, margin);
         observer.begin();

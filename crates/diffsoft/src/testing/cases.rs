@@ -350,9 +350,9 @@ pub fn free_body(steps: usize) -> Result<Case> {
         settings: gradcheck_settings(0.01, 10),
         steps,
         groups: vec![
-            Group::Scalar(Param::YoungsModulus),
-            Group::Scalar(Param::PoissonRatio),
-            Group::Scalar(Param::Density),
+            Group::Scalar(Param::YOUNGS_MODULUS),
+            Group::Scalar(Param::POISSON_RATIO),
+            Group::Scalar(Param::DENSITY),
             Group::InitialPositions,
             Group::InitialVelocities,
             Group::YoungsPerTet,
@@ -382,10 +382,10 @@ pub fn bridgesus(scene_path: &Path, steps: usize) -> Result<Case> {
         }),
         controls: Controls::default(),
         groups: vec![
-            Group::Scalar(Param::YoungsModulus),
-            Group::Scalar(Param::PoissonRatio),
-            Group::Scalar(Param::Density),
-            Group::Scalar(Param::Gravity(1)),
+            Group::Scalar(Param::YOUNGS_MODULUS),
+            Group::Scalar(Param::POISSON_RATIO),
+            Group::Scalar(Param::DENSITY),
+            Group::Scalar(Param::GRAVITY_Y),
             Group::YoungsPerTet,
         ],
     })
@@ -434,11 +434,11 @@ pub fn ground_contact(steps: usize) -> Result<Case> {
         }),
         controls: Controls::default(),
         groups: vec![
-            Group::Scalar(Param::YoungsModulus),
-            Group::Scalar(Param::Density),
-            Group::Scalar(Param::InitialVelocity(0)),
-            Group::Scalar(Param::InitialVelocity(1)),
-            Group::Scalar(Param::Gravity(1)),
+            Group::Scalar(Param::YOUNGS_MODULUS),
+            Group::Scalar(Param::DENSITY),
+            Group::Scalar(Param::INITIAL_VELOCITY_X),
+            Group::Scalar(Param::INITIAL_VELOCITY_Y),
+            Group::Scalar(Param::GRAVITY_Y),
             Group::InitialPositions,
         ],
     })
@@ -573,7 +573,7 @@ pub fn actuated(steps: usize) -> Result<Case> {
             ..Controls::default()
         },
         groups: vec![
-            Group::Scalar(Param::YoungsModulus),
+            Group::Scalar(Param::YOUNGS_MODULUS),
             Group::Activations,
             Group::AttachmentTargets,
             Group::InitialVelocities,
@@ -631,10 +631,10 @@ pub fn baymax_torques(scene_path: &Path, steps: usize) -> Result<Case> {
             Group::Torques,
             Group::InitialVelocities,
             Group::InitialPositions,
-            Group::Scalar(Param::YoungsModulus),
-            Group::Scalar(Param::PoissonRatio),
-            Group::Scalar(Param::Density),
-            Group::Scalar(Param::Gravity(1)),
+            Group::Scalar(Param::YOUNGS_MODULUS),
+            Group::Scalar(Param::POISSON_RATIO),
+            Group::Scalar(Param::DENSITY),
+            Group::Scalar(Param::GRAVITY_Y),
         ],
     };
     case.controls.torques = Some(torques(&case));
@@ -663,8 +663,8 @@ pub fn baymax_ground(scene_path: &Path, steps: usize) -> Result<Case> {
     case.groups = vec![
         Group::Torques,
         Group::InitialVelocities,
-        Group::Scalar(Param::YoungsModulus),
-        Group::Scalar(Param::Gravity(1)),
+        Group::Scalar(Param::YOUNGS_MODULUS),
+        Group::Scalar(Param::GRAVITY_Y),
     ];
     Ok(case)
 }

@@ -9,6 +9,7 @@ mod mesh_errors;
 mod mesh_formats;
 mod newton;
 mod reference_values;
+mod registry;
 mod scenes;
 mod shapes;
 mod skeleton_adjoint;

@@ -635,7 +635,7 @@ fn bridgesus_material_gradients_through_newton() {
         case.settings.tolerance = 1e-13;
         case.settings.max_iterations = 200;
         let g = case.gradient(&case.settings, Options::mode(Mode::Implicit)).unwrap();
-        for p in [Param::YoungsModulus, Param::PoissonRatio, Param::Density] {
+        for p in [Param::YOUNGS_MODULUS, Param::POISSON_RATIO, Param::DENSITY] {
             let x = p.get(&case.model).unwrap();
             let analytic = p.derivative(&case.model, &g) * x;
             let loss = |v: f64| {

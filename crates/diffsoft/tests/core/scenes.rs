@@ -81,7 +81,7 @@ fn diffsoft_scenes_reject_unknown_keys_and_meaningless_values() {
         (
             r#", "density": 1000"#,
             r#", "solver": {"dt": 0.1}"#,
-            "unknown field `dt`",
+            "the time step is given twice",
         ),
         ("", "", "exactly one of density and total_mass"),
         (

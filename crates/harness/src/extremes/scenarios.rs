@@ -86,7 +86,7 @@ fn corner_loss(model: &Model) -> VertexPositions {
     }
 }
 
-const PARAMS: [Param; 3] = [Param::YoungsModulus, Param::Density, Param::Gravity(1)];
+const PARAMS: [Param; 3] = [Param::YOUNGS_MODULUS, Param::DENSITY, Param::GRAVITY_Y];
 
 fn energy(model: &Model, q: &[Vector3<f64>], v: &[Vector3<f64>]) -> f64 {
     q.iter()
@@ -120,7 +120,7 @@ fn free_flight(probe: Probe) -> Trial {
         let inner = if sim.certificate().used == SolverKind::Direct {
             0.0
         } else {
-            s.inner_tolerance * model.length_scale()
+            s.inner_absolute_tolerance(&model)
         };
         let floor = (f64::EPSILON * kappa * extent + inner) * trial.steps_run as f64 / (s.dt * v_ref);
         trial.checks.push(Check::at_most(

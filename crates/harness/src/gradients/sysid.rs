@@ -42,7 +42,7 @@ pub struct SysId {
 /// `steps` steps, parameter `log E`, started at `factor x E_true`.
 pub fn sysid(case: &Case, factor: f64) -> Result<SysId, DiffError> {
     let t0 = Instant::now();
-    let e_true = Param::YoungsModulus.get(&case.model)?;
+    let e_true = Param::YOUNGS_MODULUS.get(&case.model)?;
     let total: f64 = case.model.mass().iter().sum();
     let com0: Vector3<f64> = case
         .model
@@ -66,7 +66,7 @@ pub fn sysid(case: &Case, factor: f64) -> Result<SysId, DiffError> {
     let eval = |x: &[f64]| -> Result<(f64, Vec<f64>), DiffError> {
         let mut model = case.model.clone();
         let e = x[0].exp();
-        Param::YoungsModulus.set(&mut model, e)?;
+        Param::YOUNGS_MODULUS.set(&mut model, e)?;
         let mut f = 0.0;
         let mut g = 0.0;
         for (k, t) in target.iter().enumerate() {
@@ -89,7 +89,7 @@ pub fn sysid(case: &Case, factor: f64) -> Result<SysId, DiffError> {
             )?;
             let r = gr.loss - com0[k] - t;
             f += r * r / d2;
-            g += 2.0 * r / d2 * Param::YoungsModulus.derivative(&model, &gr) * e;
+            g += 2.0 * r / d2 * Param::YOUNGS_MODULUS.derivative(&model, &gr) * e;
         }
         if std::env::var_os("DIFFSOFT_TRACE").is_some() {
             eprintln!("sysid eval E {e:.6e} f {f:.3e} g {g:.3e} target {target:?} d2 {d2:.3e}");

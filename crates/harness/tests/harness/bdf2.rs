@@ -221,11 +221,11 @@ fn bdf2_implicit_matches_unrolled_at_convergence() {
     let run = |mode| case.gradient(&case.settings, Options::mode(mode)).unwrap();
     let (u, i) = (run(Mode::Unrolled), run(Mode::Implicit));
     let params = [
-        Param::YoungsModulus,
-        Param::PoissonRatio,
-        Param::Density,
-        Param::Gravity(1),
-        Param::InitialVelocity(0),
+        Param::YOUNGS_MODULUS,
+        Param::POISSON_RATIO,
+        Param::DENSITY,
+        Param::GRAVITY_Y,
+        Param::INITIAL_VELOCITY_X,
     ];
     crate::common::assert_params_agree(&case.model, &u, &i, &params, 1e-7, ("unrolled", "implicit"));
 }

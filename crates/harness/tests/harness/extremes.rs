@@ -217,7 +217,7 @@ fn run_extreme(e: f64, rho: f64, dt: f64, omega: f64, solver: SolverKind) -> Res
     };
     match diff::gradient(&model, &gs, 5, &controls, &loss, Options::default()) {
         Ok(g) => {
-            for p in [Param::YoungsModulus, Param::Density] {
+            for p in [Param::YOUNGS_MODULUS, Param::DENSITY] {
                 let d = p.derivative(&model, &g);
                 prop_assert!(d.is_finite(), "d/d{p} = {d}");
             }

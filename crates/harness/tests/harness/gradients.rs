@@ -68,10 +68,10 @@ fn implicit_matches_unrolled_at_convergence() {
     };
     let (u, i) = (run(Mode::Unrolled), run(Mode::Implicit));
     for p in [
-        Param::YoungsModulus,
-        Param::PoissonRatio,
-        Param::Density,
-        Param::Gravity(1),
+        Param::YOUNGS_MODULUS,
+        Param::POISSON_RATIO,
+        Param::DENSITY,
+        Param::GRAVITY_Y,
     ] {
         let (a, b) = (p.derivative(&case.model, &u), p.derivative(&case.model, &i));
         assert!(
@@ -102,8 +102,8 @@ fn implicit_matches_unrolled_at_convergence() {
     )
     .unwrap();
     let (a, b) = (
-        Param::YoungsModulus.derivative(&case.model, &gu),
-        Param::YoungsModulus.derivative(&case.model, &gi),
+        Param::YOUNGS_MODULUS.derivative(&case.model, &gu),
+        Param::YOUNGS_MODULUS.derivative(&case.model, &gi),
     );
     assert!(
         (a - b).abs() > 1e-6 * a.abs(),
@@ -183,7 +183,7 @@ fn skeleton_gradients_through_active_joint_limits() {
     case.groups = vec![
         diffsoft::testing::Group::Torques,
         diffsoft::testing::Group::InitialVelocities,
-        diffsoft::testing::Group::Scalar(Param::YoungsModulus),
+        diffsoft::testing::Group::Scalar(Param::YOUNGS_MODULUS),
     ];
     // The limits are active at the end of the run.
     let mut sim = diffsoft::solver::Simulator::new(case.model.clone(), case.settings.clone()).unwrap();
@@ -221,9 +221,9 @@ fn bad_losses_and_parameters_are_rejected() {
     assert!(matches!(loss::by_name("com"), Err(DiffError::Input(_))));
     assert!(matches!("stiffness".parse::<Param>(), Err(DiffError::Input(_))));
     let mut case = diffsoft::testing::free_body(1).unwrap();
-    assert!(Param::PoissonRatio.set(&mut case.model, 0.5).is_err());
-    assert!(Param::Density.set(&mut case.model, -1.0).is_err());
-    assert!(Param::YoungsModulus.set(&mut case.model, f64::NAN).is_err());
+    assert!(Param::POISSON_RATIO.set(&mut case.model, 0.5).is_err());
+    assert!(Param::DENSITY.set(&mut case.model, -1.0).is_err());
+    assert!(Param::YOUNGS_MODULUS.set(&mut case.model, f64::NAN).is_err());
 }
 
 /// Losses compose: the gradient of a weighted sum is the weighted sum of gradients.
@@ -314,8 +314,8 @@ fn stored_recordings_give_the_replayed_gradient() {
             assert!((a - b).norm() <= 1e-8 * (1.0 + b.norm()), "{a} vs {b}");
         }
         let (a, b) = (
-            Param::YoungsModulus.derivative(&case.model, g),
-            Param::YoungsModulus.derivative(&case.model, &replayed),
+            Param::YOUNGS_MODULUS.derivative(&case.model, g),
+            Param::YOUNGS_MODULUS.derivative(&case.model, &replayed),
         );
         assert!((a - b).abs() <= 1e-8 * b.abs(), "{a} vs {b}");
     }
@@ -398,8 +398,8 @@ fn skeleton_implicit_matches_unrolled_at_convergence() {
             );
         };
         close(
-            Param::YoungsModulus.derivative(&case.model, &u),
-            Param::YoungsModulus.derivative(&case.model, &i),
+            Param::YOUNGS_MODULUS.derivative(&case.model, &u),
+            Param::YOUNGS_MODULUS.derivative(&case.model, &i),
             "E",
         );
         let dot = |g: &diff::Gradient| {
@@ -464,10 +464,10 @@ fn anderson_mixing_of_the_contact_adjoint_keeps_the_gradient() {
     );
     assert!(mixed.stats.backward_iterations < plain.stats.backward_iterations);
     let params = [
-        Param::YoungsModulus,
-        Param::Density,
-        Param::Gravity(1),
-        Param::InitialVelocity(0),
+        Param::YOUNGS_MODULUS,
+        Param::DENSITY,
+        Param::GRAVITY_Y,
+        Param::INITIAL_VELOCITY_X,
     ];
     crate::common::assert_params_agree(&case.model, &plain, &mixed, &params, 1e-9, ("plain", "Anderson"));
 }

@@ -409,9 +409,9 @@ fn implicit_gradients_through_newton_at_an_active_joint_limit() {
         groups: vec![
             Group::InitialPositions,
             Group::InitialVelocities,
-            Group::Scalar(Param::YoungsModulus),
-            Group::Scalar(Param::Density),
-            Group::Scalar(Param::Gravity(1)),
+            Group::Scalar(Param::YOUNGS_MODULUS),
+            Group::Scalar(Param::DENSITY),
+            Group::Scalar(Param::GRAVITY_Y),
         ],
     };
     // The limit holds the hinge in every step.

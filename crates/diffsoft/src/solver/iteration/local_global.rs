@@ -242,7 +242,7 @@ pub(crate) fn global_phase(
     let ih2 = cx.scheme.inv_h2();
     let time = cx.time;
     let control = InnerControl {
-        tolerance: cx.settings.inner_tolerance * model.length_scale,
+        tolerance: cx.settings.inner_absolute_tolerance(model),
         max_iterations: cx.settings.inner_max_iterations,
     };
     let constraints = &*cx.constraints;

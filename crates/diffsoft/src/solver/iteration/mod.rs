@@ -82,7 +82,7 @@ impl StepContext<'_> {
 
     /// `tolerance x length scale`: the RMS change of the positions that ends the iteration (m).
     pub(crate) fn tolerance(&self) -> f64 {
-        self.settings.tolerance * self.model.length_scale
+        self.settings.absolute_tolerance(self.model)
     }
 }
 
@@ -129,7 +129,7 @@ pub(crate) fn build(
         ));
     }
     let control = InnerControl {
-        tolerance: settings.inner_tolerance * model.length_scale,
+        tolerance: settings.inner_absolute_tolerance(model),
         max_iterations: settings.inner_max_iterations,
     };
     if settings.solver == SolverKind::Newton {

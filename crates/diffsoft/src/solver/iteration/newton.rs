@@ -290,7 +290,7 @@ impl StepIteration for Newton {
             },
             contacts: cs,
         };
-        let tol = settings.tolerance * model.length_scale;
+        let tol = settings.absolute_tolerance(model);
         let floor = ABSOLUTE_FRACTION * tol;
         let nf = system.n();
         let tl = Instant::now();

@@ -620,7 +620,7 @@ fn newton_skeletal_loop(
         coords0: &w.coords0,
         torque: &w.torque,
     };
-    let tol = settings.tolerance * model.length_scale;
+    let tol = settings.absolute_tolerance(model);
     let floor = ABSOLUTE_FRACTION * tol;
     let (nf, nr) = (system.n(), system.rigid.len());
     let tl = Instant::now();
