@@ -144,6 +144,7 @@ def jacobians(seed: int = 2021) -> dict[str, Any]:
 def scalar_parameters() -> list[str]:
     """Names of the scalar parameters, from the library's parameter registry (as the CLI's
     ``--param`` and ``--set``; ``diffsoft grad --help`` gives their units)."""
+
 def array_parameters() -> list[tuple[str, str, str]]:
     """``(name, shape, description (unit))`` of the array parameters, from the library's
     parameter registry."""
