@@ -147,7 +147,7 @@ fn the_python_stub_names_registered_parameters() {
     // Parameter names, not the calls that list them.
     for t in tokens.iter().filter(|t| !t.ends_with(')')) {
         assert!(
-            params::lookup(&t).is_some(),
+            params::lookup(t).is_some(),
             "the stub's Scene.set names '{t}', not a registered parameter"
         );
     }
