@@ -64,14 +64,16 @@ fn the_registry_is_well_formed() {
 /// Whatever a scalar entry's `get`, `set` and `derivative` are, they agree with each other:
 /// `get` reads back what `set` wrote, and `derivative` (picked out of a reverse-mode gradient)
 /// matches central differences of the loss through `set`, for the centre of mass along each
-/// axis. A new scalar entry is tested here without any code of its own.
+/// axis. A new scalar entry is tested here without any code of its own (it must apply to this
+/// scene: a body with a pinned vertex, gravity, an initial velocity and a ground plane).
 #[test]
 fn every_registered_scalar_sets_reads_and_differentiates_consistently() {
     let dir = tmp_dir("registry-scalars");
     let path = cube_scene(
         &dir,
         r#", "density": 1000, "initial_velocity": [0.3, 0.5, -0.2], "fixed": {"indices": [0]}"#,
-        "",
+        // Ground far below (no contact in these steps): a parameter of obstacles applies too.
+        r#", "obstacles": [{"plane": {"point": [0, -5, 0], "normal": [0, 1, 0]}, "friction": 0.4}]"#,
     );
     let sc = scene::load(&path, LoadOptions::default()).unwrap();
     let settings = Settings {
