@@ -26,12 +26,18 @@
 //! *regime* (which feature of the face is closest; interior edge points): [`PairContact::jacobian`]
 //! differentiates them by forward-mode dual numbers for the backward pass.
 
-use nalgebra::{RealField, Vector3};
+mod geometry;
+mod grid;
+
+use nalgebra::Vector3;
 use num_dual::Dual64;
 use serde::Serialize;
 
 use crate::base::{Body, InputError};
 use crate::cloth::Cloth;
+use grid::Grid;
+
+pub use geometry::{edge_edge, geometry, segment_crosses, vertex_face, Regime};
 
 /// Settings of collisions between bodies.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, serde::Deserialize, schemars::JsonSchema)]
@@ -183,21 +189,6 @@ impl Colliders {
     }
 }
 
-/// Which features of a pair are closest (fixed for a step; the pair's geometry is smooth in
-/// the start positions within it).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Regime {
-    /// A vertex and the interior of a face; the normal is the face normal times the sign.
-    Face(i8),
-    /// A vertex and an edge of a face (corners `k`, `(k + 1) % 3`).
-    Edge(u8),
-    /// A vertex and a corner of a face.
-    Corner(u8),
-    /// Two edges, closest points interior to both.
-    EdgeEdge,
-}
-
 /// A linearised contact between two bodies (see the module docs).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct PairContact {
@@ -245,222 +236,6 @@ impl PairContact {
             }
         }
         (dc, dn)
-    }
-}
-
-/// Coefficients and unit normal of a pair in a regime (generic, for dual numbers).
-pub fn geometry<T: RealField + Copy>(regime: Regime, x: &[Vector3<T>; 4]) -> ([T; 4], Vector3<T>) {
-    let one = T::one();
-    let zero = T::zero();
-    match regime {
-        Regime::Face(sign) => {
-            let (p, a, b, c) = (x[0], x[1], x[2], x[3]);
-            let (e0, e1) = (b - a, c - a);
-            let nf = e0.cross(&e1);
-            let n = nf / nf.norm() * T::from_f64(sign as f64).unwrap();
-            let ap = p - a;
-            let (d00, d01, d11) = (e0.dot(&e0), e0.dot(&e1), e1.dot(&e1));
-            let (d20, d21) = (ap.dot(&e0), ap.dot(&e1));
-            let den = d00 * d11 - d01 * d01;
-            let v = (d11 * d20 - d01 * d21) / den;
-            let w = (d00 * d21 - d01 * d20) / den;
-            let u = one - v - w;
-            ([one, -u, -v, -w], n)
-        }
-        Regime::Edge(k) => {
-            let (k, l) = (k as usize, (k as usize + 1) % 3);
-            let (a, b) = (x[1 + k], x[1 + l]);
-            let e = b - a;
-            let t = (x[0] - a).dot(&e) / e.dot(&e);
-            let r = x[0] - (a + e * t);
-            let mut c = [one, zero, zero, zero];
-            c[1 + k] = -(one - t);
-            c[1 + l] = -t;
-            (c, r / r.norm())
-        }
-        Regime::Corner(k) => {
-            let r = x[0] - x[1 + k as usize];
-            let mut c = [one, zero, zero, zero];
-            c[1 + k as usize] = -one;
-            (c, r / r.norm())
-        }
-        Regime::EdgeEdge => {
-            let (a, b, c, d) = (x[0], x[1], x[2], x[3]);
-            let (d1, d2, r) = (b - a, d - c, a - c);
-            let (a11, a22, a12) = (d1.dot(&d1), d2.dot(&d2), d1.dot(&d2));
-            let (e1, e2) = (d1.dot(&r), d2.dot(&r));
-            let den = a11 * a22 - a12 * a12;
-            let s = (a12 * e2 - a22 * e1) / den;
-            let t = (a11 * e2 - a12 * e1) / den;
-            let gap = (a + d1 * s) - (c + d2 * t);
-            ([one - s, s, -(one - t), -t], gap / gap.norm())
-        }
-    }
-}
-
-/// The closest features of vertex `p` and face `abc` (Ericson 5.1.5) and the distance.
-pub fn vertex_face(p: &Vector3<f64>, a: &Vector3<f64>, b: &Vector3<f64>, c: &Vector3<f64>) -> Option<(Regime, f64)> {
-    let ab = b - a;
-    let ac = c - a;
-    let ap = p - a;
-    let (d1, d2) = (ab.dot(&ap), ac.dot(&ap));
-    if d1 <= 0.0 && d2 <= 0.0 {
-        return Some((Regime::Corner(0), ap.norm()));
-    }
-    let bp = p - b;
-    let (d3, d4) = (ab.dot(&bp), ac.dot(&bp));
-    if d3 >= 0.0 && d4 <= d3 {
-        return Some((Regime::Corner(1), bp.norm()));
-    }
-    let vc = d1 * d4 - d3 * d2;
-    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
-        let v = d1 / (d1 - d3);
-        return Some((Regime::Edge(0), (p - (a + ab * v)).norm()));
-    }
-    let cp = p - c;
-    let (d5, d6) = (ab.dot(&cp), ac.dot(&cp));
-    if d6 >= 0.0 && d5 <= d6 {
-        return Some((Regime::Corner(2), cp.norm()));
-    }
-    let vb = d5 * d2 - d1 * d6;
-    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
-        let w = d2 / (d2 - d6);
-        return Some((Regime::Edge(2), (p - (a + ac * w)).norm()));
-    }
-    let va = d3 * d6 - d5 * d4;
-    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
-        let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
-        return Some((Regime::Edge(1), (p - (b + (c - b) * w)).norm()));
-    }
-    let nf = ab.cross(&ac);
-    let len = nf.norm();
-    if len == 0.0 {
-        return None;
-    }
-    let s = nf.dot(&ap) / len;
-    Some((Regime::Face(if s >= 0.0 { 1 } else { -1 }), s.abs()))
-}
-
-/// Closest points of segments `ab` and `cd` when they are interior to both (parameters in
-/// `(eps, 1 - eps)`) and the segments are not parallel: `(s, t, distance)`.
-pub fn edge_edge(a: &Vector3<f64>, b: &Vector3<f64>, c: &Vector3<f64>, d: &Vector3<f64>) -> Option<(f64, f64, f64)> {
-    let (d1, d2, r) = (b - a, d - c, a - c);
-    let (a11, a22, a12) = (d1.dot(&d1), d2.dot(&d2), d1.dot(&d2));
-    let den = a11 * a22 - a12 * a12;
-    if den.is_nan() || den <= 1e-12 * a11 * a22 {
-        return None;
-    }
-    let (e1, e2) = (d1.dot(&r), d2.dot(&r));
-    let s = (a12 * e2 - a22 * e1) / den;
-    let t = (a11 * e2 - a12 * e1) / den;
-    const EPS: f64 = 1e-6;
-    if !(EPS..=1.0 - EPS).contains(&s) || !(EPS..=1.0 - EPS).contains(&t) {
-        return None;
-    }
-    Some((s, t, ((a + d1 * s) - (c + d2 * t)).norm()))
-}
-
-/// A uniform spatial hash of axis-aligned boxes (reused between steps: no allocation once warm).
-/// Each (cell, box) entry goes into a bucket chosen by hashing the cell's key, and the entries
-/// are ordered by bucket with a counting sort (linear in the entries; a bucket holds its entries
-/// in box order), so a query reads one bucket per cell.
-#[derive(Debug, Clone, Default)]
-struct Grid {
-    inv_cell: f64,
-    /// Buckets are `2^bits`.
-    bits: u32,
-    /// Bucket `b`'s entries are `entries[starts[b]..starts[b + 1]]`.
-    starts: Vec<u32>,
-    /// `(cell key, box id)`, by bucket.
-    entries: Vec<(u64, u32)>,
-    /// The entries in box order, before the counting sort.
-    unsorted: Vec<(u64, u32)>,
-}
-
-#[inline]
-fn cell_key(i: i64, j: i64, k: i64) -> u64 {
-    const M: u64 = (1 << 21) - 1;
-    (((i as u64) & M) << 42) | (((j as u64) & M) << 21) | ((k as u64) & M)
-}
-
-impl Grid {
-    fn cells(&self, lo: &Vector3<f64>, hi: &Vector3<f64>) -> ([i64; 3], [i64; 3]) {
-        let f = |x: f64| (x * self.inv_cell).floor() as i64;
-        ([f(lo.x), f(lo.y), f(lo.z)], [f(hi.x), f(hi.y), f(hi.z)])
-    }
-
-    /// The bucket of a cell key (Fibonacci hashing: the top `bits` of the key times 2^64/phi).
-    #[inline]
-    fn bucket(&self, key: u64) -> usize {
-        if self.bits == 0 {
-            return 0;
-        }
-        (key.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> (64 - self.bits)) as usize
-    }
-
-    /// Insert boxes `(lo, hi)` with ids; `cell` is the cell size.
-    fn build(&mut self, cell: f64, boxes: &[(Vector3<f64>, Vector3<f64>)]) {
-        self.inv_cell = 1.0 / cell;
-        self.unsorted.clear();
-        for (id, (lo, hi)) in boxes.iter().enumerate() {
-            let (a, b) = self.cells(lo, hi);
-            for i in a[0]..=b[0] {
-                for j in a[1]..=b[1] {
-                    for k in a[2]..=b[2] {
-                        self.unsorted.push((cell_key(i, j, k), id as u32));
-                    }
-                }
-            }
-        }
-        // About one bucket per entry.
-        self.bits = self.unsorted.len().max(1).next_power_of_two().trailing_zeros();
-        let buckets = 1usize << self.bits;
-        self.starts.clear();
-        self.starts.resize(buckets + 1, 0);
-        for e in &self.unsorted {
-            let b = self.bucket(e.0);
-            self.starts[b + 1] += 1;
-        }
-        for b in 0..buckets {
-            self.starts[b + 1] += self.starts[b];
-        }
-        self.entries.clear();
-        self.entries.resize(self.unsorted.len(), (0, 0));
-        // Fill each bucket from its start (kept in `starts[b]` while filling, restored after).
-        for i in 0..self.unsorted.len() {
-            let e = self.unsorted[i];
-            let b = self.bucket(e.0);
-            let at = &mut self.starts[b];
-            self.entries[*at as usize] = e;
-            *at += 1;
-        }
-        for b in (1..=buckets).rev() {
-            self.starts[b] = self.starts[b - 1];
-        }
-        self.starts[0] = 0;
-    }
-
-    /// Call `f` with every id whose cells meet the box (ids may repeat), cell by cell, each
-    /// cell's ids in increasing order.
-    fn query(&self, lo: &Vector3<f64>, hi: &Vector3<f64>, mut f: impl FnMut(u32)) {
-        if self.entries.is_empty() {
-            return;
-        }
-        let (a, b) = self.cells(lo, hi);
-        for i in a[0]..=b[0] {
-            for j in a[1]..=b[1] {
-                for k in a[2]..=b[2] {
-                    let key = cell_key(i, j, k);
-                    let bucket = self.bucket(key);
-                    let (s, e) = (self.starts[bucket] as usize, self.starts[bucket + 1] as usize);
-                    for entry in &self.entries[s..e] {
-                        if entry.0 == key {
-                            f(entry.1);
-                        }
-                    }
-                }
-            }
-        }
     }
 }
 
@@ -705,31 +480,6 @@ pub struct Probe {
     pub penetration: f64,
 }
 
-/// Segment `ab` crosses triangle `t` (Moller-Trumbore on the segment).
-pub fn segment_crosses(a: &Vector3<f64>, b: &Vector3<f64>, t: [&Vector3<f64>; 3]) -> bool {
-    let d = b - a;
-    let e1 = t[1] - t[0];
-    let e2 = t[2] - t[0];
-    let p = d.cross(&e2);
-    let det = e1.dot(&p);
-    if det.abs() < 1e-300 {
-        return false;
-    }
-    let inv = 1.0 / det;
-    let s = a - t[0];
-    let u = s.dot(&p) * inv;
-    if !(0.0..=1.0).contains(&u) {
-        return false;
-    }
-    let qv = s.cross(&e1);
-    let v = d.dot(&qv) * inv;
-    if v < 0.0 || u + v > 1.0 {
-        return false;
-    }
-    let tt = e2.dot(&qv) * inv;
-    (0.0..=1.0).contains(&tt)
-}
-
 impl Detector {
     /// Distances and crossings between the bodies' surfaces at `q`, looking `reach` far.
     pub fn probe(&mut self, col: &Colliders, q: &[Vector3<f64>], reach: f64) -> Probe {
@@ -813,28 +563,6 @@ mod tests {
     }
 
     #[test]
-    fn vertex_face_regimes_and_geometry_agree() {
-        let a = Vector3::new(0.0, 0.0, 0.0);
-        let b = Vector3::new(1.0, 0.0, 0.0);
-        let c = Vector3::new(0.0, 1.0, 0.0);
-        for (p, expect, dist) in [
-            (Vector3::new(0.2, 0.3, 0.5), Regime::Face(1), 0.5),
-            (Vector3::new(0.2, 0.3, -0.4), Regime::Face(-1), 0.4),
-            (Vector3::new(0.5, -1.0, 0.0), Regime::Edge(0), 1.0),
-            (Vector3::new(-1.0, -1.0, 0.0), Regime::Corner(0), 2f64.sqrt()),
-            (Vector3::new(1.0, 1.0, 0.0), Regime::Edge(1), 0.5f64.sqrt()),
-        ] {
-            let (r, d) = vertex_face(&p, &a, &b, &c).unwrap();
-            assert_eq!(r, expect, "{p}");
-            assert!((d - dist).abs() < 1e-12);
-            let (coefs, n) = geometry(r, &[p, a, b, c]);
-            let rel = p * coefs[0] + a * coefs[1] + b * coefs[2] + c * coefs[3];
-            assert!((n.dot(&rel) - d).abs() < 1e-12, "{r:?}");
-            assert!((rel - n * d).norm() < 1e-12, "{r:?}: relative vector along the normal");
-        }
-    }
-
-    #[test]
     fn pair_jacobian_matches_differences() {
         let q = vec![
             Vector3::new(0.21, 0.33, 0.45),
@@ -875,30 +603,5 @@ mod tests {
                 }
             }
         }
-    }
-
-    #[test]
-    fn segment_crossing() {
-        let t = [
-            Vector3::new(0.0, 0.0, 0.0),
-            Vector3::new(1.0, 0.0, 0.0),
-            Vector3::new(0.0, 1.0, 0.0),
-        ];
-        let tr = [&t[0], &t[1], &t[2]];
-        assert!(segment_crosses(
-            &Vector3::new(0.2, 0.2, -1.0),
-            &Vector3::new(0.2, 0.2, 1.0),
-            tr
-        ));
-        assert!(!segment_crosses(
-            &Vector3::new(0.2, 0.2, 0.1),
-            &Vector3::new(0.2, 0.2, 1.0),
-            tr
-        ));
-        assert!(!segment_crosses(
-            &Vector3::new(0.8, 0.8, -1.0),
-            &Vector3::new(0.8, 0.8, 1.0),
-            tr
-        ));
     }
 }

@@ -1,0 +1,184 @@
+//! The main job: [`run_suite`] runs every section of the suite in turn (bounds and sweeps,
+//! `T` scaling and the paper's arithmetic, Jacobian checks, physics checks, the skeleton,
+//! actuator and gradient studies, the trade-off study, extremes and cloth), writes their reports
+//! and plots and prints their summaries and the wall time per section.
+
+use std::path::Path;
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+
+use crate::bounds::{run_mesh, t_scaling, t_scaling_chart, SuiteBoundsReport, TableRow, SUITE_BOUNDS_SCHEMA};
+use crate::physics_suite::run_physics;
+use crate::report::{write_json, Header};
+use crate::suite::Suite;
+use crate::{actuators, cloth, extremes, gradients, jacobians, plot, skeleton, summary, tradeoff};
+use diffsoft::analysis::appendix;
+
+/// Run the suite at `suite_path` and write reports into `out`.
+pub fn run_suite(suite_path: &Path, out: &Path) -> Result<SuiteBoundsReport> {
+    let t0 = Instant::now();
+    let suite = Suite::load(suite_path)?;
+    let base = suite_path.parent().unwrap_or(Path::new("."));
+    std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
+    let mut meshes = Vec::new();
+    for entry in &suite.bounds.meshes {
+        let t = Instant::now();
+        let r = run_mesh(base, out, entry, suite.bounds.empirical, suite.bounds.sweep_points)?;
+        println!(
+            "  {:<22} {:>6} v {:>7} t  analysed in {:.2} s",
+            entry.name,
+            r.bounds.mesh.vertices,
+            r.bounds.mesh.tets,
+            t.elapsed().as_secs_f64()
+        );
+        meshes.push(r);
+    }
+    let mut sections = vec![("bounds and sweeps", t0.elapsed().as_secs_f64())];
+    let mut lap = Instant::now();
+    let mut section = |name: &'static str, lap: &mut Instant| {
+        sections.push((name, lap.elapsed().as_secs_f64()));
+        *lap = Instant::now();
+    };
+    let paper_arithmetic = appendix::paper_arithmetic()?;
+    let ts = &suite.t_scaling;
+    let t_scaling = t_scaling(ts.cell_size, ts.rho, ts.mu, &ts.cells_per_axis)?;
+    let table = meshes
+        .iter()
+        .map(|m| {
+            let b = &m.bounds;
+            TableRow {
+                mesh: m.name.clone(),
+                vertices: b.mesh.vertices,
+                tets: b.mesh.tets,
+                dt: b.inputs.dt,
+                critical_dt_plain: b.jacobi.critical_dt.unwrap_or(f64::NAN),
+                rho_plain: b.jacobi.spectral_radius,
+                critical_dt_split: b.split.critical_dt,
+                rho_split: b.split.spectral_radius,
+                eq29: b.appendix_a.eq29.dt,
+                plain_converges: b.jacobi.converges,
+                split_converges: b.split.converges,
+                eq29_safe: b.appendix_a.eq29.safe,
+                appendix_b_holds: b.appendix_b.holds,
+            }
+        })
+        .collect();
+    let report = SuiteBoundsReport {
+        header: Header::new(SUITE_BOUNDS_SCHEMA),
+        suite: suite_path.display().to_string(),
+        table,
+        meshes,
+        paper_arithmetic,
+        t_scaling,
+        wall_time_s: t0.elapsed().as_secs_f64(),
+    };
+    let path = out.join("bounds.json");
+    write_json(&path, &report)?;
+    plot::write_svg(&out.join("t_scaling.svg"), &t_scaling_chart(&report.t_scaling))?;
+    let table = summary::table(&report);
+    // The table as printed, for the documentation that quotes it (crates/harness/tests/harness/doc_numbers.rs).
+    diffsoft::output::write_atomic(&out.join("bounds_table.txt"), table.as_bytes())?;
+    print!("{table}");
+    section("t-scaling and paper arithmetic", &mut lap);
+    println!("\nJacobian checks of the skeleton:");
+    let jac = jacobians::run(2021);
+    write_json(out.join("jacobians.json"), &jac)?;
+    for v in &jac.verdicts {
+        println!("  [{}] {}", if v.holds { "holds" } else { "FAILS" }, v.claim);
+    }
+    section("Jacobian checks", &mut lap);
+    println!("\nphysics checks of the forward solver:");
+    let phys = run_physics(base, out, &suite.physics)?;
+    write_json(out.join("physics.json"), &phys)?;
+    print!("{}", summary::physics_table(&phys));
+    section("physics checks", &mut lap);
+    println!("\nskeleton study ({}):", suite.skeleton.scene.display());
+    let sk = skeleton::study(
+        &base.join(&suite.skeleton.scene),
+        suite.skeleton.steps,
+        &suite.skeleton.arm_bones,
+        out,
+    )?;
+    write_json(out.join("skeleton.json"), &sk)?;
+    print!("{}", summary::skeleton_table(&sk));
+    section("skeleton study", &mut lap);
+    println!("\nactuator study:");
+    let ac = &suite.actuators;
+    let act = actuators::study(
+        &actuators::StudyInputs {
+            drone: &base.join(&ac.drone),
+            drone_activation: ac.drone_activation,
+            drone_steps: ac.drone_steps,
+            octopus: &base.join(&ac.octopus),
+            octopus_muscle: &ac.octopus_muscle,
+            octopus_activation: ac.octopus_activation,
+            octopus_steps: ac.octopus_steps,
+        },
+        out,
+    )?;
+    write_json(out.join("actuators.json"), &act)?;
+    print!("{}", actuators::table(&act));
+    section("actuator study", &mut lap);
+    println!(
+        "\ngradient checks (unrolled reverse mode, implicit mode for Newton cases, vs central differences, rtol {:e}):",
+        gradients::RTOL
+    );
+    let gs = &suite.gradients;
+    let grad = gradients::study(
+        &gradients::Inputs {
+            bridgesus: &base.join(&gs.bridgesus),
+            baymax_skeleton: &base.join(&gs.baymax_skeleton),
+            ball_on_cloth: &base.join(&gs.ball_on_cloth),
+            memory_scene: &base.join(&gs.memory_scene),
+            memory_steps: &gs.memory_steps,
+            steps: gs.steps,
+            sysid_steps: gs.sysid_steps,
+        },
+        out,
+    )?;
+    write_json(out.join("gradients.json"), &grad)?;
+    for v in &grad.verdicts {
+        println!("  [{}] {}", if v.holds { "holds" } else { "FAILS" }, v.claim);
+    }
+    section("gradient study", &mut lap);
+    if let Some(t) = &suite.tradeoff {
+        println!("\ntrade-off of solver settings (accuracy against cost):");
+        tradeoff::suite_section(base, out, &t.scenes)?;
+    }
+    section("trade-off study", &mut lap);
+    if let Some(x) = &suite.extremes {
+        println!("\nextremes ({:?} subset):", x.subset);
+        let ex = extremes::run(x.subset, true);
+        write_json(out.join("extremes.json"), &ex)?;
+        print!("{}", extremes::table(&ex));
+    }
+    section("extremes", &mut lap);
+    if let Some(c) = &suite.cloth {
+        println!("\ncloth study:");
+        let scenes: Vec<(std::path::PathBuf, usize)> =
+            c.scenes.iter().map(|s| (base.join(&s.scene), s.steps)).collect();
+        let cl = cloth::study(&scenes, &c.detection_sizes, out)?;
+        write_json(out.join("cloth.json"), &cl)?;
+        print!("{}", cloth::table(&cl));
+        for e in &cl.plot_errors {
+            eprintln!("warning: cloth plot not drawn: {e}");
+        }
+    }
+    section("cloth study", &mut lap);
+    println!("\nwall time per section:");
+    for (name, s) in &sections {
+        println!("  {name:<32} {s:>7.1} s");
+    }
+    println!(
+        "wrote {}, {}, {}, {}, {}, gradients.json, tradeoff.json, extremes.json, cloth.json, t_scaling.svg, cantilever.svg, skeleton_*.svg, gradient_cost.svg, tradeoff_*.svg, cloth_*.svg, actuator and cloth frames and {} sweep plots in {:.1} s",
+        path.display(),
+        out.join("jacobians.json").display(),
+        out.join("physics.json").display(),
+        out.join("skeleton.json").display(),
+        out.join("actuators.json").display(),
+        report.meshes.len(),
+        t0.elapsed().as_secs_f64()
+    );
+    Ok(report)
+}
