@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Every test of the project, from a fresh clone: the Rust crate's (unit, integration, doc), then
-# the Python package's, built with maturin and installed into a virtual environment under
-# target/ (created on first use; packages from PyPI only).
+# the Python package's (ruff, mypy, stubtest, pytest), built with maturin and installed into a
+# virtual environment under target/ (created on first use; packages from PyPI only).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -13,6 +13,14 @@ if [ ! -x "$venv/bin/python" ]; then
 fi
 py="$venv/bin/python"
 "$py" -m pip install --quiet --disable-pip-version-check -r python/requirements-test.txt
+# Lint and formatting of the Python code (settings in python/pyproject.toml; --config so that
+# they apply to examples/python/ too).
+export RUFF_CACHE_DIR="${RUFF_CACHE_DIR:-target/ruff_cache}" MYPY_CACHE_DIR="${MYPY_CACHE_DIR:-target/mypy_cache}"
+"$venv/bin/ruff" check --config python/pyproject.toml python examples/python
+"$venv/bin/ruff" format --check --config python/pyproject.toml python examples/python
 # Builds the extension (release) in an isolated environment with maturin from PyPI.
 "$py" -m pip install --quiet --disable-pip-version-check --force-reinstall --no-deps ./python
+# Types of the package's modules, and the stubs of the native module against the installed one.
+"$py" -m mypy --config-file python/pyproject.toml python/diffsoft
+"$py" -m mypy.stubtest diffsoft._diffsoft
 "$py" -m pytest -q python/tests

@@ -36,8 +36,10 @@ def main() -> None:
     scene.configure(solver="direct", anderson=0)  # what gradients with contact need
     values = [{"youngs_modulus": e} for e in np.geomspace(400.0, 3200.0, 8)]
     params = ["youngs_modulus", "initial_velocities"]
-    print(f"Baymax on the ground: {scene.n_vertices} vertices, {scene.n_tets} tets, {STEPS} steps, "
-          f"8 parameter sets, {os.cpu_count()} cores; best of {REPEATS}")
+    print(
+        f"Baymax on the ground: {scene.n_vertices} vertices, {scene.n_tets} tets, {STEPS} steps, "
+        f"8 parameter sets, {os.cpu_count()} cores; best of {REPEATS}"
+    )
 
     def loop_grad():
         out = []

@@ -52,7 +52,7 @@ def main() -> None:
         (grad,) = torch.autograd.grad(loss, theta)
         value = loss.item()
         history.append(value)
-        print(f"{it:4d} {value:12.5e} {value ** 0.5:17.5f} {step:8.3g}")
+        print(f"{it:4d} {value:12.5e} {value**0.5:17.5f} {step:8.3g}")
         with torch.no_grad():
             while True:
                 trial = theta - step * grad

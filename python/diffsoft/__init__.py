@@ -19,6 +19,18 @@ needed for the rest of the package).
 Parameters are named as on the command line (``diffsoft.SCALAR_PARAMETERS``) plus the arrays of
 ``diffsoft.ARRAY_PARAMETERS`` (name, shape, meaning); both lists are read from the library's
 parameter registry.
+
+Errors: every exception the package raises derives from ``diffsoft.DiffsoftError`` and from the
+built-in it stands for, so ``except ValueError`` / ``OSError`` / ``RuntimeError`` still work:
+
+* ``InputError`` (``ValueError``): bad input (an unknown parameter, loss, mode or setting, a
+  value out of range or of the wrong shape, a malformed scene or mesh file); its subclasses
+  ``UnsupportedError`` (a feature the backward pass, the simulator or the mesh reader does not
+  support) and ``UncertifiedError`` (a time step the solver's certification refuses);
+* ``FileError`` (``OSError``): a scene or mesh file that cannot be read;
+* ``SimulationError`` (``RuntimeError``): a run that failed (factorization, projections); its
+  subclasses ``DivergenceError`` (divergence, a non-finite state) and ``ConvergenceError`` (a
+  gradient refused because the forward pass did not converge or its replay deviates).
 """
 
 from __future__ import annotations
@@ -37,6 +49,16 @@ from ._diffsoft import (
     jacobians,
     simulate_batch,
 )
+from ._errors import (
+    ConvergenceError,
+    DiffsoftError,
+    DivergenceError,
+    FileError,
+    InputError,
+    SimulationError,
+    UncertifiedError,
+    UnsupportedError,
+)
 
 #: Names of the scalar parameters (``Scene.set``/``get``/``grad``), as the CLI's ``--set``
 #: (from the library's parameter registry).
@@ -47,8 +69,16 @@ ARRAY_PARAMETERS: list[tuple[str, str, str]] = list(_diffsoft.array_parameters()
 __all__ = [
     "ARRAY_PARAMETERS",
     "SCALAR_PARAMETERS",
+    "ConvergenceError",
+    "DiffsoftError",
+    "DivergenceError",
+    "FileError",
+    "InputError",
     "Run",
     "Scene",
+    "SimulationError",
+    "UncertifiedError",
+    "UnsupportedError",
     "__version__",
     "bounds",
     "grad_batch",

@@ -3,30 +3,47 @@
 from __future__ import annotations
 
 from os import PathLike
-from typing import Any
+from typing import Any, final
 
 import numpy as np
 import numpy.typing as npt
+from typing_extensions import TypeAlias
+
+__all__ = [
+    "Run",
+    "Scene",
+    "__version__",
+    "array_parameters",
+    "bounds",
+    "grad_batch",
+    "gradcheck",
+    "jacobians",
+    "scalar_parameters",
+    "simulate_batch",
+]
 
 __version__: str
 
-FloatArray = npt.NDArray[np.float64]
-ParamValue = float | npt.ArrayLike
+# Private: the stubs' own shorthands, not names of the module.
+_FloatArray: TypeAlias = npt.NDArray[np.float64]
+_ParamValue: TypeAlias = float | npt.ArrayLike
 
+@final
 class Run:
     """The result of ``Scene.simulate``."""
 
-    positions: FloatArray
+    positions: _FloatArray
     """Positions of every state, ``(steps + 1, n, 3)``; state 0 is the initial state."""
-    velocities: FloatArray
+    velocities: _FloatArray
     """Velocities of every state, ``(steps + 1, n, 3)``."""
-    times: FloatArray
+    times: _FloatArray
     """Time of every state, ``(steps + 1,)``."""
     stats: dict[str, Any]
     """The run log (as ``run.json``): ``summary``, ``certificate``, ``settings``,
     ``unconverged_steps`` and ``steps`` (one dict per step: iterations, converged, contacts,
     energies, timings)."""
 
+@final
 class Scene:
     """A scene ready to simulate and differentiate."""
 
@@ -34,13 +51,13 @@ class Scene:
     def load(path: str | PathLike[str], passive: bool = False) -> Scene:
         """Read a scene: native ``diffsoft.scene/1`` or the paper's format.
 
-        Raises ``OSError`` if the file cannot be read and ``ValueError`` (naming file, line
-        and column) if it is malformed."""
-    def set(self, name: str, value: ParamValue) -> None:
+        Raises ``FileError`` (an ``OSError``) if the file cannot be read and ``InputError`` (a
+        ``ValueError``, naming file, line and column) if it is malformed."""
+    def set(self, name: str, value: _ParamValue) -> None:
         """Set a scalar (``youngs_modulus``, ``gravity.y``, ...) or array parameter
         (``initial_positions``, ``youngs_modulus_per_tet``, ``activations``, ...): a name of
         ``scalar_parameters()`` or ``array_parameters()``."""
-    def get(self, name: str) -> float | FloatArray | None:
+    def get(self, name: str) -> float | _FloatArray | None:
         """A parameter's value (``None``: per-step controls that follow the schedules)."""
     def configure(self, **settings: Any) -> None:
         """Change solver settings by their scene-file names (``solver``, ``tolerance``,
@@ -68,14 +85,15 @@ class Scene:
     def joint_dofs(self) -> int:
         """Reduced joint coordinates, the columns of ``torques``."""
     @property
-    def masses(self) -> FloatArray:
+    def masses(self) -> _FloatArray:
         """Lumped vertex masses (kg), ``(n,)``."""
     @property
     def fixed(self) -> list[bool]:
         """Whether each vertex is pinned."""
     def copy(self) -> Scene: ...
     def simulate(self, steps: int) -> Run:
-        """Simulate ``steps`` steps (raises ``RuntimeError`` on divergence)."""
+        """Simulate ``steps`` steps (raises ``DivergenceError``, a ``RuntimeError``, on
+        divergence or a non-finite state)."""
     def grad(
         self,
         steps: int,
@@ -83,11 +101,11 @@ class Scene:
         params: list[str] | None = None,
         mode: str = "unrolled",
         allow_unconverged: bool = False,
-    ) -> tuple[float, dict[str, float | FloatArray]]:
+    ) -> tuple[float, dict[str, float | _FloatArray]]:
         """The loss (``final_com.x|y|z``, ``mean_com.x|y|z``, ``joint_angle.BONE``,
         ``mean_joint_angle.BONE``) and its derivatives with respect to ``params``. A forward
         that misses its tolerance (or an unrolled replay that deviates from it) raises
-        ``RuntimeError`` unless ``allow_unconverged``."""
+        ``ConvergenceError`` (a ``RuntimeError``) unless ``allow_unconverged``."""
     def vjp(
         self,
         steps: int,
@@ -96,7 +114,7 @@ class Scene:
         velocity_cotangent: npt.ArrayLike | None = None,
         mode: str = "unrolled",
         allow_unconverged: bool = False,
-    ) -> dict[str, float | FloatArray]:
+    ) -> dict[str, float | _FloatArray]:
         """Gradient of ``sum(cotangent * positions) + sum(velocity_cotangent * velocities)``
         (both ``(steps + 1, n, 3)``) with respect to ``params``; ``allow_unconverged`` as in
         ``grad``."""
@@ -106,13 +124,13 @@ def grad_batch(
     steps: int,
     loss: str,
     params: list[str],
-    values: list[dict[str, ParamValue]],
+    values: list[dict[str, _ParamValue]],
     mode: str = "unrolled",
     allow_unconverged: bool = False,
-) -> list[tuple[float, dict[str, float | FloatArray]]]:
+) -> list[tuple[float, dict[str, float | _FloatArray]]]:
     """``scene.grad`` for every parameter set of ``values``, in parallel on all cores."""
 
-def simulate_batch(scene: Scene, steps: int, values: list[dict[str, ParamValue]]) -> list[Run]:
+def simulate_batch(scene: Scene, steps: int, values: list[dict[str, _ParamValue]]) -> list[Run]:
     """``scene.simulate`` for every parameter set of ``values``, in parallel on all cores."""
 
 def bounds(

@@ -11,7 +11,7 @@ them results are rounded to float32.
 
 from __future__ import annotations
 
-from typing import Mapping
+from collections.abc import Mapping
 
 import jax
 import jax.numpy as jnp

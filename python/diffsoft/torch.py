@@ -11,7 +11,7 @@ per step).
 
 from __future__ import annotations
 
-from typing import Mapping
+from collections.abc import Mapping
 
 import numpy as np
 import torch
@@ -35,7 +35,7 @@ def _configured(scene: Scene, names: tuple[str, ...], tensors: tuple[torch.Tenso
 
 class _Simulate(torch.autograd.Function):
     @staticmethod
-    def forward(ctx, scene, steps, names, mode, with_velocities, *tensors):  # type: ignore[override]
+    def forward(ctx, scene, steps, names, mode, with_velocities, *tensors):
         s = _configured(scene, names, tensors)
         run = s.simulate(steps)
         ctx.scene, ctx.steps, ctx.names, ctx.mode = s, steps, names, mode
@@ -47,7 +47,7 @@ class _Simulate(torch.autograd.Function):
         return q
 
     @staticmethod
-    def backward(ctx, *outs):  # type: ignore[override]
+    def backward(ctx, *outs):
         cq = outs[0]
         cv = outs[1] if ctx.with_velocities else None
         zeros = (None,) * 5
@@ -60,7 +60,7 @@ class _Simulate(torch.autograd.Function):
             velocity_cotangent=None if cv is None else cv.detach().to("cpu", torch.float64).numpy(),
             mode=ctx.mode,
         )
-        grads = []
+        grads: list[torch.Tensor | None] = []
         for name, (dtype, device, shape), needed in zip(ctx.names, ctx.inputs, ctx.needs_input_grad[5:]):
             if not needed:
                 grads.append(None)

@@ -12,9 +12,10 @@ fn scenes(base: &Scene, values: &[Bound<'_, PyDict>]) -> PyResult<Vec<Scene>> {
         .iter()
         .enumerate()
         .map(|(k, v)| {
-            let vals =
-                scene::values(&base.inner.model, v).map_err(|e| crate::errors::value(format!("values[{k}]: {e}")))?;
-            base.with(vals)
+            // The error's message (not its type name) after the index of the parameter set.
+            scene::values(&base.inner.model, v)
+                .and_then(|vals| base.with(vals))
+                .map_err(|e| crate::errors::value(format!("values[{k}]: {}", e.value(v.py()))))
         })
         .collect()
 }

@@ -255,7 +255,7 @@ impl Scene {
     }
 
     /// The loss and its derivatives with respect to `params` (name -> float or ndarray). A
-    /// forward that misses its tolerance raises `RuntimeError` unless `allow_unconverged`.
+    /// forward that misses its tolerance raises `ConvergenceError` unless `allow_unconverged`.
     #[pyo3(signature = (steps, loss = "final_com.y", params = None, mode = "unrolled", allow_unconverged = false))]
     fn grad<'py>(
         &self,
@@ -277,7 +277,7 @@ impl Scene {
 
     /// The gradient of `sum(cotangent * positions) + sum(velocity_cotangent * velocities)` over
     /// the states `0..=steps` (arrays of shape `(steps + 1, n, 3)`) with respect to `params`. A
-    /// forward that misses its tolerance raises `RuntimeError` unless `allow_unconverged`.
+    /// forward that misses its tolerance raises `ConvergenceError` unless `allow_unconverged`.
     #[pyo3(signature = (steps, params, cotangent, velocity_cotangent = None, mode = "unrolled", allow_unconverged = false))]
     #[allow(clippy::too_many_arguments)]
     fn vjp<'py>(

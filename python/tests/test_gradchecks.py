@@ -42,8 +42,12 @@ def scene_octopus():
     return s, "activations", 0.1, steps
 
 
-CASES = {"free_body": scene_free, "ground_contact": scene_ground, "baymax_torques": scene_baymax_torques,
-         "octopus_actuated": scene_octopus}
+CASES = {
+    "free_body": scene_free,
+    "ground_contact": scene_ground,
+    "baymax_torques": scene_baymax_torques,
+    "octopus_actuated": scene_octopus,
+}
 
 
 def setup(name):

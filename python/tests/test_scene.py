@@ -8,7 +8,6 @@ import numpy as np
 import pytest
 
 import diffsoft
-from conftest import DATA
 
 
 def test_load_both_formats(beam, bridgesus):

@@ -74,8 +74,17 @@ def test_every_report_validates_against_its_schema(path):
 
 def test_the_main_jobs_reports_are_there():
     names = {p.name for p in REPORTS.glob("*.json")}
-    for n in ["bounds.json", "physics.json", "skeleton.json", "actuators.json", "jacobians.json",
-              "gradients.json", "tradeoff.json", "extremes.json", "cloth.json"]:
+    for n in [
+        "bounds.json",
+        "physics.json",
+        "skeleton.json",
+        "actuators.json",
+        "jacobians.json",
+        "gradients.json",
+        "tradeoff.json",
+        "extremes.json",
+        "cloth.json",
+    ]:
         assert n in names, n
     assert list((REPORTS / "sweeps").glob("*.json"))
 

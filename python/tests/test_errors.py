@@ -1,0 +1,142 @@
+"""The exception classes: each error the library raises is an instance of the most specific
+class of ``diffsoft`` and of the built-in it stands for (``ValueError``, ``OSError``,
+``RuntimeError``), triggered here from real inputs."""
+
+from __future__ import annotations
+
+import pickle
+
+import numpy as np
+import pytest
+
+import diffsoft
+from conftest import DATA, REPO
+
+BRIDGESUS = REPO / "verification/paper/bridgesus/bridgesus.json"
+
+CLASSES = {
+    # class: (direct bases, built-in)
+    diffsoft.DiffsoftError: ((Exception,), Exception),
+    diffsoft.InputError: ((diffsoft.DiffsoftError, ValueError), ValueError),
+    diffsoft.UnsupportedError: ((diffsoft.InputError,), ValueError),
+    diffsoft.UncertifiedError: ((diffsoft.InputError,), ValueError),
+    diffsoft.FileError: ((diffsoft.DiffsoftError, OSError), OSError),
+    diffsoft.SimulationError: ((diffsoft.DiffsoftError, RuntimeError), RuntimeError),
+    diffsoft.DivergenceError: ((diffsoft.SimulationError,), RuntimeError),
+    diffsoft.ConvergenceError: ((diffsoft.SimulationError,), RuntimeError),
+}
+
+
+def raised(cls: type[Exception], builtin: type[Exception], f, *args, match: str | None = None) -> Exception:
+    """Call `f(*args)`; it must raise exactly `cls` (not a subclass), a `DiffsoftError` and a
+    `builtin`."""
+    with pytest.raises(cls, match=match) as info:
+        f(*args)
+    e = info.value
+    assert type(e) is cls, f"{type(e).__name__}: {e}"
+    assert isinstance(e, diffsoft.DiffsoftError) and isinstance(e, builtin)
+    return e
+
+
+def test_hierarchy_and_exports():
+    for cls, (bases, builtin) in CLASSES.items():
+        assert cls.__bases__ == bases, cls
+        assert issubclass(cls, builtin) and issubclass(cls, Exception)
+        assert cls.__name__ in diffsoft.__all__ and getattr(diffsoft, cls.__name__) is cls
+        assert cls.__module__ == "diffsoft" and cls.__doc__
+    assert {n for n in diffsoft.__all__ if n.endswith("Error")} == {c.__name__ for c in CLASSES}
+
+
+def test_errors_pickle_and_keep_their_message(tmp_path):
+    e = raised(diffsoft.FileError, OSError, diffsoft.Scene.load, tmp_path / "nope.json")
+    again = pickle.loads(pickle.dumps(e))
+    assert type(again) is diffsoft.FileError and str(again) == str(e)
+    assert "nope.json" in str(e)
+
+
+def test_missing_files_are_file_errors(tmp_path):
+    raised(diffsoft.FileError, OSError, diffsoft.Scene.load, tmp_path / "nope.json", match="nope.json")
+    raised(diffsoft.FileError, OSError, diffsoft.bounds, tmp_path / "missing.obj", 1.0, 1.0, 0.01, match="missing.obj")
+
+
+def test_bad_input_is_input_error(beam, tmp_path):
+    raised(diffsoft.InputError, ValueError, beam.set, "youngs", 1.0, match="unknown parameter 'youngs'")
+    raised(diffsoft.InputError, ValueError, beam.grad, 3, "final_com.y", ["youngs"], match="unknown parameter")
+    raised(diffsoft.InputError, ValueError, beam.grad, 3, "energy", match="unknown loss")
+    raised(diffsoft.InputError, ValueError, beam.grad, 3, "final_com.y", None, "exact", match="mode 'exact'")
+    raised(diffsoft.InputError, ValueError, lambda: beam.configure(tolerence=1e-3), match="unknown setting")
+    raised(diffsoft.InputError, ValueError, beam.set, "initial_positions", np.zeros((20, 2)), match="shape")
+    bad = tmp_path / "bad.json"
+    bad.write_text('{\n  "schema": "diffsoft.scene/1",\n  "time_step": 0.01,\n  "bodies": [ { "name": 3 } ]\n}\n')
+    raised(diffsoft.InputError, ValueError, diffsoft.Scene.load, bad, match="line 4")
+    raised(diffsoft.InputError, ValueError, diffsoft.bounds, DATA / "beam.obj", -1.0, 1e4, 0.01, match="rho")
+    raised(
+        diffsoft.InputError,
+        ValueError,
+        diffsoft.simulate_batch,
+        beam,
+        3,
+        [{"density": 1.0}, {"dens": 1.0}],
+        match=r"^values\[1\]: unknown parameter 'dens'",
+    )
+
+
+def test_input_refused_when_a_run_starts(beam):
+    # A negative tolerance: refused by `configure` (settings are checked by name there) or, were
+    # it let through, when the run starts; an InputError either way.
+    def negative_tolerance():
+        beam.configure(tolerance=-1.0)
+        beam.simulate(2)
+
+    raised(diffsoft.InputError, ValueError, negative_tolerance, match="tolerance")
+    # Checked by the library when the rollout starts: its trajectory cannot fit in memory.
+    raised(diffsoft.InputError, ValueError, beam.simulate, 10**15, match="memory")
+
+
+def test_unsupported_features(ground, tmp_path):
+    # Unrolled gradients differentiate local-global iterations: not Newton's.
+    ground.configure(solver="newton", tolerance=1e-12, max_iterations=200)
+    raised(diffsoft.UnsupportedError, ValueError, ground.grad, 3, "final_com.x", None, "unrolled", match="Newton")
+    stl = tmp_path / "part.stl"
+    stl.write_text("solid part\nendsolid part\n")
+    raised(
+        diffsoft.UnsupportedError, ValueError, diffsoft.bounds, stl, 1000.0, 1e4, 0.01, match="unsupported mesh format"
+    )
+
+
+def test_a_time_step_certification_refuses():
+    s = diffsoft.Scene.load(BRIDGESUS)
+    s.configure(solver="split", certify="refuse")
+    raised(diffsoft.UncertifiedError, ValueError, s.simulate, 1, match="certification")
+
+
+def test_divergence():
+    # The split iteration's spectral radius exceeds 1 at bridgesus's time step; without
+    # certification it runs and diverges.
+    s = diffsoft.Scene.load(BRIDGESUS)
+    s.configure(solver="split", certify="off")
+    raised(diffsoft.DivergenceError, RuntimeError, s.simulate, 5, match="diverged")
+
+
+def test_a_non_finite_state_is_divergence(beam):
+    beam.set("initial_velocities", np.random.default_rng(0).normal(size=(20, 3)) * 1e200)
+    raised(diffsoft.DivergenceError, RuntimeError, beam.simulate, 3, match="non-finite")
+
+
+def test_an_unconverged_gradient_is_a_convergence_error(beam):
+    beam.set("youngs_modulus", 1e20)
+    beam.configure(tolerance=1e-6, max_iterations=5)
+    raised(diffsoft.ConvergenceError, RuntimeError, beam.grad, 10, "final_com.y", ["density"], match="did not converge")
+    cot = np.ones((11, beam.n_vertices, 3))
+    raised(diffsoft.ConvergenceError, RuntimeError, beam.vjp, 10, ["density"], cot, match="did not converge")
+    raised(
+        diffsoft.ConvergenceError,
+        RuntimeError,
+        diffsoft.grad_batch,
+        beam,
+        10,
+        "final_com.y",
+        ["density"],
+        [{}],
+        match="did not converge",
+    )
