@@ -12,7 +12,24 @@ static BASE: AtomicUsize = AtomicUsize::new(0);
 static ACTIVE: AtomicBool = AtomicBool::new(false);
 static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
 
-/// The system allocator with live-byte and peak counters.
+/// The system allocator with live-byte and peak counters, installed as the global allocator:
+///
+/// ```
+/// use diffsoft::alloc::{allocations, peak_since_reset, reset_peak, Counting};
+///
+/// #[global_allocator]
+/// static ALLOC: Counting = Counting;
+///
+/// fn main() -> Result<(), Box<dyn std::error::Error>> {
+///     reset_peak();
+///     let before = allocations().ok_or("not installed")?;
+///     let buffer = vec![1u8; 1 << 20];
+///     assert!(peak_since_reset().ok_or("not installed")? >= 1 << 20);
+///     assert!(allocations().ok_or("not installed")? > before);
+///     drop(buffer);
+///     Ok(())
+/// }
+/// ```
 #[derive(Debug, Default)]
 pub struct Counting;
 

@@ -21,6 +21,18 @@ pub struct Header {
 
 impl Header {
     /// A header for the given schema name (e.g. `"diffsoft.bounds/1"`).
+    ///
+    /// ```
+    /// use diffsoft::report::{Header, CRATE_VERSION};
+    ///
+    /// let header = Header::new("diffsoft.bounds/1");
+    /// assert_eq!((header.schema.as_str(), header.crate_version), ("diffsoft.bounds/1", CRATE_VERSION));
+    /// // Serialised, its fields come first in every report.
+    /// let json = serde_json::to_value(&header)?;
+    /// assert_eq!(json["schema"], "diffsoft.bounds/1");
+    /// assert!(json["provenance"]["date_utc"].is_string());
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn new(schema: &str) -> Self {
         Self {
             schema: schema.to_string(),
@@ -53,6 +65,18 @@ pub struct Provenance {
 
 impl Provenance {
     /// The provenance of a report written now (machine facts are read once per process).
+    ///
+    /// ```
+    /// use diffsoft::report::Provenance;
+    ///
+    /// let p = Provenance::now();
+    /// assert!(p.threads >= 1 && p.cpus >= 1);
+    /// assert!(!p.rustc_version.is_empty());
+    /// // `YYYY-MM-DDTHH:MM:SSZ`
+    /// assert_eq!((p.date_utc.len(), &p.date_utc[10..11], &p.date_utc[19..]), (20, "T", "Z"));
+    /// assert!(p.os.contains(std::env::consts::ARCH));
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn now() -> Self {
         static FIXED: std::sync::OnceLock<(Option<String>, Option<String>)> = std::sync::OnceLock::new();
         let (git_commit, cpu_model) = FIXED.get_or_init(|| (git_commit(), cpu_model())).clone();
@@ -128,6 +152,18 @@ pub struct ModelSize {
 
 impl ModelSize {
     /// The size of `model`.
+    ///
+    /// ```
+    /// use diffsoft::mesh::generate::BoxSpec;
+    /// use diffsoft::report::ModelSize;
+    /// use diffsoft::{BodySpec, MassSpec, Material, ModelBuilder};
+    ///
+    /// let mesh = BoxSpec::new([1, 1, 1], [0.1, 0.1, 0.1]).build()?;
+    /// let material = Material { youngs_modulus: 1e5, poisson_ratio: 0.3 };
+    /// let model = ModelBuilder::new().body(BodySpec::new("box", mesh, material, MassSpec::Density(1000.0))).build()?;
+    /// assert_eq!(ModelSize::of(&model), ModelSize { vertices: 8, tets: 6 });
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn of(model: &crate::model::Model) -> Self {
         Self {
             vertices: model.n(),
@@ -155,6 +191,16 @@ pub struct Verdict {
 
 impl Verdict {
     /// `holds` iff `measured <= threshold`.
+    ///
+    /// ```
+    /// use diffsoft::report::Verdict;
+    ///
+    /// let v = Verdict::at_most("Eq. 24 is a safe step (s)", 1e-3, 1e-3);
+    /// assert!(v.holds);
+    /// assert_eq!((v.measured, v.threshold), (Some(1e-3), Some(1e-3)));
+    /// assert!(!Verdict::at_most("too large", 2.0, 1.0).holds);
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn at_most(claim: impl Into<String>, measured: f64, threshold: f64) -> Self {
         Self {
             claim: claim.into(),
@@ -166,6 +212,17 @@ impl Verdict {
     }
 
     /// `holds` iff `measured < threshold`.
+    ///
+    /// ```
+    /// use diffsoft::report::Verdict;
+    ///
+    /// // Equality is not below.
+    /// assert!(!Verdict::below("rho(G21) < 1", 1.0, 1.0).holds);
+    /// let v = Verdict::below("rho(G21) < 1", 0.9, 1.0);
+    /// assert!(v.holds);
+    /// assert_eq!(v.comparison, "measured < threshold");
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn below(claim: impl Into<String>, measured: f64, threshold: f64) -> Self {
         Self {
             claim: claim.into(),
@@ -177,6 +234,15 @@ impl Verdict {
     }
 
     /// A verdict with an explicit outcome and a description of the comparison.
+    ///
+    /// ```
+    /// use diffsoft::report::Verdict;
+    ///
+    /// let v = Verdict::new("the mesh is an M-matrix", false, Some(3.0), None, "positive off-diagonal entries == 0");
+    /// assert!(!v.holds && v.threshold.is_none());
+    /// assert_eq!(serde_json::to_value(&v)?["measured"], 3.0);
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn new(
         claim: impl Into<String>,
         holds: bool,

@@ -70,6 +70,31 @@ pub struct ActuatorSpec {
 
 impl ActuatorSpec {
     /// A pneumatic group on `tets`.
+    ///
+    /// ```
+    /// use diffsoft::actuator::{ActuatorKind, ActuatorSpec};
+    /// use diffsoft::mesh::generate::BoxSpec;
+    /// use diffsoft::{BodySpec, MassSpec, Material, ModelBuilder, Schedule, Settings, Simulator};
+    ///
+    /// let mesh = BoxSpec::new([1, 1, 1], [0.1, 0.1, 0.1]).build()?;
+    /// let all: Vec<usize> = (0..mesh.num_tets()).collect();
+    /// let material = Material { youngs_modulus: 1e5, poisson_ratio: 0.3 };
+    /// let mut body = BodySpec::new("balloon", mesh, material, MassSpec::Density(1000.0));
+    /// // Activation 2: every tet is pulled toward twice its volume.
+    /// body.actuators.push(ActuatorSpec::pneumatic("inflate", &all, 1e5, Schedule::constant(2.0)));
+    /// let model = ModelBuilder::new().body(body).build()?;
+    /// let groups = &model.actuators().ok_or("no actuators")?.groups;
+    /// assert_eq!((groups[0].kind, groups.len()), (ActuatorKind::Pneumatic, 1));
+    ///
+    /// let mut sim = Simulator::new(model, Settings::default())?;
+    /// for _ in 0..5 {
+    ///     sim.step()?;
+    /// }
+    /// let width = sim.state().q.iter().map(|q| q.x).fold(f64::MIN, f64::max)
+    ///     - sim.state().q.iter().map(|q| q.x).fold(f64::MAX, f64::min);
+    /// assert!(width > 0.101, "the box grew: {width}");
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn pneumatic(name: &str, tets: &[usize], stiffness: f64, activation: Schedule) -> Self {
         Self {
             name: name.to_string(),
@@ -81,6 +106,33 @@ impl ActuatorSpec {
     }
 
     /// A muscle group from `(tet, direction)` fibres.
+    ///
+    /// ```
+    /// use diffsoft::actuator::{fibres_along, ActuatorKind, ActuatorSpec};
+    /// use diffsoft::mesh::generate::BoxSpec;
+    /// use diffsoft::{BodySpec, MassSpec, Material, ModelBuilder, Schedule};
+    /// use nalgebra::Vector3;
+    ///
+    /// let mesh = BoxSpec::new([2, 1, 1], [0.2, 0.1, 0.1]).build()?;
+    /// let all: Vec<usize> = (0..mesh.num_tets()).collect();
+    /// let material = Material { youngs_modulus: 1e5, poisson_ratio: 0.3 };
+    /// let mut body = BodySpec::new("arm", mesh, material, MassSpec::Density(1000.0));
+    /// // Fibres along x (normalised by the model), contracting to 70 % of their length.
+    /// let fibres = fibres_along(&all, Vector3::new(2.0, 0.0, 0.0));
+    /// body.actuators.push(ActuatorSpec::muscle("biceps", fibres, 1e5, Schedule::constant(0.3)));
+    /// let model = ModelBuilder::new().body(body).build()?;
+    /// let act = model.actuators().ok_or("no actuators")?;
+    /// assert_eq!(act.groups[0].kind, ActuatorKind::Muscle);
+    /// assert_eq!(act.group("biceps"), Some(0));
+    /// assert!(act.cells.iter().all(|c| c.direction == Vector3::x()));
+    ///
+    /// // A muscle activation outside [0, 1] is refused when the model is built.
+    /// let mesh = BoxSpec::new([1, 1, 1], [0.1, 0.1, 0.1]).build()?;
+    /// let mut body = BodySpec::new("arm", mesh, material, MassSpec::Density(1000.0));
+    /// body.actuators.push(ActuatorSpec::muscle("biceps", vec![(0, Vector3::x())], 1e5, Schedule::constant(1.5)));
+    /// assert!(ModelBuilder::new().body(body).build().is_err());
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn muscle(name: &str, fibres: Vec<(usize, Vector3<f64>)>, stiffness: f64, activation: Schedule) -> Self {
         Self {
             name: name.to_string(),
@@ -202,6 +254,19 @@ impl Actuators {
 }
 
 /// The tets with at least `min_shared` of their vertices in `vertices` (body numbering).
+///
+/// ```
+/// use diffsoft::actuator::tets_of_vertices;
+/// use diffsoft::mesh::generate::BoxSpec;
+///
+/// let mesh = BoxSpec::new([2, 1, 1], [0.2, 0.1, 0.1]).build()?;
+/// // The vertices of the cell at x < 0.1 (and its face at x = 0.1).
+/// let left: Vec<usize> = (0..mesh.num_vertices()).filter(|&v| mesh.vertices[v].x < 0.15).collect();
+/// let tets = tets_of_vertices(&mesh, &left, 4);
+/// assert_eq!(tets.len(), 6);
+/// assert!(tets.iter().all(|&t| mesh.tets[t].iter().all(|&v| mesh.vertices[v].x < 0.15)));
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 pub fn tets_of_vertices(mesh: &TetMesh, vertices: &[usize], min_shared: usize) -> Vec<usize> {
     let mut mark = vec![false; mesh.num_vertices()];
     for &v in vertices {
@@ -220,6 +285,15 @@ pub fn centroid(mesh: &TetMesh, t: usize) -> Vector3<f64> {
 }
 
 /// Every tet of `tets` with the same fibre direction.
+///
+/// ```
+/// use diffsoft::actuator::fibres_along;
+/// use nalgebra::Vector3;
+///
+/// let fibres = fibres_along(&[3, 5], Vector3::y());
+/// assert_eq!(fibres, vec![(3, Vector3::y()), (5, Vector3::y())]);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 pub fn fibres_along(tets: &[usize], direction: Vector3<f64>) -> Vec<(usize, Vector3<f64>)> {
     tets.iter().map(|&t| (t, direction)).collect()
 }
@@ -264,6 +338,22 @@ pub fn nearest_segments(mesh: &TetMesh, polyline: &[Vector3<f64>]) -> Option<Vec
 
 /// The tets whose centroid lies within `radius` of `polyline`, each with the direction of its
 /// nearest segment.
+///
+/// ```
+/// use diffsoft::actuator::fibres_from_polyline;
+/// use diffsoft::mesh::generate::BoxSpec;
+/// use nalgebra::Vector3;
+///
+/// let mesh = BoxSpec::new([4, 1, 1], [0.4, 0.1, 0.1]).build()?;
+/// // A line along the beam's axis: every tet's centroid is within 0.05 of it.
+/// let axis = [Vector3::new(0.0, 0.05, 0.05), Vector3::new(0.4, 0.05, 0.05)];
+/// let fibres = fibres_from_polyline(&mesh, &axis, 0.05);
+/// assert_eq!(fibres.len(), mesh.num_tets());
+/// assert!(fibres.iter().all(|(_, m)| *m == Vector3::x()));
+/// // A polyline without a segment of positive length gives no fibres.
+/// assert!(fibres_from_polyline(&mesh, &axis[..1], 1.0).is_empty());
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 pub fn fibres_from_polyline(mesh: &TetMesh, polyline: &[Vector3<f64>], radius: f64) -> Vec<(usize, Vector3<f64>)> {
     nearest_segments(mesh, polyline)
         .map(|near| {

@@ -130,6 +130,31 @@ pub struct BoundsInputs {
 }
 
 /// Analyse `mesh` (already scaled to simulation units).
+///
+/// ```
+/// use diffsoft::analysis::bounds::{analyze, BoundsParams};
+/// use diffsoft::analysis::spectral::EigenMethod;
+/// use diffsoft::mesh::{self, LoadOptions};
+/// use diffsoft::mesh::generate::BoxSpec;
+/// use diffsoft::TetMesh;
+///
+/// let generated = BoxSpec::new([2, 1, 1], [0.2, 0.1, 0.1]).build()?;
+/// let loaded = TetMesh::new_with(generated.vertices, generated.tets, LoadOptions::default())?;
+/// let params = BoundsParams {
+///     rho: 1000.0,
+///     mu: 1e5,
+///     dt: 1e-4,
+///     attachments: Default::default(),
+///     method: EigenMethod::Dense,
+///     empirical: false,
+/// };
+/// let report = analyze(&loaded.mesh, &loaded.info, &params)?;
+/// assert_eq!(report.mesh.tets, 12);
+/// assert!(report.jacobi.converges && report.split.converges);
+/// assert!(report.appendix_b.holds);
+/// assert!(report.empirical.is_empty());
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 pub fn analyze(mesh: &TetMesh, info: &MeshInfo, params: &BoundsParams) -> Result<BoundsReport, AnalysisError> {
     let t0 = Instant::now();
     let rho = positive("density rho", params.rho)?;

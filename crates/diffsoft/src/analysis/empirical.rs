@@ -72,6 +72,23 @@ pub struct EmpiricalCheck {
 
 /// Run `scheme` at time step `h` from `v = 0` with a random `f` (seeded) for at most
 /// `max_iter` iterations, and compare its rate with `predicted`.
+///
+/// ```
+/// use diffsoft::analysis::empirical::{contraction, Outcome, Scheme};
+/// use diffsoft::analysis::spectral::EigenMethod;
+/// use diffsoft::analysis::{Attachments, IterationSystem, Spectrum};
+/// use diffsoft::mesh::generate::BoxSpec;
+///
+/// let mesh = BoxSpec::new([1, 1, 1], [0.1, 0.1, 0.1]).build()?;
+/// let sys = IterationSystem::new(&mesh, 1000.0, 1e5, &Attachments::default())?;
+/// let spectrum = Spectrum::compute(&sys, EigenMethod::Dense)?;
+/// let h = 0.5 * spectrum.critical_dt_plain();
+/// let check = contraction(&sys, h, Scheme::Plain, spectrum.rho_plain(h), 10_000, 1);
+/// assert_eq!(check.outcome, Outcome::Converged);
+/// assert!(check.relative_difference < 1e-3, "observed {} vs {}", check.observed_rate, spectrum.rho_plain(h));
+/// assert!(check.final_relative_residual < 1e-10);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 pub fn contraction(
     sys: &IterationSystem,
     h: f64,

@@ -100,6 +100,22 @@ pub struct IterationSystem {
 
 impl IterationSystem {
     /// Assemble for uniform density `rho` and stiffness coefficient `mu` (`L = sum mu V A^T A`).
+    ///
+    /// ```
+    /// use diffsoft::analysis::{Attachments, IterationSystem};
+    /// use diffsoft::mesh::generate::BoxSpec;
+    ///
+    /// let mesh = BoxSpec::new([1, 1, 1], [0.1, 0.1, 0.1]).build()?;
+    /// let sys = IterationSystem::new(&mesh, 1000.0, 1e5, &Attachments::default())?;
+    /// assert_eq!(sys.n(), 8);
+    /// assert!((sys.mass.iter().sum::<f64>() - 1.0).abs() < 1e-12); // rho V
+    /// assert!(sys.attachment.is_empty());
+    /// // A pin as stiff as the paper's: its row is taken in the Dirichlet limit.
+    /// let pinned = IterationSystem::new(&mesh, 1000.0, 1e5, &Attachments { vertices: vec![0], stiffness: 1e20 })?;
+    /// assert_eq!(pinned.stiff_rows().iter().filter(|&&s| s).count(), 1);
+    /// assert!(IterationSystem::new(&mesh, -1.0, 1e5, &Attachments::default()).is_err());
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn new(mesh: &TetMesh, rho: f64, mu: f64, attachments: &Attachments) -> Result<Self, AnalysisError> {
         let fem = FemOperators::new(mesh)?;
         Self::from_fem(
@@ -111,6 +127,25 @@ impl IterationSystem {
     }
 
     /// Assemble from precomputed FEM operators and (possibly per-tet) coefficients.
+    ///
+    /// ```
+    /// use diffsoft::analysis::{Attachments, IterationSystem};
+    /// use diffsoft::fem::{Coefficient, FemOperators};
+    /// use diffsoft::mesh::generate::BoxSpec;
+    ///
+    /// let mesh = BoxSpec::new([1, 1, 1], [0.1, 0.1, 0.1]).build()?;
+    /// let fem = FemOperators::new(&mesh)?;
+    /// // A stiffer half: per-tet coefficients.
+    /// let mu: Vec<f64> = (0..mesh.num_tets()).map(|t| if t < 3 { 1e6 } else { 1e5 }).collect();
+    /// let (rho, none) = (Coefficient::Uniform(1000.0), Attachments::default());
+    /// let sys = IterationSystem::from_fem(&fem, rho, Coefficient::PerTet(&mu), &none)?;
+    /// let uniform = IterationSystem::new(&mesh, 1000.0, 1e5, &Attachments::default())?;
+    /// assert_eq!(sys.mass, uniform.mass);
+    /// assert!(sys.diag.iter().zip(&uniform.diag).all(|(a, b)| a >= b));
+    /// // One coefficient per tet, or an error.
+    /// assert!(IterationSystem::from_fem(&fem, rho, Coefficient::PerTet(&mu[..2]), &none).is_err());
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn from_fem(
         fem: &FemOperators,
         rho: Coefficient<'_>,
@@ -143,6 +178,21 @@ impl IterationSystem {
 
     /// A system from an already assembled per-axis `L` (attachments included) and lumped mass;
     /// `attachment` is the spring weight per vertex (empty if none).
+    ///
+    /// ```
+    /// use diffsoft::analysis::IterationSystem;
+    /// use diffsoft::fem::{Coefficient, FemOperators};
+    /// use diffsoft::mesh::generate::BoxSpec;
+    ///
+    /// let mesh = BoxSpec::new([1, 1, 1], [0.1, 0.1, 0.1]).build()?;
+    /// let fem = FemOperators::new(&mesh)?;
+    /// let l = fem.laplacian_csc(Coefficient::Uniform(1e5))?;
+    /// let sys = IterationSystem::from_parts(l.clone(), vec![0.125; 8], Vec::new())?;
+    /// assert_eq!(sys.diag, l.diagonal());
+    /// // Every lumped mass must be positive.
+    /// assert!(IterationSystem::from_parts(l, vec![0.0; 8], Vec::new()).is_err());
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn from_parts(l: SymCsc, mass: Vec<f64>, attachment: Vec<f64>) -> Result<Self, AnalysisError> {
         for &m in &mass {
             positive("lumped mass", m)?;
@@ -176,6 +226,19 @@ impl IterationSystem {
 
     /// The system restricted to the rows without stiff attachments (their Dirichlet limit), or
     /// `None` when no row is stiff.
+    ///
+    /// ```
+    /// use diffsoft::analysis::{Attachments, IterationSystem};
+    /// use diffsoft::mesh::generate::BoxSpec;
+    ///
+    /// let mesh = BoxSpec::new([1, 1, 1], [0.1, 0.1, 0.1]).build()?;
+    /// let free = IterationSystem::new(&mesh, 1000.0, 1e5, &Attachments::default())?;
+    /// assert!(free.without_stiff_rows().is_none());
+    /// let pins = Attachments { vertices: vec![0, 1], stiffness: 1e20 };
+    /// let reduced = IterationSystem::new(&mesh, 1000.0, 1e5, &pins)?.without_stiff_rows().ok_or("no stiff rows")?;
+    /// assert_eq!(reduced.n(), 6);
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn without_stiff_rows(&self) -> Option<IterationSystem> {
         let stiff = self.stiff_rows();
         if !stiff.iter().any(|&s| s) {
@@ -257,6 +320,24 @@ impl Spectrum {
     /// elastic ones that decide `h*_21`; no global eigensolver resolves the latter then (its
     /// absolute error is `eps w / m`). Those rows are eliminated for this one eigenvalue: by the
     /// Schur complement, the neglected term is `O(L_ii / w)` relative.
+    ///
+    /// ```
+    /// use diffsoft::analysis::spectral::EigenMethod;
+    /// use diffsoft::analysis::{Attachments, IterationSystem, Spectrum};
+    /// use diffsoft::mesh::generate::BoxSpec;
+    ///
+    /// let mesh = BoxSpec::new([2, 1, 1], [0.2, 0.1, 0.1]).build()?;
+    /// let sys = IterationSystem::new(&mesh, 1000.0, 1e5, &Attachments::default())?;
+    /// let spectrum = Spectrum::compute(&sys, EigenMethod::Auto)?;
+    /// assert_eq!(spectrum.method, EigenMethod::Dense); // small: dense
+    /// // (19) converges below h*_19, where its spectral radius reaches 1.
+    /// let h19 = spectrum.critical_dt_plain();
+    /// assert!((spectrum.rho_plain(h19) - 1.0).abs() < 1e-12);
+    /// // Kuhn tets give an M-matrix: (21) converges for every time step.
+    /// assert!(spectrum.critical_dt_split().is_none());
+    /// assert!(spectrum.lambda_max_dinv_l <= 2.0 + 1e-12);
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn compute(sys: &IterationSystem, method: EigenMethod) -> Result<Self, AnalysisError> {
         let method = method.resolve(sys.n());
         let lambda_max_minv_l = spectral::largest_eigenvalue(&sys.op_minv_l(), 0.0, method)?;

@@ -10,6 +10,15 @@ pub struct InputError {
 
 impl InputError {
     /// An error with this message.
+    ///
+    /// ```
+    /// use diffsoft::InputError;
+    ///
+    /// let e = InputError::new("body 'box': no tets").context("scene.json");
+    /// assert_eq!(e.message(), "scene.json: body 'box': no tets");
+    /// assert_eq!(e.to_string(), e.message());
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn new(message: impl Into<String>) -> Self {
         Self {
             message: message.into(),

@@ -11,6 +11,18 @@ use super::InputError;
 /// `nu E/(1+nu) V`, both on the deformation gradient. For small strains this is linear
 /// elasticity with shear modulus `mu = E/(2(1+nu))` and an extra volumetric stiffness; with
 /// `nu = 0` it is exactly linear elasticity with Young's modulus `E` and `lambda = 0`.
+///
+/// ```
+/// use diffsoft::Material;
+///
+/// let rubber = Material { youngs_modulus: 1e6, poisson_ratio: 0.25 };
+/// rubber.validate("rubber")?;
+/// assert_eq!(rubber.rotation_stiffness(), 8e5); // E / (1 + nu)
+/// assert_eq!(rubber.volume_stiffness(), 2e5); // nu E / (1 + nu)
+/// let bad = Material { youngs_modulus: 1e6, poisson_ratio: 0.5 };
+/// assert!(bad.validate("bad").is_err());
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, schemars::JsonSchema)]
 pub struct Material {
     /// Young's modulus (Pa).

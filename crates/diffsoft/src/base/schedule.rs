@@ -6,6 +6,18 @@ use super::InputError;
 
 /// Piecewise-linear time series (constant before the first and after the last sample): the
 /// activations of actuator groups and the torques of joints over time.
+///
+/// A ramp, as a struct literal:
+///
+/// ```
+/// use diffsoft::Schedule;
+///
+/// let ramp = Schedule { times: vec![0.0, 1.0], values: vec![0.0, 2.0] };
+/// ramp.validate("torque")?;
+/// assert_eq!(ramp.at(0.25), 0.5);
+/// assert_eq!(ramp.at(5.0), 2.0);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Schedule {
     /// Sample times, increasing.
@@ -16,6 +28,16 @@ pub struct Schedule {
 
 impl Schedule {
     /// A constant value.
+    ///
+    /// ```
+    /// use diffsoft::Schedule;
+    ///
+    /// let a = Schedule::constant(0.5);
+    /// a.validate("activation")?;
+    /// assert_eq!(a.at(-1.0), 0.5);
+    /// assert_eq!(a.at(10.0), 0.5);
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn constant(v: f64) -> Self {
         Self {
             times: vec![0.0],

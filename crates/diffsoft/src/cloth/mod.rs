@@ -55,6 +55,20 @@ pub struct ClothSpec {
 
 impl ClothSpec {
     /// A cloth with gravity, zero initial velocity and no pins.
+    ///
+    /// ```
+    /// use diffsoft::cloth::{grid, ClothSpec};
+    /// use diffsoft::ModelBuilder;
+    ///
+    /// let mut flag = ClothSpec::new("flag", grid(2, 1.0), 100.0, 1e-3, 0.1);
+    /// assert!(flag.gravity && flag.fixed.is_empty());
+    /// flag.fixed = vec![0, 1, 2]; // one edge held
+    /// let model = ModelBuilder::new().cloth(flag).build()?;
+    /// let cloth = model.cloth().ok_or("no cloth")?;
+    /// assert_eq!(cloth.num_triangles(), 8);
+    /// assert!((model.mass().iter().sum::<f64>() - 0.1).abs() < 1e-12); // 0.1 kg/m^2 x 1 m^2
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn new(name: &str, surface: TriSurface, stretching: f64, bending: f64, area_density: f64) -> Self {
         Self {
             name: name.to_string(),
@@ -106,6 +120,19 @@ pub struct TriangleGeometry {
 impl TriangleGeometry {
     /// From the rest positions; `None` for a degenerate triangle (quality below
     /// [`MIN_TRIANGLE_QUALITY`]) or non-finite input.
+    ///
+    /// ```
+    /// use diffsoft::cloth::TriangleGeometry;
+    /// use nalgebra::Vector3;
+    ///
+    /// let g = TriangleGeometry::new(&Vector3::zeros(), &Vector3::x(), &Vector3::z()).ok_or("degenerate")?;
+    /// assert!((g.area - 0.5).abs() < 1e-15);
+    /// // The barycentric gradients sum to zero.
+    /// assert!((g.grads[0] + g.grads[1] + g.grads[2]).norm() < 1e-15);
+    /// // Three points on a line are no triangle.
+    /// assert!(TriangleGeometry::new(&Vector3::zeros(), &Vector3::x(), &(Vector3::x() * 2.0)).is_none());
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn new(x0: &Vector3<f64>, x1: &Vector3<f64>, x2: &Vector3<f64>) -> Option<Self> {
         let e1 = x1 - x0;
         let e2 = x2 - x0;
@@ -191,6 +218,16 @@ pub struct Incidence {
 
 impl Incidence {
     /// Build from element vertex lists.
+    ///
+    /// ```
+    /// use diffsoft::cloth::Incidence;
+    ///
+    /// let triangles = [[0, 1, 2], [0, 2, 3]];
+    /// let inc = Incidence::new(4, triangles.iter().map(|t| &t[..]));
+    /// assert_eq!(inc.of(0), &[(0, 0), (1, 0)]); // (triangle, corner)
+    /// assert_eq!(inc.of(3), &[(1, 2)]);
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn new<'a>(n: usize, elements: impl Iterator<Item = &'a [usize]> + Clone) -> Self {
         let mut offsets = vec![0usize; n + 1];
         for e in elements.clone() {
@@ -370,6 +407,16 @@ fn bending_stencils(s: &TriSurface, geometry: &[TriangleGeometry]) -> Vec<(Vec<u
 
 /// A square cloth of `n x n` cells of side `size`, centred at the origin in the plane y = 0
 /// (vertex `(i, j)` is `j (n + 1) + i`; each cell split along its diagonal).
+///
+/// ```
+/// use diffsoft::cloth::grid;
+///
+/// let g = grid(2, 1.0);
+/// assert_eq!((g.vertices.len(), g.triangles.len()), (9, 8));
+/// assert_eq!(g.vertices[4], nalgebra::Vector3::zeros()); // the centre
+/// assert_eq!(g.vertices[8].x, 0.5);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 pub fn grid(n: usize, size: f64) -> TriSurface {
     let mut vertices = Vec::with_capacity((n + 1) * (n + 1));
     for j in 0..=n {

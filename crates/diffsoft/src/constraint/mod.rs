@@ -213,6 +213,22 @@ pub(crate) fn sets_for(model: &Model) -> Vec<Box<dyn ConstraintSet>> {
 }
 
 /// `L` (per axis) of `model`: every set's share, as values in the model's stiffness pattern.
+///
+/// ```
+/// use diffsoft::mesh::generate::BoxSpec;
+/// use diffsoft::{stiffness_values, BodySpec, MassSpec, Material, ModelBuilder};
+///
+/// let mesh = BoxSpec::new([1, 1, 1], [0.1, 0.1, 0.1]).build()?;
+/// let material = Material { youngs_modulus: 1e5, poisson_ratio: 0.3 };
+/// let model = ModelBuilder::new().body(BodySpec::new("box", mesh, material, MassSpec::Density(1000.0))).build()?;
+/// let l = stiffness_values(&model);
+/// assert_eq!(l.len(), model.fem().pattern.nnz());
+/// // Without pins a Laplacian: positive diagonal, constants in its kernel.
+/// let diag = model.fem().pattern.diagonal(&l);
+/// assert!(diag.iter().all(|&d| d > 0.0));
+/// assert!(l.iter().sum::<f64>().abs() < 1e-9 * diag.iter().sum::<f64>());
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 pub fn stiffness_values(model: &Model) -> Vec<f64> {
     Constraints::stiffness_values(model, &sets_for(model))
 }

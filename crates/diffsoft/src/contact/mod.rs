@@ -82,6 +82,22 @@ pub fn project(x_hat: &Vector3<f64>, w: f64, c: &Contact) -> (Vector3<f64>, Cont
 
 /// Candidate contacts for a step: every free vertex whose start position `q` or predicted
 /// position `pred` is within `margin` of an obstacle, or whose path crosses one.
+///
+/// ```
+/// use diffsoft::contact::{detect, Obstacle};
+/// use nalgebra::Vector3;
+///
+/// let ground = [Obstacle::plane("ground", Vector3::zeros(), Vector3::y(), 0.5)];
+/// let q = [Vector3::new(0.0, 0.01, 0.0), Vector3::new(1.0, 0.01, 0.0), Vector3::new(2.0, 5.0, 0.0)];
+/// let pred = [Vector3::new(0.0, -0.01, 0.0), Vector3::new(1.0, -0.01, 0.0), Vector3::new(2.0, 4.9, 0.0)];
+/// let mut contacts = Vec::new();
+/// // Vertex 1 is fixed, vertex 2 far away: only vertex 0 is a candidate.
+/// detect(&ground, &[false, true, false], &q, &pred, 1e-3, &mut contacts);
+/// assert_eq!(contacts.len(), 1);
+/// assert_eq!((contacts[0].vertex, contacts[0].friction), (0, 0.5));
+/// assert_eq!(contacts[0].anchor, q[0]);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 pub fn detect(
     obstacles: &[Obstacle],
     fixed: &[bool],

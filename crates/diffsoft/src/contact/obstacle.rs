@@ -23,6 +23,26 @@ pub struct Obstacle {
 
 impl Obstacle {
     /// An obstacle of any shape.
+    ///
+    /// ```
+    /// use diffsoft::contact::{Obstacle, TriMeshObstacle};
+    /// use nalgebra::Vector3;
+    ///
+    /// // A unit square plate in the plane y = 0, kept 0.01 thick.
+    /// let v = vec![Vector3::zeros(), Vector3::x(), Vector3::new(1.0, 0.0, 1.0), Vector3::z()];
+    /// let plate = TriMeshObstacle::new(v, vec![[0, 1, 2], [0, 2, 3]])?;
+    /// let obstacle = Obstacle::new("plate", plate, 0.3, 0.01);
+    /// obstacle.validate()?;
+    /// // A vertex 0.005 above the plate is inside its thickness.
+    /// let x = Vector3::new(0.5, 0.005, 0.5);
+    /// let (d, normal, _) = obstacle.query(&x, &x, 0.0).ok_or("no contact")?;
+    /// assert!((d + 0.005).abs() < 1e-12);
+    /// assert_eq!(normal, Vector3::y());
+    /// // A negative friction coefficient is refused.
+    /// let v = vec![Vector3::zeros(), Vector3::x(), Vector3::z()];
+    /// assert!(Obstacle::new("bad", TriMeshObstacle::new(v, vec![[0, 1, 2]])?, -1.0, 0.01).validate().is_err());
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn new(name: &str, shape: impl Shape + 'static, friction: f64, thickness: f64) -> Self {
         Self {
             name: name.to_string(),
@@ -33,6 +53,22 @@ impl Obstacle {
     }
 
     /// A ground plane through `point` with normal `normal` (normalised here), no thickness.
+    ///
+    /// ```
+    /// use diffsoft::contact::Obstacle;
+    /// use nalgebra::Vector3;
+    ///
+    /// let ground = Obstacle::plane("ground", Vector3::new(0.0, -1.0, 0.0), Vector3::new(0.0, 2.0, 0.0), 0.5);
+    /// ground.validate()?;
+    /// assert_eq!((ground.friction, ground.thickness), (0.5, 0.0));
+    /// // Signed distance of a vertex 0.5 below the plane.
+    /// let x = Vector3::new(3.0, -1.5, 0.0);
+    /// let (d, normal, _) = ground.query(&x, &x, 0.0).ok_or("no contact")?;
+    /// assert_eq!((d, normal), (-0.5, Vector3::y()));
+    /// // Far above it: no contact within the margin.
+    /// assert!(ground.query(&Vector3::zeros(), &Vector3::zeros(), 0.1).is_none());
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn plane(name: &str, point: Vector3<f64>, normal: Vector3<f64>, friction: f64) -> Self {
         Self::new(name, Plane::new(point, normal), friction, 0.0)
     }

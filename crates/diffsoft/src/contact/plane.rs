@@ -16,6 +16,21 @@ pub struct Plane {
 
 impl Plane {
     /// The plane through `point` with normal `normal` (normalised here).
+    ///
+    /// ```
+    /// use diffsoft::contact::{Plane, Shape};
+    /// use nalgebra::Vector3;
+    ///
+    /// let slope = Plane::new(Vector3::zeros(), Vector3::new(1.0, 1.0, 0.0));
+    /// assert!((slope.normal.norm() - 1.0).abs() < 1e-15);
+    /// assert!(slope.piecewise_planar());
+    /// slope.validate()?;
+    /// // (1, 0, 0) is 1/sqrt(2) above it.
+    /// let x = Vector3::x();
+    /// let (d, _, _) = slope.query(&x, &x, 1.0, 0.0).ok_or("beyond the margin")?;
+    /// assert!((d - 0.5f64.sqrt()).abs() < 1e-12);
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn new(point: Vector3<f64>, normal: Vector3<f64>) -> Self {
         Self {
             point,

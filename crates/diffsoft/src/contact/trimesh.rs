@@ -135,6 +135,24 @@ fn segment_hits_triangle(
 impl TriMeshObstacle {
     /// Build from vertices and triangles (validates indices, finiteness and non-degenerate
     /// triangles).
+    ///
+    /// ```
+    /// use diffsoft::contact::TriMeshObstacle;
+    /// use nalgebra::Vector3;
+    ///
+    /// let v = vec![Vector3::zeros(), Vector3::x(), Vector3::new(1.0, 0.0, 1.0), Vector3::z()];
+    /// let plate = TriMeshObstacle::new(v.clone(), vec![[0, 1, 2], [0, 2, 3]])?;
+    /// assert_eq!(plate.num_triangles(), 2);
+    /// // A vertex moving through the plate is caught, seen from the side it came from.
+    /// let (d, normal, _) = plate
+    ///     .query(&Vector3::new(0.5, 0.1, 0.5), &Vector3::new(0.5, -0.1, 0.5), 0.0)
+    ///     .ok_or("missed")?;
+    /// assert!(d < 0.0 && normal == Vector3::y());
+    /// // Refused: an index out of range, a zero-area triangle.
+    /// assert!(TriMeshObstacle::new(v.clone(), vec![[0, 1, 4]]).is_err());
+    /// assert!(TriMeshObstacle::new(v, vec![[0, 1, 1]]).is_err());
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn new(vertices: Vec<Vector3<f64>>, triangles: Vec<[usize; 3]>) -> Result<Self, InputError> {
         if triangles.is_empty() {
             return Err(InputError::new("obstacle mesh has no triangles"));

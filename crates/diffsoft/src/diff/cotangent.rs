@@ -23,6 +23,18 @@ pub struct Cotangent {
 impl Cotangent {
     /// A cotangent on the positions (`(steps + 1) * n` entries) and optionally the velocities
     /// (same length); an error if the lengths disagree or an entry is not finite.
+    ///
+    /// ```
+    /// use diffsoft::{Cotangent, Loss};
+    /// use nalgebra::Vector3;
+    ///
+    /// // Two steps of four vertices: states 0, 1, 2 (see [`vjp`] for its use).
+    /// let c = Cotangent::new(4, 2, vec![Vector3::y(); 12], None)?;
+    /// assert_eq!(c.name(), "cotangent");
+    /// assert!(Cotangent::new(4, 2, vec![Vector3::y(); 8], None).is_err());
+    /// assert!(Cotangent::new(4, 2, vec![Vector3::y(); 12], Some(vec![Vector3::repeat(f64::NAN); 12])).is_err());
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn new(n: usize, steps: usize, q: Vec<Vector3<f64>>, v: Option<Vec<Vector3<f64>>>) -> Result<Self, DiffError> {
         let len = steps
             .checked_add(1)
@@ -94,6 +106,33 @@ impl Loss for Cotangent {
 
 /// `sum_k <C_k, q_k> + <D_k, v_k>` over the states `0..=steps` of a run and its gradient with
 /// respect to everything [`gradient`] differentiates (the state-0 terms included).
+///
+/// ```
+/// use diffsoft::mesh::generate::BoxSpec;
+/// use diffsoft::{BodySpec, MassSpec, Material, ModelBuilder};
+/// use diffsoft::{rollout, vjp, Controls, Cotangent, Options, Settings};
+/// use nalgebra::Vector3;
+///
+/// let mesh = BoxSpec::new([1, 1, 1], [0.1, 0.1, 0.1]).build()?;
+/// let material = Material { youngs_modulus: 1e5, poisson_ratio: 0.3 };
+/// let model = ModelBuilder::new()
+///     .gravity(Vector3::new(0.0, -9.81, 0.0))
+///     .body(BodySpec::new("box", mesh, material, MassSpec::Density(1000.0)))
+///     .build()?;
+/// let (n, steps, settings) = (model.n(), 2, Settings::default());
+/// // The mean height of the vertices after the last step.
+/// let mut c = vec![Vector3::zeros(); (steps + 1) * n];
+/// c[steps * n..].fill(Vector3::y() / n as f64);
+/// let cotangent = Cotangent::new(n, steps, c, None)?;
+/// let g = vjp(&model, &settings, steps, &Controls::default(), &cotangent, Options::default())?;
+/// let run = rollout(&model, &settings, steps, &Controls::default())?;
+/// let mean_y = run.positions[steps * n..].iter().map(|q| q.y).sum::<f64>() / n as f64;
+/// assert!((g.loss - mean_y).abs() < 1e-12);
+/// assert!((g.v0.iter().map(|d| d.y).sum::<f64>() - steps as f64 * settings.dt).abs() < 1e-9);
+/// // The cotangent must cover the run's steps.
+/// assert!(vjp(&model, &settings, 3, &Controls::default(), &cotangent, Options::default()).is_err());
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 pub fn vjp(
     model: &Model,
     settings: &Settings,

@@ -55,6 +55,26 @@ fn check_supported(model: &Model, settings: &Settings, mode: Mode) -> Result<(),
 }
 
 /// The loss of a forward run alone (for finite differences).
+///
+/// ```
+/// use diffsoft::mesh::generate::BoxSpec;
+/// use diffsoft::{BodySpec, MassSpec, Material, ModelBuilder};
+/// use diffsoft::diff::loss::CenterOfMass;
+/// use diffsoft::{loss_value, Controls, Settings};
+///
+/// let mesh = BoxSpec::new([1, 1, 1], [0.1, 0.1, 0.1]).build()?;
+/// let material = Material { youngs_modulus: 1e5, poisson_ratio: 0.3 };
+/// let model = ModelBuilder::new()
+///     .gravity(nalgebra::Vector3::new(0.0, -9.81, 0.0))
+///     .body(BodySpec::new("box", mesh, material, MassSpec::Density(1000.0)))
+///     .build()?;
+/// let com_y = CenterOfMass { direction: nalgebra::Vector3::y(), time_average: false, vertices: None };
+/// let settings = Settings::default();
+/// let y = loss_value(&model, &settings, 3, &Controls::default(), &com_y)?;
+/// // Free fall from a centre at 0.05 m: implicit Euler gives 0.05 - (1 + 2 + 3) g dt^2.
+/// assert!((y - (0.05 - 6.0 * 9.81 * 1e-4)).abs() < 1e-8, "{y}");
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 pub fn loss_value(
     model: &Model,
     settings: &Settings,
@@ -67,6 +87,35 @@ pub fn loss_value(
 
 /// [`loss_value`] on shared systems (see [`Simulator::with_systems`]): the repeated runs of a
 /// finite-difference check factor and certify once.
+///
+/// ```
+/// use diffsoft::mesh::generate::BoxSpec;
+/// use diffsoft::{BodySpec, MassSpec, Material, ModelBuilder};
+/// use diffsoft::diff::loss::CenterOfMass;
+/// use diffsoft::diff::loss_value_on;
+/// use diffsoft::solver::Systems;
+/// use diffsoft::{Controls, Settings};
+///
+/// let mesh = BoxSpec::new([1, 1, 1], [0.1, 0.1, 0.1]).build()?;
+/// let material = Material { youngs_modulus: 1e5, poisson_ratio: 0.3 };
+/// let model = ModelBuilder::new()
+///     .gravity(nalgebra::Vector3::new(0.0, -9.81, 0.0))
+///     .body(BodySpec::new("box", mesh, material, MassSpec::Density(1000.0)))
+///     .build()?;
+/// let com_y = CenterOfMass { direction: nalgebra::Vector3::y(), time_average: false, vertices: None };
+/// let systems = Systems::new();
+/// // A central difference in the initial height: both runs share one factored system.
+/// let eps = 1e-4;
+/// let shifted = |dy: f64| {
+///     let q0 = model.rest().iter().map(|q| q + nalgebra::Vector3::y() * dy).collect();
+///     Controls { initial: Some((q0, vec![nalgebra::Vector3::zeros(); model.n()])), ..Controls::default() }
+/// };
+/// let up = loss_value_on(&systems, &model, &Settings::default(), 3, &shifted(eps), &com_y)?;
+/// let down = loss_value_on(&systems, &model, &Settings::default(), 3, &shifted(-eps), &com_y)?;
+/// assert!(((up - down) / (2.0 * eps) - 1.0).abs() < 1e-6);
+/// assert_eq!(systems.len(), 1);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 pub fn loss_value_on(
     systems: &Systems,
     model: &Model,
@@ -90,6 +139,31 @@ pub fn loss_value_on(
 }
 
 /// The loss of `steps` steps and its gradient (see the module docs).
+///
+/// ```
+/// use diffsoft::mesh::generate::BoxSpec;
+/// use diffsoft::{BodySpec, MassSpec, Material, ModelBuilder};
+/// use diffsoft::diff::loss::CenterOfMass;
+/// use diffsoft::{gradient, Controls, Options, Settings};
+///
+/// let mesh = BoxSpec::new([1, 1, 1], [0.1, 0.1, 0.1]).build()?;
+/// let material = Material { youngs_modulus: 1e5, poisson_ratio: 0.3 };
+/// let model = ModelBuilder::new()
+///     .gravity(nalgebra::Vector3::new(0.0, -9.81, 0.0))
+///     .body(BodySpec::new("box", mesh, material, MassSpec::Density(1000.0)))
+///     .build()?;
+/// let com_y = CenterOfMass { direction: nalgebra::Vector3::y(), time_average: false, vertices: None };
+/// let (steps, settings) = (3, Settings::default());
+/// let g = gradient(&model, &settings, steps, &Controls::default(), &com_y, Options::default())?;
+/// assert!((g.loss - (0.05 - 6.0 * 9.81 * 1e-4)).abs() < 1e-8);
+/// // Lifting every vertex lifts the centre of mass as much; a uniform initial velocity
+/// // lifts it by steps x dt (the elastic forces do not see a translation).
+/// let dq0: f64 = g.q0.iter().map(|d| d.y).sum();
+/// let dv0: f64 = g.v0.iter().map(|d| d.y).sum();
+/// assert!((dq0 - 1.0).abs() < 1e-9);
+/// assert!((dv0 - steps as f64 * settings.dt).abs() < 1e-9);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 pub fn gradient(
     model: &Model,
     settings: &Settings,
@@ -106,6 +180,28 @@ pub fn gradient(
 pub(crate) const REPLAY_TOLERANCE: f64 = 1e-6;
 
 /// [`gradient`], telling `progress` after every forward and every backward step.
+///
+/// ```
+/// use diffsoft::mesh::generate::BoxSpec;
+/// use diffsoft::{BodySpec, MassSpec, Material, ModelBuilder};
+/// use diffsoft::diff::loss::CenterOfMass;
+/// use diffsoft::{gradient_with, Controls, Options, Progress, Settings};
+///
+/// let mesh = BoxSpec::new([1, 1, 1], [0.1, 0.1, 0.1]).build()?;
+/// let material = Material { youngs_modulus: 1e5, poisson_ratio: 0.3 };
+/// let model = ModelBuilder::new()
+///     .gravity(nalgebra::Vector3::new(0.0, -9.81, 0.0))
+///     .body(BodySpec::new("box", mesh, material, MassSpec::Density(1000.0)))
+///     .build()?;
+/// let com_y = CenterOfMass { direction: nalgebra::Vector3::y(), time_average: true, vertices: None };
+/// let mut seen = Vec::new();
+/// let (settings, controls) = (Settings::default(), Controls::default());
+/// let g = gradient_with(&model, &settings, 3, &controls, &com_y, Options::default(), &mut |p| seen.push(p))?;
+/// assert!(g.loss < 0.05);
+/// assert_eq!(seen.len(), 6);
+/// assert_eq!((seen[0], seen[5]), (Progress::Forward(0), Progress::Backward(0)));
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 pub fn gradient_with(
     model: &Model,
     settings: &Settings,
@@ -121,6 +217,32 @@ pub fn gradient_with(
 /// [`gradient_with`] on shared systems (see [`Simulator::with_systems`]). The forward pass,
 /// its replays and the backward pass use one global system per step size: assembled, certified
 /// and factored once.
+///
+/// ```
+/// use diffsoft::mesh::generate::BoxSpec;
+/// use diffsoft::{BodySpec, MassSpec, Material, ModelBuilder};
+/// use diffsoft::diff::gradient_on;
+/// use diffsoft::diff::loss::CenterOfMass;
+/// use diffsoft::solver::Systems;
+/// use diffsoft::{Controls, Mode, Options, Settings};
+///
+/// let mesh = BoxSpec::new([1, 1, 1], [0.1, 0.1, 0.1]).build()?;
+/// let material = Material { youngs_modulus: 1e5, poisson_ratio: 0.3 };
+/// let model = ModelBuilder::new()
+///     .gravity(nalgebra::Vector3::new(0.0, -9.81, 0.0))
+///     .body(BodySpec::new("box", mesh, material, MassSpec::Density(1000.0)))
+///     .build()?;
+/// let com_y = CenterOfMass { direction: nalgebra::Vector3::y(), time_average: false, vertices: None };
+/// let systems = Systems::new();
+/// let (settings, controls) = (Settings::default(), Controls::default());
+/// let run = |mode| gradient_on(&systems, &model, &settings, 3, &controls, &com_y, Options::mode(mode), &mut |_| {});
+/// let (unrolled, implicit) = (run(Mode::Unrolled)?, run(Mode::Implicit)?);
+/// assert_eq!(systems.len(), 1);
+/// // Both modes agree on a converged run.
+/// let dv0 = |g: &diffsoft::Gradient| g.v0.iter().map(|d| d.y).sum::<f64>();
+/// assert!((dv0(&unrolled) - dv0(&implicit)).abs() < 1e-6);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 #[allow(clippy::too_many_arguments)]
 pub fn gradient_on(
     systems: &Systems,

@@ -49,6 +49,32 @@ pub trait Loss: Send + Sync {
 }
 
 /// Centre of mass: of the final state, or averaged over steps `1..=N`.
+///
+/// ```
+/// use diffsoft::diff::loss::{CenterOfMass, LossGrad};
+/// use diffsoft::Loss;
+/// use diffsoft::mesh::generate::BoxSpec;
+/// use diffsoft::{BodySpec, MassSpec, Material, ModelBuilder};
+/// use nalgebra::Vector3;
+///
+/// let mesh = BoxSpec::new([1, 1, 1], [0.1, 0.1, 0.1]).build()?;
+/// let material = Material { youngs_modulus: 1e5, poisson_ratio: 0.3 };
+/// let model = ModelBuilder::new().body(BodySpec::new("box", mesh, material, MassSpec::Density(1000.0))).build()?;
+/// let com_x = CenterOfMass { direction: Vector3::x(), time_average: false, vertices: None };
+/// com_x.validate(&model)?;
+/// assert_eq!(com_x.name(), "final_com.x");
+/// // The term of the last step at the rest state, with its gradient.
+/// let n = model.n();
+/// let (mut gq, mut gv, mut gm) = (vec![Vector3::zeros(); n], vec![Vector3::zeros(); n], vec![0.0; n]);
+/// let grad = LossGrad { q: &mut gq, v: &mut gv, mass: &mut gm };
+/// let x = com_x.term(&model, 1, 1, model.rest(), &vec![Vector3::zeros(); n], grad);
+/// assert!((x - 0.05).abs() < 1e-12);
+/// assert!((gq.iter().map(|g| g.x).sum::<f64>() - 1.0).abs() < 1e-12);
+/// // Vertex sets are checked against the model.
+/// let outside = CenterOfMass { direction: Vector3::x(), time_average: true, vertices: Some(vec![99]) };
+/// assert!(outside.validate(&model).is_err());
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 #[derive(Debug, Clone)]
 pub struct CenterOfMass {
     /// Component (0, 1, 2) or `None` for the weighted sum `direction . com`.
@@ -178,6 +204,34 @@ fn axis_suffix(d: &Vector3<f64>) -> String {
 }
 
 /// `sum_i c_i . q_i` over chosen vertices of the final state (positions of chosen vertices).
+///
+/// ```
+/// use diffsoft::diff::loss::{LossGrad, VertexPositions};
+/// use diffsoft::Loss;
+/// use diffsoft::mesh::generate::BoxSpec;
+/// use diffsoft::{BodySpec, MassSpec, Material, ModelBuilder};
+/// use nalgebra::Vector3;
+///
+/// let mesh = BoxSpec::new([1, 1, 1], [0.1, 0.1, 0.1]).build()?;
+/// let material = Material { youngs_modulus: 1e5, poisson_ratio: 0.3 };
+/// let model = ModelBuilder::new().body(BodySpec::new("box", mesh, material, MassSpec::Density(1000.0))).build()?;
+/// let top = model.rest().iter().position(|q| *q == Vector3::repeat(0.1)).ok_or("no corner")?;
+/// let loss = VertexPositions { terms: vec![(top, Vector3::new(1.0, 2.0, 0.0))] };
+/// loss.validate(&model)?;
+/// // The term of the last step at the rest state, with its gradient.
+/// let n = model.n();
+/// let (mut gq, mut gv, mut gm) = (vec![Vector3::zeros(); n], vec![Vector3::zeros(); n], vec![0.0; n]);
+/// let grad = LossGrad { q: &mut gq, v: &mut gv, mass: &mut gm };
+/// let value = loss.term(&model, 1, 1, model.rest(), &vec![Vector3::zeros(); n], grad);
+/// assert!((value - 0.3).abs() < 1e-12); // 1 x 0.1 + 2 x 0.1
+/// assert_eq!(gq[top], Vector3::new(1.0, 2.0, 0.0));
+/// // Only the final state counts.
+/// let (mut gq, mut gv, mut gm) = (vec![Vector3::zeros(); n], vec![Vector3::zeros(); n], vec![0.0; n]);
+/// let grad = LossGrad { q: &mut gq, v: &mut gv, mass: &mut gm };
+/// assert_eq!(loss.term(&model, 1, 2, model.rest(), &vec![Vector3::zeros(); n], grad), 0.0);
+/// assert!(VertexPositions { terms: vec![(n, Vector3::x())] }.validate(&model).is_err());
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 #[derive(Debug, Clone)]
 pub struct VertexPositions {
     /// `(vertex, weight vector)` pairs.
@@ -207,6 +261,29 @@ impl Loss for VertexPositions {
 }
 
 /// `1/2 sum_i |q_i - target_i|^2` over chosen vertices of the final state.
+///
+/// ```
+/// use diffsoft::diff::loss::{LossGrad, TargetDistance};
+/// use diffsoft::Loss;
+/// use diffsoft::mesh::generate::BoxSpec;
+/// use diffsoft::{BodySpec, MassSpec, Material, ModelBuilder};
+/// use nalgebra::Vector3;
+///
+/// let mesh = BoxSpec::new([1, 1, 1], [0.1, 0.1, 0.1]).build()?;
+/// let material = Material { youngs_modulus: 1e5, poisson_ratio: 0.3 };
+/// let model = ModelBuilder::new().body(BodySpec::new("box", mesh, material, MassSpec::Density(1000.0))).build()?;
+/// // Vertex 0 should be 0.1 m higher.
+/// let loss = TargetDistance { targets: vec![(0, model.rest()[0] + Vector3::new(0.0, 0.1, 0.0))] };
+/// loss.validate(&model)?;
+/// // The term of the last step at the rest state, with its gradient.
+/// let n = model.n();
+/// let (mut gq, mut gv, mut gm) = (vec![Vector3::zeros(); n], vec![Vector3::zeros(); n], vec![0.0; n]);
+/// let grad = LossGrad { q: &mut gq, v: &mut gv, mass: &mut gm };
+/// let value = loss.term(&model, 1, 1, model.rest(), &vec![Vector3::zeros(); n], grad);
+/// assert!((value - 0.005).abs() < 1e-12); // 1/2 x 0.1^2
+/// assert!((gq[0] - Vector3::new(0.0, -0.1, 0.0)).norm() < 1e-12);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 #[derive(Debug, Clone)]
 pub struct TargetDistance {
     /// `(vertex, target)` pairs.
@@ -238,7 +315,31 @@ impl Loss for TargetDistance {
     }
 }
 
-/// A weighted sum of losses.
+/// A weighted sum of losses; start from [`Sum::default`] and [`Sum::add`] terms.
+///
+/// ```
+/// use diffsoft::diff::loss::{CenterOfMass, LossGrad, Sum, TargetDistance};
+/// use diffsoft::Loss;
+/// use diffsoft::mesh::generate::BoxSpec;
+/// use diffsoft::{BodySpec, MassSpec, Material, ModelBuilder};
+/// use nalgebra::Vector3;
+///
+/// let mesh = BoxSpec::new([1, 1, 1], [0.1, 0.1, 0.1]).build()?;
+/// let material = Material { youngs_modulus: 1e5, poisson_ratio: 0.3 };
+/// let model = ModelBuilder::new().body(BodySpec::new("box", mesh, material, MassSpec::Density(1000.0))).build()?;
+/// let com_y = CenterOfMass { direction: Vector3::y(), time_average: false, vertices: None };
+/// let pull = TargetDistance { targets: vec![(0, model.rest()[0] + Vector3::new(0.0, 0.1, 0.0))] };
+/// let loss = Sum::default().add(2.0, com_y).add(10.0, pull);
+/// assert_eq!(loss.terms.len(), 2);
+/// loss.validate(&model)?;
+/// // The term of the last step at the rest state, with its gradient.
+/// let n = model.n();
+/// let (mut gq, mut gv, mut gm) = (vec![Vector3::zeros(); n], vec![Vector3::zeros(); n], vec![0.0; n]);
+/// let grad = LossGrad { q: &mut gq, v: &mut gv, mass: &mut gm };
+/// let value = loss.term(&model, 1, 1, model.rest(), &vec![Vector3::zeros(); n], grad);
+/// assert!((value - (2.0 * 0.05 + 10.0 * 0.005)).abs() < 1e-12);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 #[derive(Default)]
 pub struct Sum {
     /// `(weight, loss)` pairs.
@@ -247,6 +348,17 @@ pub struct Sum {
 
 impl Sum {
     /// Add `weight x loss`.
+    ///
+    /// ```
+    /// use diffsoft::diff::loss::{CenterOfMass, Sum};
+    /// use diffsoft::Loss;
+    /// use nalgebra::Vector3;
+    ///
+    /// let com = |d: Vector3<f64>| CenterOfMass { direction: d, time_average: false, vertices: None };
+    /// let loss = Sum::default().add(1.0, com(Vector3::x())).add(-0.5, com(Vector3::y()));
+    /// assert_eq!(loss.name(), "1*final_com.x+-0.5*final_com.y");
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn add(mut self, weight: f64, loss: impl Loss + 'static) -> Self {
         self.terms.push((weight, Box::new(loss)));
         self
@@ -255,6 +367,32 @@ impl Sum {
 
 /// A joint's coordinate (angle or extension) of a one-DoF joint: its final value, its average
 /// over the steps, or half its squared distance to a target at the final step.
+///
+/// ```
+/// use diffsoft::diff::loss::JointAngle;
+/// use diffsoft::mesh::generate::BoxSpec;
+/// use diffsoft::skeleton::{rotational::Rotational, BoneSpec};
+/// use diffsoft::{BodySpec, Loss, MassSpec, Material, ModelBuilder};
+/// use nalgebra::Vector3;
+///
+/// let mesh = BoxSpec::new([2, 1, 1], [0.2, 0.1, 0.1]).build()?;
+/// let material = Material { youngs_modulus: 1e5, poisson_ratio: 0.3 };
+/// let hinge = Rotational::new(Vector3::zeros(), Vector3::z());
+/// let mut body = BodySpec::new("arm", mesh, material, MassSpec::Density(1000.0));
+/// let bone = BoneSpec { name: "elbow".into(), parent: None, joint: Box::new(hinge), vertices: vec![0], torque: None };
+/// body.bones.push(bone);
+/// let model = ModelBuilder::new().body(body).build()?;
+///
+/// let angle = JointAngle { bone: "elbow".into(), target: Some(0.5), time_average: false };
+/// angle.validate(&model)?;
+/// // 1/2 (theta - target)^2 at theta = 0, with its derivative.
+/// let mut grad = vec![0.0; 1];
+/// assert!((angle.joint_term(&model, 1, 1, &[0.0], &mut grad) - 0.125).abs() < 1e-12);
+/// assert!((grad[0] + 0.5).abs() < 1e-12);
+/// // A bone the model does not have.
+/// assert!(JointAngle { bone: "knee".into(), target: None, time_average: false }.validate(&model).is_err());
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 #[derive(Debug, Clone)]
 pub struct JointAngle {
     /// Bone whose joint is measured.
@@ -402,6 +540,16 @@ impl Loss for Sum {
 
 /// A loss by name: `final_com.x|y|z`, `mean_com.x|y|z`, `joint_angle.BONE`,
 /// `mean_joint_angle.BONE`.
+///
+/// ```
+/// use diffsoft::diff::loss::by_name;
+///
+/// assert_eq!(by_name("final_com.y")?.name(), "final_com.y");
+/// assert_eq!(by_name("mean_com.x")?.name(), "mean_com.x");
+/// assert!(by_name("final_com.w").is_err());
+/// assert!(by_name("energy").is_err());
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 pub fn by_name(name: &str) -> Result<Box<dyn Loss>, DiffError> {
     let (kind, axis) = name.split_once('.').ok_or_else(|| {
         DiffError::Input(format!(

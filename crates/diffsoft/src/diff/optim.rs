@@ -63,6 +63,21 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
 }
 
 /// Minimise `f` (returning value and gradient) from `x0`.
+///
+/// ```
+/// use diffsoft::diff::optim::{lbfgs, Lbfgs};
+///
+/// // (x - 3)^2 + 10 (y + 1)^2
+/// let f = |x: &[f64]| {
+///     let value = (x[0] - 3.0).powi(2) + 10.0 * (x[1] + 1.0).powi(2);
+///     Ok::<_, std::convert::Infallible>((value, vec![2.0 * (x[0] - 3.0), 20.0 * (x[1] + 1.0)]))
+/// };
+/// let min = lbfgs(Lbfgs::default(), vec![0.0, 0.0], f)?;
+/// assert!(min.converged);
+/// assert!((min.x[0] - 3.0).abs() < 1e-8 && (min.x[1] + 1.0).abs() < 1e-8);
+/// assert_eq!(min.history.len(), min.iterations + 1);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 pub fn lbfgs<E>(
     settings: Lbfgs,
     x0: Vec<f64>,

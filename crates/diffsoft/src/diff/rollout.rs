@@ -41,6 +41,29 @@ impl Rollout {
 
 /// Run `steps` steps of `model` with `controls` (initial state, activations and torques per
 /// step, as for [`gradient`](super::gradient)), keeping every state.
+///
+/// ```
+/// use diffsoft::mesh::generate::BoxSpec;
+/// use diffsoft::{BodySpec, MassSpec, Material, ModelBuilder};
+/// use diffsoft::{rollout, Controls, Settings};
+///
+/// let mesh = BoxSpec::new([1, 1, 1], [0.1, 0.1, 0.1]).build()?;
+/// let material = Material { youngs_modulus: 1e5, poisson_ratio: 0.3 };
+/// let model = ModelBuilder::new()
+///     .gravity(nalgebra::Vector3::new(0.0, -9.81, 0.0))
+///     .body(BodySpec::new("box", mesh, material, MassSpec::Density(1000.0)))
+///     .build()?;
+/// let run = rollout(&model, &Settings::default(), 3, &Controls::default())?;
+/// assert_eq!((run.steps(), run.n), (3, 8));
+/// assert_eq!(run.positions.len(), 4 * 8);
+/// assert_eq!(run.unconverged_steps(), 0);
+/// assert!((run.times[3] - 0.03).abs() < 1e-12);
+/// // State 0 is the rest state; the box falls from there.
+/// assert_eq!(&run.positions[..8], model.rest());
+/// assert!(run.positions[3 * 8].y < model.rest()[0].y);
+/// assert!(rollout(&model, &Settings::default(), 0, &Controls::default()).is_err());
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 pub fn rollout(model: &Model, settings: &Settings, steps: usize, controls: &Controls) -> Result<Rollout, DiffError> {
     if steps == 0 {
         return Err(DiffError::Input("steps must be at least 1".into()));

@@ -73,6 +73,19 @@ impl SymCsc {
     }
 
     /// The principal submatrix of the rows/columns with `keep[i]`, and the kept indices.
+    ///
+    /// ```
+    /// use diffsoft::fem::StiffnessPattern;
+    ///
+    /// let p = StiffnessPattern::new(4, &[[0, 1, 2, 3]]);
+    /// let values: Vec<f64> = (0..p.nnz()).map(|k| k as f64).collect();
+    /// let m = p.to_sym_csc(values);
+    /// let (sub, kept) = m.principal_submatrix(&[true, false, true, false]);
+    /// assert_eq!(kept, vec![0, 2]);
+    /// assert_eq!((sub.n, sub.values.len()), (2, 4));
+    /// assert_eq!(sub.diagonal(), vec![m.diagonal()[0], m.diagonal()[2]]);
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn principal_submatrix(&self, keep: &[bool]) -> (SymCsc, Vec<usize>) {
         let mut new_index = vec![usize::MAX; self.n];
         let kept: Vec<usize> = (0..self.n).filter(|&i| keep[i]).collect();

@@ -65,6 +65,20 @@ pub struct TetGeometry {
 
 impl TetGeometry {
     /// Geometry of a tet given its edge matrix; `None` if singular or inverted.
+    ///
+    /// ```
+    /// use diffsoft::fem::TetGeometry;
+    /// use nalgebra::Matrix3;
+    ///
+    /// let g = TetGeometry::from_edge_matrix(Matrix3::identity()).ok_or("degenerate")?;
+    /// assert!((g.volume - 1.0 / 6.0).abs() < 1e-15);
+    /// // The shape-function gradients sum to zero: each row of the local block does too.
+    /// let k = g.local_laplacian();
+    /// assert!(k.iter().all(|row| row.iter().sum::<f64>().abs() < 1e-15));
+    /// // Inverted (negative determinant): refused.
+    /// assert!(TetGeometry::from_edge_matrix(-Matrix3::identity()).is_none());
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn from_edge_matrix(p: Matrix3<f64>) -> Option<Self> {
         let volume = p.determinant() / 6.0;
         if volume.is_nan() || volume <= 0.0 {
@@ -141,6 +155,20 @@ pub struct FemOperators {
 
 impl FemOperators {
     /// Compute per-tet geometry (in parallel) and the sparsity pattern.
+    ///
+    /// ```
+    /// use diffsoft::fem::{Coefficient, FemOperators};
+    /// use diffsoft::mesh::generate::BoxSpec;
+    ///
+    /// let mesh = BoxSpec::new([1, 1, 1], [0.1, 0.1, 0.1]).build()?;
+    /// let fem = FemOperators::new(&mesh)?;
+    /// assert_eq!(fem.num_vertices(), 8);
+    /// assert!((fem.total_volume() - 1e-3).abs() < 1e-15);
+    /// let mass = fem.lumped_mass(Coefficient::Uniform(1000.0))?;
+    /// assert!((mass.iter().sum::<f64>() - 1.0).abs() < 1e-12);
+    /// assert!(fem.lumped_mass(Coefficient::Uniform(-1.0)).is_err());
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn new(mesh: &TetMesh) -> Result<Self, FemError> {
         let geometry: Vec<TetGeometry> = (0..mesh.num_tets())
             .into_par_iter()
@@ -201,6 +229,20 @@ impl FemOperators {
     }
 
     /// `L` as a symmetric CSC matrix.
+    ///
+    /// ```
+    /// use diffsoft::fem::{Coefficient, FemOperators};
+    /// use diffsoft::mesh::generate::BoxSpec;
+    ///
+    /// let mesh = BoxSpec::new([1, 1, 1], [0.1, 0.1, 0.1]).build()?;
+    /// let l = FemOperators::new(&mesh)?.laplacian_csc(Coefficient::Uniform(1e5))?;
+    /// // A Laplacian: constants are in its kernel.
+    /// let mut y = vec![0.0; l.n];
+    /// l.matvec(&vec![1.0; l.n], &mut y);
+    /// assert!(y.iter().all(|v| v.abs() < 1e-9));
+    /// assert!(l.diagonal().iter().all(|&d| d > 0.0));
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn laplacian_csc(&self, mu: Coefficient<'_>) -> Result<SymCsc, FemError> {
         Ok(self.pattern.to_sym_csc(self.laplacian_values(mu)?))
     }
@@ -226,6 +268,28 @@ pub struct SignPattern {
 
 /// Count positive off-diagonal entries and non-dominant rows. An entry counts as positive when
 /// `L_ij > tol sqrt(L_ii L_jj)` with `tol = 1e-12`, so right-angle round-off is not counted.
+///
+/// ```
+/// use diffsoft::fem::{sign_pattern, Coefficient, FemOperators};
+/// use diffsoft::mesh::generate::BoxSpec;
+/// use diffsoft::TetMesh;
+/// use nalgebra::Vector3;
+///
+/// // Kuhn tets have no obtuse dihedral angle: an M-matrix.
+/// let kuhn = BoxSpec::new([2, 1, 1], [0.2, 0.1, 0.1]).build()?;
+/// let l = FemOperators::new(&kuhn)?.laplacian_csc(Coefficient::Uniform(1.0))?;
+/// let signs = sign_pattern(&l);
+/// assert!(signs.is_m_matrix);
+/// assert_eq!(signs.positive_offdiagonal_entries, 0);
+/// // A flat tet whose apex lies over its base has obtuse angles at the apex's edges.
+/// let v = vec![Vector3::zeros(), Vector3::x(), Vector3::y(), Vector3::new(0.3, 0.3, 0.1)];
+/// let flat = TetMesh::new(v, vec![[0, 1, 2, 3]])?;
+/// let l = FemOperators::new(&flat)?.laplacian_csc(Coefficient::Uniform(1.0))?;
+/// let signs = sign_pattern(&l);
+/// assert!(!signs.is_m_matrix);
+/// assert_eq!(signs.positive_offdiagonal_edges, 3);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 pub fn sign_pattern(l: &SymCsc) -> SignPattern {
     const TOL: f64 = 1e-12;
     let diag = l.diagonal();

@@ -25,6 +25,17 @@ pub struct StiffnessPattern {
 impl StiffnessPattern {
     /// Build the pattern for `n` vertices and the given tets (sorting in parallel). Every
     /// vertex has a diagonal entry, also one that no tet uses.
+    ///
+    /// ```
+    /// use diffsoft::fem::StiffnessPattern;
+    ///
+    /// // One tet on vertices 0..4, and vertex 4 that no tet uses.
+    /// let p = StiffnessPattern::new(5, &[[0, 1, 2, 3]]);
+    /// assert_eq!(p.nnz(), 16 + 1);
+    /// assert_eq!(p.col_ptr.len(), 6);
+    /// assert_eq!(p.row_idx[p.diag_slot[4]], 4);
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn new(n: usize, tets: &[[usize; 4]]) -> Self {
         Self::with_cliques(n, tets, &[]).0
     }
@@ -32,6 +43,17 @@ impl StiffnessPattern {
     /// The pattern of the tets and of further elements coupling arbitrary vertex sets
     /// (cliques: cloth triangles, bending stencils), with each clique's `k x k` value slots
     /// (row-major).
+    ///
+    /// ```
+    /// use diffsoft::fem::StiffnessPattern;
+    ///
+    /// // A tet and a triangle that shares an edge with it.
+    /// let (p, slots) = StiffnessPattern::with_cliques(5, &[[0, 1, 2, 3]], &[&[2, 3, 4]]);
+    /// assert_eq!(p.nnz(), 16 + 5); // vertex 4's diagonal and its couplings to 2 and 3
+    /// assert_eq!(slots.len(), 1);
+    /// assert_eq!(slots[0].len(), 9);
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn with_cliques(n: usize, tets: &[[usize; 4]], cliques: &[&[usize]]) -> (Self, Vec<Vec<u32>>) {
         let mut keys: Vec<u64> = tets
             .par_iter()
@@ -103,6 +125,16 @@ impl StiffnessPattern {
     }
 
     /// The matrix with these values as a [`SymCsc`] (copies the pattern).
+    ///
+    /// ```
+    /// use diffsoft::fem::StiffnessPattern;
+    ///
+    /// let p = StiffnessPattern::new(4, &[[0, 1, 2, 3]]);
+    /// let m = p.to_sym_csc(vec![1.0; p.nnz()]);
+    /// assert_eq!(m.n, 4);
+    /// assert_eq!(m.diagonal(), vec![1.0; 4]);
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn to_sym_csc(&self, values: Vec<f64>) -> SymCsc {
         assert_eq!(values.len(), self.nnz());
         SymCsc {

@@ -244,6 +244,20 @@ pub fn pair_coefficients(xi: f64, xj: f64, si: f64, sj: f64) -> Result<(f64, f64
 }
 
 /// `R(F, a)` (Eq. 40) with its analytic Jacobians `d vec(R)/d vec(F)` and `d vec(R)/da`.
+///
+/// ```
+/// use diffsoft::kernel::actuator::pneumatic_jacobian;
+/// use nalgebra::{Matrix3, Vector3};
+///
+/// // Activation 8 asks for eight times the volume: at F = I the target is 2 I.
+/// let j = pneumatic_jacobian(&Matrix3::identity(), 8.0)?;
+/// assert!((j.target - Matrix3::identity() * 2.0).norm() < 1e-12);
+/// assert!((j.x - Vector3::repeat(2.0)).norm() < 1e-12);
+/// // d vec(R)/da: each diagonal entry grows by d(a^(1/3))/da = 1/12.
+/// assert!((j.wrt_a[0] - 1.0 / 12.0).abs() < 1e-12);
+/// assert!(pneumatic_jacobian(&Matrix3::identity(), -1.0).is_err());
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 pub fn pneumatic_jacobian(f: &Matrix3<f64>, a: f64) -> Result<PneumaticJacobian, ActuatorError> {
     check_pneumatic_activation(a)?;
     check_finite(f.iter())?;
@@ -343,6 +357,18 @@ pub struct MuscleJacobian {
 }
 
 /// The muscle target `p(F, a)` with its analytic Jacobians.
+///
+/// ```
+/// use diffsoft::kernel::actuator::muscle_jacobian;
+/// use nalgebra::{Matrix3, Vector3};
+///
+/// let j = muscle_jacobian(&Matrix3::identity(), &Vector3::x(), 0.25)?;
+/// assert!((j.target - Vector3::x() * 0.75).norm() < 1e-12);
+/// assert_eq!(j.wrt_a, -Vector3::x());
+/// // Activation outside [0, 1] is refused.
+/// assert!(muscle_jacobian(&Matrix3::identity(), &Vector3::x(), 1.5).is_err());
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 pub fn muscle_jacobian(f: &Matrix3<f64>, m: &Vector3<f64>, a: f64) -> Result<MuscleJacobian, ActuatorError> {
     let (fm, target) = fibre(f, m, a)?;
     let l = fm.norm();

@@ -38,6 +38,15 @@ pub const PAIRS: [(usize, usize); 3] = [(0, 1), (0, 2), (1, 2)];
 
 impl TetLinearization {
     /// The zero map (a placeholder in buffers).
+    ///
+    /// ```
+    /// use diffsoft::kernel::linearization::TetLinearization;
+    /// use nalgebra::Matrix3;
+    ///
+    /// let zero = TetLinearization::zero();
+    /// assert_eq!(zero.apply(&Matrix3::repeat(1.0)), Matrix3::zeros());
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn zero() -> Self {
         Self {
             u: Matrix3::identity(),
@@ -51,6 +60,23 @@ impl TetLinearization {
 
     /// Linearize `w_rot U V^T + w_vol U X V^T` at the SVD of `F`. Fails where the projection
     /// is not differentiable (`s_i + s_j = 0`, a volume projection on a branch point).
+    ///
+    /// ```
+    /// use diffsoft::kernel::linearization::TetLinearization;
+    /// use diffsoft::kernel::svd::svd3;
+    /// use nalgebra::Matrix3;
+    ///
+    /// // The corotated projection alone at F = I: an infinitesimal rotation passes through, a
+    /// // stretch is projected out.
+    /// let lin = TetLinearization::new(&svd3(&Matrix3::identity()), 1.0, 0.0)?;
+    /// let spin = Matrix3::new(0.0, -1.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+    /// assert!((lin.apply(&spin) - spin).norm() < 1e-12);
+    /// assert!(lin.apply(&Matrix3::from_diagonal_element(1.0)).norm() < 1e-12);
+    /// // Two singular values summing to zero: the rotation has no derivative.
+    /// let f = Matrix3::from_diagonal(&nalgebra::Vector3::new(1.0, 1.0, -1.0));
+    /// assert!(TetLinearization::new(&svd3(&f), 1.0, 0.0).is_err());
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn new(svd: &Svd3, w_rot: f64, w_vol: f64) -> Result<Self, &'static str> {
         let x = if w_vol > 0.0 {
             Some(volume::nearest_product(&svd.sigma, 1.0).map_err(|_| "volume projection failed")?)
@@ -62,6 +88,21 @@ impl TetLinearization {
 
     /// [`TetLinearization::new`] with the volume target's singular values `x` already computed
     /// (`None` without volume constraint).
+    ///
+    /// ```
+    /// use diffsoft::kernel::linearization::TetLinearization;
+    /// use diffsoft::kernel::svd::svd3;
+    /// use nalgebra::{Matrix3, Vector3};
+    ///
+    /// // At F = I the volume target's singular values are (1, 1, 1).
+    /// let svd = svd3(&Matrix3::identity());
+    /// let lin = TetLinearization::with_target(&svd, Some(Vector3::repeat(1.0)), 1.0, 0.5)?;
+    /// assert!((lin.rotation - Matrix3::identity()).norm() < 1e-12);
+    /// assert!((lin.volume - Matrix3::identity()).norm() < 1e-12);
+    /// // A uniform dilation changes neither target.
+    /// assert!(lin.apply(&Matrix3::identity()).norm() < 1e-12);
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn with_target(svd: &Svd3, x: Option<Vector3<f64>>, w_rot: f64, w_vol: f64) -> Result<Self, &'static str> {
         let s = svd.sigma;
         let mut pairs = [(0.0, 0.0); 3];

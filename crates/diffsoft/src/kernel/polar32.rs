@@ -45,6 +45,21 @@ pub struct Polar {
 
 impl Polar {
     /// Decompose `F` (finite input assumed).
+    ///
+    /// ```
+    /// use diffsoft::kernel::polar32::Polar;
+    /// use nalgebra::Matrix3x2;
+    ///
+    /// let f = Matrix3x2::new(2.0, 0.0, 0.0, 3.0, 0.0, 0.0);
+    /// let p = Polar::new(&f);
+    /// assert!(!p.collapsed);
+    /// assert!((p.r - Matrix3x2::new(1.0, 0.0, 0.0, 1.0, 0.0, 0.0)).norm() < 1e-12);
+    /// assert!((p.sigma.0 - 3.0).abs() < 1e-12 && (p.sigma.1 - 2.0).abs() < 1e-12);
+    /// assert!((p.distance_squared() - 5.0).abs() < 1e-12);
+    /// // A triangle squashed to a segment.
+    /// assert!(Polar::new(&Matrix3x2::new(1.0, 1.0, 0.0, 0.0, 0.0, 0.0)).collapsed);
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn new(f: &Matrix3x2<f64>) -> Self {
         let c = f.transpose() * f;
         let det = c.determinant().max(0.0);

@@ -42,12 +42,39 @@ impl Svd3 {
 const JACOBI_TOL: f64 = 1e-17;
 
 /// SVD of `f` (cold start).
+///
+/// ```
+/// use diffsoft::kernel::svd::svd3;
+/// use nalgebra::{Matrix3, Vector3};
+///
+/// // An inverted F: the sign of det F is carried by the smallest singular value.
+/// let f = Matrix3::new(0.0, 2.0, 0.0, 3.0, 0.0, 0.0, 0.0, 0.0, 1.0);
+/// let svd = svd3(&f);
+/// assert!((svd.sigma - Vector3::new(3.0, 2.0, -1.0)).norm() < 1e-12);
+/// assert!((svd.u.determinant() - 1.0).abs() < 1e-12 && (svd.v.determinant() - 1.0).abs() < 1e-12);
+/// assert!((svd.compose(&svd.sigma) - f).norm() < 1e-12);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 pub fn svd3(f: &Matrix3<f64>) -> Svd3 {
     svd3_warm(f, &Matrix3::identity())
 }
 
 /// SVD of `f`, starting the Jacobi iteration from the rotation `v0` (e.g. the previous `V` of
 /// the same tet).
+///
+/// ```
+/// use diffsoft::kernel::svd::{svd3, svd3_warm};
+/// use nalgebra::Matrix3;
+///
+/// let f = Matrix3::new(1.0, 0.2, 0.0, 0.1, 0.9, 0.0, 0.0, 0.05, 1.1);
+/// let previous = svd3(&f);
+/// // A small change of F, started from the previous V.
+/// let g = f + Matrix3::identity() * 1e-3;
+/// let svd = svd3_warm(&g, &previous.v);
+/// assert!((svd.compose(&svd.sigma) - g).norm() < 1e-12);
+/// assert!((svd.sigma - svd3(&g).sigma).norm() < 1e-12);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 pub fn svd3_warm(f: &Matrix3<f64>, v0: &Matrix3<f64>) -> Svd3 {
     if !f.iter().all(|x| x.is_finite()) || !v0.iter().all(|x| x.is_finite()) {
         return svd3_nalgebra(f);
@@ -208,6 +235,18 @@ fn orthonormal_factor(b: &Matrix3<f64>) -> (Matrix3<f64>, Vector3<f64>) {
 }
 
 /// Reference path: nalgebra's SVD with the signs fixed to rotations.
+///
+/// ```
+/// use diffsoft::kernel::svd::{svd3, svd3_nalgebra};
+/// use nalgebra::Matrix3;
+///
+/// let f = Matrix3::new(1.0, 0.2, 0.0, 0.1, -0.9, 0.0, 0.0, 0.05, 1.1);
+/// let (a, b) = (svd3_nalgebra(&f), svd3(&f));
+/// assert!((a.sigma - b.sigma).norm() < 1e-12);
+/// assert!(a.sigma[2] < 0.0); // det F < 0
+/// assert!((a.u.determinant() - 1.0).abs() < 1e-12);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 pub fn svd3_nalgebra(f: &Matrix3<f64>) -> Svd3 {
     let svd = f.svd(true, true);
     let (mut u, mut vt) = match (svd.u, svd.v_t) {
@@ -249,6 +288,20 @@ pub const LANES: usize = 8;
 ///
 /// On x86-64 CPUs with AVX2 the same code runs compiled for AVX2 (selected at run time); only
 /// the vector width changes, so results are bit-identical (no fused multiply-add is enabled).
+///
+/// ```
+/// use diffsoft::kernel::svd::{svd3, svd3_warm_batch, LANES};
+/// use nalgebra::Matrix3;
+///
+/// let f: [Matrix3<f64>; LANES] =
+///     std::array::from_fn(|k| Matrix3::identity() * (1.0 + k as f64) + Matrix3::repeat(0.1));
+/// let svds = svd3_warm_batch(&f, &[Matrix3::identity(); LANES]);
+/// for (svd, f) in svds.iter().zip(&f) {
+///     assert!((svd.compose(&svd.sigma) - f).norm() < 1e-12);
+///     assert!((svd.sigma - svd3(f).sigma).norm() < 1e-12);
+/// }
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 pub fn svd3_warm_batch(f: &[Matrix3<f64>; LANES], v0: &[Matrix3<f64>; LANES]) -> [Svd3; LANES] {
     #[cfg(target_arch = "x86_64")]
     {

@@ -97,6 +97,15 @@ pub struct MeshError {
 
 impl MeshError {
     /// An error about one line of a file.
+    ///
+    /// ```
+    /// use diffsoft::mesh::{MeshError, MeshErrorKind};
+    ///
+    /// let e = MeshError::at("cube.msh", 12, MeshErrorKind::NoTets);
+    /// assert_eq!(e.location.line, Some(12));
+    /// assert_eq!(e.to_string(), "cube.msh:12: mesh has no tetrahedra");
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn at(path: &str, line: usize, kind: MeshErrorKind) -> Self {
         Self {
             location: Location {
@@ -108,6 +117,15 @@ impl MeshError {
     }
 
     /// An error about a whole file.
+    ///
+    /// ```
+    /// use diffsoft::mesh::{MeshError, MeshErrorKind};
+    ///
+    /// let e = MeshError::file("cube.msh", MeshErrorKind::Io("permission denied".into()));
+    /// assert_eq!(e.location.line, None);
+    /// assert_eq!(e.to_string(), "cube.msh: cannot read file: permission denied");
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn file(path: &str, kind: MeshErrorKind) -> Self {
         Self {
             location: Location {

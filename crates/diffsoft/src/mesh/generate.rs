@@ -37,6 +37,17 @@ pub struct BoxSpec {
 
 impl BoxSpec {
     /// A regular Kuhn-split box with the minimum corner at the origin.
+    ///
+    /// ```
+    /// use diffsoft::mesh::generate::{BoxSpec, CellSplit};
+    ///
+    /// let spec = BoxSpec::new([2, 1, 1], [0.2, 0.1, 0.1]);
+    /// assert_eq!(spec.split, CellSplit::Kuhn6);
+    /// assert_eq!(spec.num_tets(), 12);
+    /// let five = spec.split(CellSplit::Five).origin([0.0, 1.0, 0.0]).jitter(0.1, 7);
+    /// assert_eq!(five.num_tets(), 10);
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn new(cells: [usize; 3], size: [f64; 3]) -> Self {
         Self {
             cells,
@@ -77,18 +88,51 @@ impl BoxSpec {
     }
 
     /// Build the mesh (validated and oriented like a loaded one).
+    ///
+    /// ```
+    /// use diffsoft::mesh::generate::BoxSpec;
+    ///
+    /// let mesh = BoxSpec::new([2, 1, 1], [0.2, 0.1, 0.1]).origin([0.0, 1.0, 0.0]).build()?;
+    /// assert_eq!((mesh.num_vertices(), mesh.num_tets()), (12, 12));
+    /// let (lo, hi) = mesh.bounding_box();
+    /// assert!((lo.y - 1.0).abs() < 1e-12 && (hi.x - 0.2).abs() < 1e-12);
+    /// // A box needs a cell on every axis.
+    /// assert!(BoxSpec::new([0, 1, 1], [1.0, 1.0, 1.0]).build().is_err());
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn build(&self) -> Result<TetMesh, MeshError> {
         box_mesh(self)
     }
 }
 
 /// A beam along x: `length x width x height` with `n` cells along and `m` across each side.
+///
+/// ```
+/// use diffsoft::mesh::generate::beam;
+///
+/// let spec = beam(1.0, 0.1, 0.1, 4, 1);
+/// assert_eq!(spec.cells, [4, 1, 1]);
+/// let mesh = spec.build()?;
+/// assert_eq!(mesh.num_tets(), 24);
+/// assert!((mesh.bounding_box().1.x - 1.0).abs() < 1e-12);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 pub fn beam(length: f64, width: f64, height: f64, n: usize, m: usize) -> BoxSpec {
     BoxSpec::new([n, m, m], [length, width, height])
 }
 
 /// A box whose Kuhn split has about `target_tets` tets with cubic cells on a `1 x 1 x aspect`
 /// domain; used by benchmarks and scaling studies.
+///
+/// ```
+/// use diffsoft::mesh::generate::box_with_about;
+///
+/// let spec = box_with_about(48, 1.0);
+/// assert_eq!(spec.cells, [2, 2, 2]);
+/// assert_eq!(spec.num_tets(), 48);
+/// assert_eq!(spec.build()?.num_tets(), 48);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 pub fn box_with_about(target_tets: usize, aspect: f64) -> BoxSpec {
     let cells = target_tets as f64 / 6.0;
     let k = (cells / aspect).cbrt().max(1.0);

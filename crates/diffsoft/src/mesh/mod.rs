@@ -107,11 +107,39 @@ pub(crate) struct RawMesh {
 
 impl TetMesh {
     /// Build a mesh from vertices and tets, validating and orienting as the readers do.
+    ///
+    /// ```
+    /// use diffsoft::TetMesh;
+    /// use nalgebra::Vector3;
+    ///
+    /// let v = vec![Vector3::zeros(), Vector3::x(), Vector3::y(), Vector3::z()];
+    /// // Listed with negative volume: re-oriented, not refused.
+    /// let mesh = TetMesh::new(v.clone(), vec![[0, 2, 1, 3]])?;
+    /// assert_eq!((mesh.num_vertices(), mesh.num_tets()), (4, 1));
+    /// assert!((mesh.signed_volume(0) - 1.0 / 6.0).abs() < 1e-15);
+    /// // A tet that repeats a vertex is.
+    /// assert!(TetMesh::new(v, vec![[0, 1, 1, 3]]).is_err());
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn new(vertices: Vec<Vector3<f64>>, tets: Vec<[usize; 4]>) -> Result<TetMesh, MeshError> {
         Self::new_with(vertices, tets, LoadOptions::default()).map(|l| l.mesh)
     }
 
     /// As [`TetMesh::new`], returning the load details (dropped vertices, re-oriented tets).
+    ///
+    /// ```
+    /// use diffsoft::mesh::{LoadOptions, MeshFormat};
+    /// use diffsoft::TetMesh;
+    /// use nalgebra::Vector3;
+    ///
+    /// // Vertex 4 is used by no tet: dropped and counted.
+    /// let v = vec![Vector3::zeros(), Vector3::x(), Vector3::y(), Vector3::z(), Vector3::repeat(5.0)];
+    /// let loaded = TetMesh::new_with(v, vec![[0, 2, 1, 3]], LoadOptions::default())?;
+    /// assert_eq!(loaded.mesh.num_vertices(), 4);
+    /// assert_eq!((loaded.info.dropped_nodes, loaded.info.reoriented_tets), (1, 1));
+    /// assert_eq!(loaded.info.format, MeshFormat::Memory);
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn new_with(
         vertices: Vec<Vector3<f64>>,
         tets: Vec<[usize; 4]>,
@@ -282,6 +310,17 @@ impl TetMesh {
 
     /// A copy with every vertex mapped by `f` (scaling, rigid motion, ...). Orientation is kept
     /// only for maps with positive determinant.
+    ///
+    /// ```
+    /// use diffsoft::mesh::generate::BoxSpec;
+    /// use nalgebra::Vector3;
+    ///
+    /// let mesh = BoxSpec::new([1, 1, 1], [0.1, 0.1, 0.1]).build()?;
+    /// let moved = mesh.map_vertices(|v| v + Vector3::new(0.0, 1.0, 0.0));
+    /// assert_eq!(moved.tets, mesh.tets);
+    /// assert!((moved.bounding_box().0.y - 1.0).abs() < 1e-12);
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn map_vertices(&self, f: impl Fn(&Vector3<f64>) -> Vector3<f64>) -> TetMesh {
         TetMesh {
             vertices: self.vertices.iter().map(f).collect(),
@@ -290,6 +329,15 @@ impl TetMesh {
     }
 
     /// A copy scaled by `s` about the origin (the paper's scene "Scale").
+    ///
+    /// ```
+    /// use diffsoft::mesh::generate::BoxSpec;
+    ///
+    /// let mesh = BoxSpec::new([1, 1, 1], [0.1, 0.1, 0.1]).build()?;
+    /// let big = mesh.scaled(10.0);
+    /// assert!((big.signed_volume(0) / mesh.signed_volume(0) - 1000.0).abs() < 1e-9);
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn scaled(&self, s: f64) -> TetMesh {
         self.map_vertices(|v| v * s)
     }
@@ -319,11 +367,37 @@ pub(crate) fn volume_and_quality(vertices: &[Vector3<f64>], tet: &[usize; 4]) ->
 }
 
 /// Read a mesh, choosing the reader by file extension: `.obj`, `.node`/`.ele` (TetGen), `.msh`.
+///
+/// ```
+/// use diffsoft::mesh::{self, MeshFormat};
+///
+/// let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../verification/paper/droneman/ball_tet.obj");
+/// let loaded = mesh::load(path)?;
+/// assert_eq!(loaded.info.format, MeshFormat::Obj);
+/// assert!(loaded.mesh.num_tets() > 0);
+/// assert!((0..loaded.mesh.num_tets()).all(|t| loaded.mesh.signed_volume(t) > 0.0));
+/// // An unknown extension is an error that names the file.
+/// let err = mesh::load("mesh.stl").unwrap_err();
+/// assert_eq!(err.location.path, "mesh.stl");
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 pub fn load(path: impl AsRef<Path>) -> Result<LoadedMesh, MeshError> {
     load_with(path, LoadOptions::default())
 }
 
 /// As [`load`], with explicit options.
+///
+/// ```
+/// use diffsoft::mesh::{self, LoadOptions, MeshErrorKind};
+///
+/// let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../verification/paper/droneman/ball_tet.obj");
+/// let loaded = mesh::load_with(path, LoadOptions { min_quality: 1e-6 })?;
+/// assert!(loaded.mesh.num_tets() > 0);
+/// // No tet is as good as a regular one: a threshold above 1 refuses the mesh.
+/// let err = mesh::load_with(path, LoadOptions { min_quality: 1.5 }).unwrap_err();
+/// assert!(matches!(err.kind, MeshErrorKind::DegenerateTet { .. }));
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 pub fn load_with(path: impl AsRef<Path>, opts: LoadOptions) -> Result<LoadedMesh, MeshError> {
     let path = path.as_ref();
     let shown = path.display().to_string();
@@ -367,6 +441,18 @@ pub fn load_with(path: impl AsRef<Path>, opts: LoadOptions) -> Result<LoadedMesh
 
 /// Parse mesh text already in memory; `format_hint` is a file name used for the extension and
 /// in messages (TetGen needs two texts and is not supported here).
+///
+/// ```
+/// use diffsoft::mesh;
+///
+/// let text = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nt 0 1 2 3\n";
+/// let loaded = mesh::parse_str("tet.obj", text)?;
+/// assert_eq!((loaded.mesh.num_vertices(), loaded.mesh.num_tets()), (4, 1));
+/// // Errors name the file and the line.
+/// let err = mesh::parse_str("bad.obj", "v 0 0 0\nt 0 1 2 x\n").unwrap_err();
+/// assert_eq!((err.location.path.as_str(), err.location.line), ("bad.obj", Some(2)));
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 pub fn parse_str(name: &str, text: &str) -> Result<LoadedMesh, MeshError> {
     let lower = name.to_ascii_lowercase();
     if lower.ends_with(".obj") {
@@ -384,6 +470,19 @@ pub fn parse_str(name: &str, text: &str) -> Result<LoadedMesh, MeshError> {
 }
 
 /// Parse a TetGen pair already in memory.
+///
+/// ```
+/// use diffsoft::mesh::{self, MeshFormat};
+///
+/// // 1-based numbering, decided by the first node id.
+/// let node = "4 3 0 0\n1 0 0 0\n2 1 0 0\n3 0 1 0\n4 0 0 1\n";
+/// let ele = "1 4 0\n1 1 2 3 4\n";
+/// let loaded = mesh::parse_tetgen_str("tet.node", node, "tet.ele", ele)?;
+/// assert_eq!(loaded.mesh.tets, vec![[0, 1, 2, 3]]);
+/// assert_eq!(loaded.info.file_ids, vec![1, 2, 3, 4]);
+/// assert_eq!(loaded.info.format, MeshFormat::Tetgen);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 pub fn parse_tetgen_str(
     node_name: &str,
     node_text: &str,

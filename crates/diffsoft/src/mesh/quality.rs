@@ -67,6 +67,19 @@ pub struct MeshQuality {
 }
 
 /// Compute the quality summary (one pass over the tets).
+///
+/// ```
+/// use diffsoft::mesh::generate::BoxSpec;
+/// use diffsoft::mesh::quality::quality;
+///
+/// let mesh = BoxSpec::new([2, 1, 1], [0.2, 0.1, 0.1]).build()?;
+/// let q = quality(&mesh);
+/// assert_eq!((q.vertices, q.tets), (12, 12));
+/// assert!((q.total_volume - 0.002).abs() < 1e-15);
+/// // Kuhn tets are orthoschemes: no dihedral angle is obtuse.
+/// assert_eq!(q.tets_with_obtuse_dihedral, 0);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 pub fn quality(mesh: &TetMesh) -> MeshQuality {
     let mut q = MeshQuality {
         vertices: mesh.num_vertices(),

@@ -20,6 +20,16 @@ pub struct TriSurface {
 
 impl TriSurface {
     /// A copy scaled by `s` about the origin.
+    ///
+    /// ```
+    /// use diffsoft::mesh::surface::parse_obj;
+    ///
+    /// let tri = parse_obj("tri.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")?;
+    /// let big = tri.scaled(2.0);
+    /// assert_eq!(big.vertices[1].x, 2.0);
+    /// assert_eq!(big.triangles, tri.triangles);
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn scaled(&self, s: f64) -> TriSurface {
         TriSurface {
             vertices: self.vertices.iter().map(|v| v * s).collect(),
@@ -29,6 +39,17 @@ impl TriSurface {
 }
 
 /// Read an OBJ file's surface (`v` and `f` lines; everything else is ignored).
+///
+/// ```
+/// use diffsoft::mesh::surface::load_obj;
+///
+/// let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../verification/paper/cloth_ball/flag2.obj");
+/// let flag = load_obj(path)?;
+/// assert!(!flag.triangles.is_empty());
+/// assert!(flag.triangles.iter().flatten().all(|&i| i < flag.vertices.len()));
+/// assert!(load_obj("no/such/file.obj").is_err());
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 pub fn load_obj(path: impl AsRef<Path>) -> Result<TriSurface, MeshError> {
     let path = path.as_ref();
     let shown = path.display().to_string();
@@ -37,6 +58,16 @@ pub fn load_obj(path: impl AsRef<Path>) -> Result<TriSurface, MeshError> {
 }
 
 /// Parse OBJ surface text; `name` is used in messages.
+///
+/// ```
+/// use diffsoft::mesh::surface::parse_obj;
+///
+/// // A quad is fan-triangulated; indices are 1-based.
+/// let quad = parse_obj("quad.obj", "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n")?;
+/// assert_eq!(quad.triangles, vec![[0, 1, 2], [0, 2, 3]]);
+/// assert!(parse_obj("bad.obj", "v 0 0 0\nf 1 2 9\n").is_err());
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 pub fn parse_obj(name: &str, text: &str) -> Result<TriSurface, MeshError> {
     let mut cur = LineCursor::new(name, text, Some('#'));
     let mut vertices = Vec::new();

@@ -5,7 +5,17 @@
 use nalgebra::Vector3;
 use serde::Serialize;
 
-/// One attached vertex.
+/// One attached vertex. A model makes them from the specs' `attachments`; a struct literal
+/// makes one directly.
+///
+/// ```
+/// use diffsoft::model::Attachment;
+/// use nalgebra::Vector3;
+///
+/// let pin = Attachment { vertex: 3, target: Vector3::zeros(), weight: 100.0 };
+/// assert!((pin.energy(&Vector3::new(0.1, 0.0, 0.0)) - 0.5).abs() < 1e-12); // 100/2 x 0.1^2
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct Attachment {
     /// Vertex index in the simulated system.

@@ -15,6 +15,21 @@ use crate::mesh::TetMesh;
 use crate::skeleton::{BoneSpec, Skeleton};
 
 /// How a body's mass is given.
+///
+/// ```
+/// use diffsoft::mesh::generate::BoxSpec;
+/// use diffsoft::{BodySpec, MassSpec, Material, ModelBuilder};
+///
+/// let material = Material { youngs_modulus: 1e5, poisson_ratio: 0.3 };
+/// let total = |mass: MassSpec| -> Result<f64, Box<dyn std::error::Error>> {
+///     let mesh = BoxSpec::new([1, 1, 1], [0.1, 0.1, 0.1]).build()?;
+///     let model = ModelBuilder::new().body(BodySpec::new("box", mesh, material, mass)).build()?;
+///     Ok(model.mass().iter().sum())
+/// };
+/// assert!((total(MassSpec::Density(1000.0))? - 1.0).abs() < 1e-12); // 1000 kg/m^3 x 1e-3 m^3
+/// assert!((total(MassSpec::Total(2.5))? - 2.5).abs() < 1e-12);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum MassSpec {
@@ -53,6 +68,21 @@ pub struct BodySpec {
 
 impl BodySpec {
     /// A body with gravity, zero initial velocity, no pins and the volume constraint on.
+    ///
+    /// ```
+    /// use diffsoft::mesh::generate::BoxSpec;
+    /// use diffsoft::{BodySpec, MassSpec, Material, ModelBuilder};
+    ///
+    /// let mesh = BoxSpec::new([1, 1, 1], [0.1, 0.1, 0.1]).build()?;
+    /// let material = Material { youngs_modulus: 1e5, poisson_ratio: 0.3 };
+    /// let mut spec = BodySpec::new("box", mesh, material, MassSpec::Density(1000.0));
+    /// assert!(spec.gravity && spec.volume_constraint && spec.fixed.is_empty());
+    /// spec.fixed = vec![0, 1]; // body numbering
+    /// let model = ModelBuilder::new().body(spec).build()?;
+    /// assert_eq!(model.fixed().iter().filter(|&&f| f).count(), 2);
+    /// assert_eq!(model.bodies()[0].name, "box");
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn new(name: &str, mesh: TetMesh, material: Material, mass: MassSpec) -> Self {
         Self {
             name: name.to_string(),
@@ -87,6 +117,23 @@ pub struct ModelBuilder {
 
 impl ModelBuilder {
     /// An empty model with no gravity.
+    ///
+    /// ```
+    /// use diffsoft::mesh::generate::BoxSpec;
+    /// use diffsoft::{BodySpec, MassSpec, Material, ModelBuilder};
+    /// use nalgebra::Vector3;
+    ///
+    /// // Nothing to simulate yet.
+    /// assert!(ModelBuilder::new().build().is_err());
+    /// let mesh = BoxSpec::new([1, 1, 1], [0.1, 0.1, 0.1]).build()?;
+    /// let material = Material { youngs_modulus: 1e5, poisson_ratio: 0.3 };
+    /// let model = ModelBuilder::new()
+    ///     .gravity(Vector3::new(0.0, -9.81, 0.0))
+    ///     .body(BodySpec::new("box", mesh, material, MassSpec::Density(1000.0)))
+    ///     .build()?;
+    /// assert_eq!(model.accel()[0], Vector3::new(0.0, -9.81, 0.0));
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn new() -> Self {
         Self::default()
     }
@@ -123,6 +170,35 @@ impl ModelBuilder {
     }
 
     /// Validate and assemble.
+    ///
+    /// ```
+    /// use diffsoft::contact::Obstacle;
+    /// use diffsoft::mesh::generate::BoxSpec;
+    /// use diffsoft::{BodySpec, MassSpec, Material, ModelBuilder};
+    /// use nalgebra::Vector3;
+    ///
+    /// let material = Material { youngs_modulus: 1e5, poisson_ratio: 0.3 };
+    /// let a = BoxSpec::new([1, 1, 1], [0.1, 0.1, 0.1]).build()?;
+    /// let b = BoxSpec::new([2, 1, 1], [0.2, 0.1, 0.1]).origin([0.0, 0.5, 0.0]).build()?;
+    /// let model = ModelBuilder::new()
+    ///     .body(BodySpec::new("a", a, material, MassSpec::Density(1000.0)))
+    ///     .body(BodySpec::new("b", b, material, MassSpec::Total(1.0)))
+    ///     .obstacle(Obstacle::plane("ground", Vector3::zeros(), Vector3::y(), 0.5))
+    ///     .build()?;
+    /// // One global numbering: body b's vertices follow body a's.
+    /// assert_eq!(model.n(), 8 + 12);
+    /// assert_eq!(model.bodies()[1].vertices, 8..20);
+    /// assert_eq!(model.tets().len(), 6 + 12);
+    /// assert_eq!(model.obstacles().len(), 1);
+    ///
+    /// // Invalid input is refused with a message that names the body.
+    /// let bad = Material { youngs_modulus: -1.0, poisson_ratio: 0.3 };
+    /// let mesh = BoxSpec::new([1, 1, 1], [0.1, 0.1, 0.1]).build()?;
+    /// let soft = BodySpec::new("soft", mesh, bad, MassSpec::Density(1000.0));
+    /// let err = ModelBuilder::new().body(soft).build().unwrap_err();
+    /// assert!(err.message().contains("soft"));
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn build(mut self) -> Result<Model, InputError> {
         if self.bodies.is_empty() && self.cloths.is_empty() {
             return Err(InputError::new("the scene has no bodies"));

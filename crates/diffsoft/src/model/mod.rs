@@ -138,6 +138,24 @@ impl Model {
 
     /// The same model without its skeleton: the bones' vertices become ordinary free vertices
     /// of their bodies (for comparisons with and without bones).
+    ///
+    /// ```
+    /// use diffsoft::mesh::generate::BoxSpec;
+    /// use diffsoft::skeleton::{fixed::Fixed, BoneSpec};
+    /// use diffsoft::{BodySpec, MassSpec, Material, ModelBuilder};
+    ///
+    /// let mesh = BoxSpec::new([2, 1, 1], [0.2, 0.1, 0.1]).build()?;
+    /// let material = Material { youngs_modulus: 1e5, poisson_ratio: 0.3 };
+    /// let mut body = BodySpec::new("box", mesh, material, MassSpec::Density(1000.0));
+    /// let joint = Box::new(Fixed);
+    /// let anchor = BoneSpec { name: "anchor".into(), parent: None, joint, vertices: vec![0, 1], torque: None };
+    /// body.bones.push(anchor);
+    /// let model = ModelBuilder::new().body(body).build()?;
+    /// assert_eq!(model.skeleton().map(|s| s.rigid.len()), Some(2));
+    /// let plain = model.without_skeleton();
+    /// assert!(plain.skeleton().is_none());
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn without_skeleton(mut self) -> Self {
         self.skeleton = None;
         self

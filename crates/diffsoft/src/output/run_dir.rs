@@ -34,6 +34,20 @@ impl RunDir {
     /// Prepare `dir`: create it, refuse (or with `overwrite`, remove) the files of an earlier run,
     /// refuse to write over any of `inputs`, and check it is writable by writing a first run log
     /// (`status: "starting"`). Errors name the directory and the file.
+    ///
+    /// ```
+    /// use diffsoft::output::{RunDir, RUN_LOG};
+    ///
+    /// let dir = std::env::temp_dir().join(format!("diffsoft-doc-run-{}", std::process::id()));
+    /// let run = RunDir::prepare(&dir, &[], false)?;
+    /// assert_eq!(run.log_path(), dir.join(RUN_LOG));
+    /// assert!(std::fs::read_to_string(run.log_path())?.contains("starting"));
+    /// // An earlier run's files are not overwritten unless asked.
+    /// assert!(RunDir::prepare(&dir, &[], false).is_err());
+    /// RunDir::prepare(&dir, &[], true)?;
+    /// std::fs::remove_dir_all(&dir)?;
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn prepare(dir: &Path, inputs: &[&Path], overwrite: bool) -> std::io::Result<Self> {
         let named = |e: std::io::Error, p: &Path| std::io::Error::new(e.kind(), format!("{}: {e}", p.display()));
         std::fs::create_dir_all(dir).map_err(|e| named(e, dir))?;

@@ -75,6 +75,23 @@ pub struct RunLog {
 
 impl RunSummary {
     /// Summarise step statistics.
+    ///
+    /// ```
+    /// use diffsoft::mesh::generate::BoxSpec;
+    /// use diffsoft::output::RunSummary;
+    /// use diffsoft::{BodySpec, MassSpec, Material, ModelBuilder, Settings, Simulator};
+    ///
+    /// let mesh = BoxSpec::new([1, 1, 1], [0.1, 0.1, 0.1]).build()?;
+    /// let material = Material { youngs_modulus: 1e5, poisson_ratio: 0.3 };
+    /// let model = ModelBuilder::new().body(BodySpec::new("box", mesh, material, MassSpec::Density(1000.0))).build()?;
+    /// let mut sim = Simulator::new(model, Settings::default())?;
+    /// let steps = vec![sim.step()?, sim.step()?];
+    /// let summary = RunSummary::of(&steps);
+    /// assert_eq!((summary.steps, summary.converged_steps), (2, 2));
+    /// assert!((summary.simulated_time - 0.02).abs() < 1e-12);
+    /// assert_eq!(RunSummary::of(&[]).steps, 0);
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn of(steps: &[StepStats]) -> Self {
         let mut ms: Vec<f64> = steps.iter().map(|s| s.wall_ms).collect();
         ms.sort_by(f64::total_cmp);

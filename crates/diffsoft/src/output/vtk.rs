@@ -86,6 +86,26 @@ impl std::fmt::Debug for FrameWriter {
 
 impl FrameWriter {
     /// Prepare `dir` (created if needed) for the frames of `model`. Errors name the directory.
+    ///
+    /// ```
+    /// use diffsoft::mesh::generate::BoxSpec;
+    /// use diffsoft::output::FrameWriter;
+    /// use diffsoft::{BodySpec, MassSpec, Material, ModelBuilder, Settings, Simulator};
+    ///
+    /// let mesh = BoxSpec::new([1, 1, 1], [0.1, 0.1, 0.1]).build()?;
+    /// let material = Material { youngs_modulus: 1e5, poisson_ratio: 0.3 };
+    /// let model = ModelBuilder::new().body(BodySpec::new("box", mesh, material, MassSpec::Density(1000.0))).build()?;
+    /// let dir = std::env::temp_dir().join(format!("diffsoft-doc-frames-{}", std::process::id()));
+    /// let mut frames = FrameWriter::new(&dir, &model)?;
+    /// let mut sim = Simulator::new(model, Settings::default())?;
+    /// sim.step()?;
+    /// let path = frames.write_state(&sim)?;
+    /// assert_eq!(path, dir.join("frame_00000.vtu"));
+    /// assert_eq!(frames.count(), 1);
+    /// assert!(String::from_utf8_lossy(&std::fs::read(&path)?).contains("<UnstructuredGrid>"));
+    /// std::fs::remove_dir_all(&dir)?;
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn new(dir: &Path, model: &Model) -> std::io::Result<Self> {
         std::fs::create_dir_all(dir).map_err(|e| named(e, dir))?;
         let n = model.n();

@@ -6,6 +6,17 @@ use num_dual::Dual64;
 use super::joint::Joint;
 
 /// A 0-DoF joint.
+///
+/// ```
+/// use diffsoft::skeleton::fixed::Fixed;
+/// use diffsoft::skeleton::Joint;
+/// use nalgebra::Matrix4;
+///
+/// let weld = Fixed;
+/// assert_eq!((weld.kind(), weld.dofs()), ("fixed", 0));
+/// assert_eq!(weld.transform(), Matrix4::identity());
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Fixed;
 

@@ -9,7 +9,22 @@ use num_dual::Dual64;
 
 use super::joint::{dual_matrix4, homogeneous, homogeneous_derivative, skew, Joint};
 
-/// A free root joint.
+/// A free root joint; [`Free::default`] is the identity transform.
+///
+/// ```
+/// use diffsoft::skeleton::free::Free;
+/// use diffsoft::skeleton::Joint;
+/// use nalgebra::{Matrix4, Vector4};
+///
+/// let mut root = Free::default();
+/// assert_eq!(root.dofs(), 6);
+/// assert_eq!(root.transform(), Matrix4::identity());
+/// // A pure translation increment (w = 0, l = (1, 2, 3)).
+/// root.update(&[0.0, 0.0, 0.0, 1.0, 2.0, 3.0]);
+/// let q = root.transform() * Vector4::new(0.0, 0.0, 0.0, 1.0);
+/// assert!((q - Vector4::new(1.0, 2.0, 3.0, 1.0)).norm() < 1e-12);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 #[derive(Debug, Clone, PartialEq)]
 pub struct Free {
     /// Current rotation (rest to world).

@@ -102,6 +102,35 @@ pub struct Skeleton {
 impl Skeleton {
     /// Build from specs: reorders parents before children, checks indices, that no vertex is in
     /// two bones, and torque schedules.
+    ///
+    /// ```
+    /// use diffsoft::skeleton::{free::Free, rotational::Rotational, BoneSpec, Skeleton};
+    /// use diffsoft::Schedule;
+    /// use nalgebra::Vector3;
+    ///
+    /// let rest = [Vector3::zeros(), Vector3::x(), Vector3::x() * 2.0];
+    /// // The child is listed first: the skeleton puts parents first.
+    /// let arm = BoneSpec {
+    ///     name: "arm".into(),
+    ///     parent: Some(1),
+    ///     joint: Box::new(Rotational::new(Vector3::x(), Vector3::z())),
+    ///     vertices: vec![1, 2],
+    ///     torque: Some(Schedule::constant(0.1)),
+    /// };
+    /// let free = || -> Box<dyn diffsoft::skeleton::Joint> { Box::new(Free::default()) };
+    /// let body = BoneSpec { name: "body".into(), parent: None, joint: free(), vertices: vec![0], torque: None };
+    /// let skeleton = Skeleton::new(vec![arm, body], &rest)?;
+    /// assert_eq!(skeleton.bones[0].name, "body");
+    /// assert_eq!(skeleton.dofs, 6 + 1);
+    /// assert_eq!(skeleton.rigid, vec![0, 1, 2]);
+    /// assert_eq!(skeleton.scalar_dof("arm")?, 6);
+    ///
+    /// // A vertex in two bones is refused.
+    /// let a = BoneSpec { name: "a".into(), parent: None, joint: free(), vertices: vec![0], torque: None };
+    /// let b = BoneSpec { name: "b".into(), parent: Some(0), joint: free(), vertices: vec![0], torque: None };
+    /// assert!(Skeleton::new(vec![a, b], &rest).is_err());
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn new(specs: Vec<BoneSpec>, rest: &[Vector3<f64>]) -> Result<Self, InputError> {
         let n = specs.len();
         for (i, s) in specs.iter().enumerate() {

@@ -19,6 +19,20 @@ pub struct Prismatic {
 
 impl Prismatic {
     /// A joint along `axis` (normalised here) at extension 0.
+    ///
+    /// ```
+    /// use diffsoft::skeleton::prismatic::Prismatic;
+    /// use diffsoft::skeleton::Joint;
+    /// use nalgebra::{Vector3, Vector4};
+    ///
+    /// let mut slider = Prismatic::new(Vector3::new(0.0, 3.0, 0.0));
+    /// assert_eq!(slider.axis, Vector3::y());
+    /// slider.update(&[0.5]);
+    /// assert_eq!(slider.extension, 0.5);
+    /// let q = slider.transform() * Vector4::new(1.0, 0.0, 0.0, 1.0);
+    /// assert_eq!(q, Vector4::new(1.0, 0.5, 0.0, 1.0));
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn new(axis: Vector3<f64>) -> Self {
         Self {
             axis: axis.normalize(),

@@ -37,6 +37,20 @@ pub fn rodrigues_derivative<T: RealField + Copy>(n: &Vector3<T>, t: T) -> Matrix
 
 impl Rotational {
     /// A joint at `position` about `axis` (normalised here) at angle 0.
+    ///
+    /// ```
+    /// use diffsoft::skeleton::rotational::Rotational;
+    /// use diffsoft::skeleton::Joint;
+    /// use nalgebra::{Vector3, Vector4};
+    ///
+    /// let hinge = Rotational::new(Vector3::x(), Vector3::new(0.0, 0.0, 2.0));
+    /// assert_eq!(hinge.axis, Vector3::z());
+    /// assert_eq!((hinge.angle, hinge.dofs()), (0.0, 1));
+    /// // A quarter turn about z through (1, 0, 0) takes (2, 0, 0) to (1, 1, 0).
+    /// let q = hinge.transform_at(std::f64::consts::FRAC_PI_2) * Vector4::new(2.0, 0.0, 0.0, 1.0);
+    /// assert!((q - Vector4::new(1.0, 1.0, 0.0, 1.0)).norm() < 1e-12);
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn new(position: Vector3<f64>, axis: Vector3<f64>) -> Self {
         Self {
             position,
