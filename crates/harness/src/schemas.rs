@@ -122,7 +122,7 @@ fn plain_descriptions(v: &mut Value) {
         Value::Object(map) => {
             for (key, child) in map.iter_mut() {
                 match child {
-                    Value::String(text) if key == "description" => *text = unlink(text),
+                    Value::String(text) if key == "description" => *text = unlink(&without_examples(text)),
                     _ if matches!(key.as_str(), "enum" | "const" | "default" | "examples") => {}
                     _ => plain_descriptions(child),
                 }
@@ -131,6 +131,42 @@ fn plain_descriptions(v: &mut Value) {
         Value::Array(items) => items.iter_mut().for_each(plain_descriptions),
         _ => {}
     }
+}
+
+/// The description without its code examples (a type's doctests are for Rust readers, not for
+/// the schema's), and without the blank lines they leave at the end.
+fn without_examples(text: &str) -> String {
+    let mut out = Vec::new();
+    // Inside a fence: whether it is Rust (dropped) or another language (kept, e.g. JSON).
+    let mut fence: Option<bool> = None;
+    for line in text.lines() {
+        let t = line.trim_start();
+        if let Some(lang) = t.strip_prefix("```") {
+            let rust = match fence {
+                None => {
+                    let lang = lang.trim();
+                    let rust = lang.is_empty() || lang.starts_with("rust") || lang == "no_run";
+                    fence = Some(rust);
+                    rust
+                }
+                Some(rust) => {
+                    fence = None;
+                    rust
+                }
+            };
+            if !rust {
+                out.push(line);
+            }
+            continue;
+        }
+        if fence != Some(true) {
+            out.push(line);
+        }
+    }
+    while out.last().is_some_and(|l| l.trim().is_empty()) {
+        out.pop();
+    }
+    out.join("\n")
 }
 
 fn unlink(text: &str) -> String {
@@ -357,6 +393,13 @@ mod tests {
         files.sort_unstable();
         files.dedup();
         assert_eq!(files.len(), all.len());
+    }
+
+    #[test]
+    fn code_examples_are_left_out() {
+        assert_eq!(without_examples("A thing.\n\n```\nlet x = 1;\n```\n"), "A thing.");
+        assert_eq!(without_examples("a\n\nb"), "a\n\nb");
+        assert_eq!(without_examples("a\n```json\n{}\n```"), "a\n```json\n{}\n```");
     }
 
     #[test]

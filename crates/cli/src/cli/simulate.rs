@@ -22,8 +22,8 @@ pub(crate) fn simulate(
     out: RunOutput<'_>,
     activations: &[(String, f64)],
 ) -> Result<()> {
-    use diffsoft::report::Header;
     use diffsoft::output::{FrameWriter, RunDir, RunLog, RunStatus, RunSummary, RUN_SCHEMA};
+    use diffsoft::report::Header;
     use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
     use std::sync::atomic::Ordering;
     // The run log holds every step's figures: a step count it cannot hold is refused up front.

@@ -4,7 +4,7 @@
 //! to the initial positions and velocities, the per-tet constraint weights (hence Young's modulus
 //! and Poisson ratio, globally or per element), the lumped masses (density), the external
 //! accelerations (gravity), the attachment targets, the actuators' activations at every step,
-//! the joint torques at every step and the initial joint state (skeletons, [`skeletal`]).
+//! the joint torques at every step and the initial joint state (skeletons, `skeletal.rs`).
 //!
 //! The forward pass stores each step's state (checkpointing, as the paper does); the backward
 //! pass walks the steps in reverse. Two modes:
@@ -12,7 +12,7 @@
 //! * [`Mode::Unrolled`] replays each step from its checkpoint, recording the local-global
 //!   iterates `x_0 = s, x_1, ..., x_N` (Eqs. 2-5), and differentiates every iteration the forward
 //!   ran, `x_{k+1} = A^-1 (M s/h^2 + b_fixed + J p(x_k))`: with `r_bar = A^-1 x_bar` (plus the
-//!   contact correction of [`contact`]), `x_bar_k = J (dp/dq)(x_k)^T J^T r_bar` ([`local`]). It
+//!   contact correction of `contact.rs`), `x_bar_k = J (dp/dq)(x_k)^T J^T r_bar`. It
 //!   is the exact derivative of what the truncated solver computed.
 //! * [`Mode::Implicit`] differentiates the converged step by the implicit function theorem at the
 //!   stored next state, solving `(A - K) r_bar = x_bar` (`K` the local step's linearization,
@@ -26,7 +26,7 @@
 //! a sparse Cholesky factor (built here for any forward solver); contact subproblems at the
 //! impulses they converged to. With a skeleton, each iteration is the reduced step of Eqs. 7-18,
 //! differentiated with the joints' tangent charts, their update rules, active joint limits and
-//! contacts on free and bone vertices (see [`skeletal`]); its implicit mode iterates the adjoint
+//! contacts on free and bone vertices (see `skeletal.rs`); its implicit mode iterates the adjoint
 //! of the step's last iteration to its fixed point. Anderson-accelerated unrolled runs return
 //! [`DiffError::Unsupported`].
 //!
@@ -171,6 +171,14 @@ impl Default for Options {
 
 impl Options {
     /// Defaults with the given mode.
+    ///
+    /// ```
+    /// use diffsoft::{Mode, Options};
+    ///
+    /// let o = Options::mode(Mode::Implicit);
+    /// assert_eq!(o.mode, Mode::Implicit);
+    /// assert_eq!(o.store_bytes, Options::default().store_bytes);
+    /// ```
     pub fn mode(mode: Mode) -> Self {
         Self {
             mode,
@@ -184,6 +192,14 @@ pub type InitialState = (Vec<Vector3<f64>>, Vec<Vector3<f64>>);
 
 /// The controls of a run: the initial state and activations per step (`[step][group]`,
 /// overriding the groups' schedules).
+///
+/// ```
+/// use diffsoft::Controls;
+///
+/// // Two steps of one actuator group, the rest as the model has it.
+/// let c = Controls { activations: Some(vec![vec![0.5], vec![1.0]]), ..Controls::default() };
+/// assert!(c.initial.is_none() && c.torques.is_none());
+/// ```
 #[derive(Debug, Clone, Default)]
 pub struct Controls {
     /// Initial positions and velocities (`None`: the model's rest positions and initial

@@ -220,6 +220,16 @@ const AXES: [(&str, &str); 3] = [
 ];
 
 /// The entry named `name`.
+///
+/// ```
+/// use diffsoft::diff::params::{self, Param};
+///
+/// let e = params::lookup("youngs_modulus").unwrap();
+/// assert_eq!(e.units, "Pa");
+/// assert!(Param::of(e).is_some());
+/// assert!(params::lookup("youngs_modulus_per_tet").is_some_and(|a| Param::of(a).is_none()));
+/// assert!(params::lookup("stiffness").is_none());
+/// ```
 pub fn lookup(name: &str) -> Option<&'static ParamSpec> {
     PARAMETERS.iter().find(|p| p.name == name)
 }

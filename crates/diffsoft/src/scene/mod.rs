@@ -179,6 +179,18 @@ fn cloth_from_file(scene: &str, dir: &Path, c: &format::ClothFile) -> Result<cra
 }
 
 /// Read a scene file of either format.
+///
+/// ```
+/// use diffsoft::{scene, Simulator};
+///
+/// let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../verification/paper/bridgesus/bridgesus.json");
+/// let sc = scene::load(path, Default::default())?;
+/// assert_eq!(sc.settings.dt, 0.005);
+/// let mut sim = Simulator::new(sc.model, sc.settings)?;
+/// assert!(sim.step()?.iterations >= 1);
+/// assert!(scene::load("no/such/scene.json", Default::default()).is_err());
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 pub fn load(path: impl AsRef<Path>, opts: LoadOptions) -> Result<Scene, SceneError> {
     let path = path.as_ref();
     let shown = path.display().to_string();

@@ -228,6 +228,17 @@ impl Ctx<'_> {
 }
 
 /// Import a parsed paper scene.
+///
+/// ```
+/// use std::path::Path;
+/// use diffsoft::scene::paper;
+///
+/// let path = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../../verification/paper/bridgesus/bridgesus.json"));
+/// let value: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(path)?)?;
+/// let sc = paper::import(path, &value, Default::default())?;
+/// assert!(sc.model.n() > 0);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 pub fn import(path: &Path, value: &Value, opts: LoadOptions) -> Result<Scene, SceneError> {
     let mut cx = Ctx {
         path,

@@ -104,7 +104,7 @@ pub struct Candidate {
     pub cost_per_solve_ms: Option<f64>,
     /// One-off cost: the factorisation (direct) or the eigenvalue computation (iterative), ms.
     pub setup_ms: f64,
-    /// Predicted cost of the setup and [`AMORTISED_SOLVES`](super::choose::AMORTISED_SOLVES) solves (ms).
+    /// Predicted cost of the setup and `AMORTISED_SOLVES` solves (ms).
     pub predicted_ms: Option<f64>,
 }
 

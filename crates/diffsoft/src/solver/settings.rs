@@ -50,6 +50,15 @@ pub struct Settings {
     pub anderson: usize,
 }
 
+/// The defaults: `dt` 0.01 s, implicit Euler, the `auto` solver certified with fallback, 30
+/// local-global iterations to a tolerance of 1e-6 of the length scale, no damping.
+///
+/// ```
+/// use diffsoft::{Settings, SolverKind};
+///
+/// let s = Settings::default();
+/// assert_eq!((s.dt, s.solver, s.max_iterations), (0.01, SolverKind::Auto, 30));
+/// ```
 impl Default for Settings {
     fn default() -> Self {
         Self {
@@ -100,6 +109,19 @@ impl Settings {
     /// settings are unchanged. The command line's overrides and Python's `Scene.configure`
     /// come through here. A number setting given `null` (how serde writes NaN and infinity)
     /// is refused.
+    ///
+    /// ```
+    /// use diffsoft::{Settings, SolverKind};
+    ///
+    /// let mut s = Settings::default();
+    /// s.set("solver", "split".into())?;
+    /// s.set("tolerance", 1e-8.into())?;
+    /// assert_eq!((s.solver, s.tolerance), (SolverKind::Split, 1e-8));
+    /// assert!(s.set("tolerance", (-1.0).into()).is_err());
+    /// assert_eq!(s.tolerance, 1e-8); // unchanged by the refused call
+    /// assert!(s.set("no_such_setting", 1.into()).is_err());
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn set(&mut self, name: &str, value: serde_json::Value) -> Result<(), SolverError> {
         let mut fields = match serde_json::to_value(&*self) {
             Ok(serde_json::Value::Object(fields)) => fields,

@@ -391,7 +391,7 @@ fn unsupported_scenes_are_refused_clearly() {
         .obstacle(Obstacle::plane("ground", Vector3::zeros(), Vector3::y(), 0.5))
         .build()
         .unwrap();
-    // Ground contact runs (tests/newton_contact.rs); collisions between bodies are refused.
+    // Ground contact runs (crates/harness/tests/harness/newton_contact.rs); collisions between bodies are refused.
     let mut sim = Simulator::new(ground, newton.clone()).unwrap();
     assert!(sim.step().unwrap().converged);
     let two = ModelBuilder::new()
@@ -419,7 +419,7 @@ fn unsupported_scenes_are_refused_clearly() {
         },
         "Anderson",
     );
-    // A skeleton runs (the paper's Baymax bones, tests/newton_skeleton.rs), but not with
+    // A skeleton runs (the paper's Baymax bones, crates/harness/tests/harness/newton_skeleton.rs), but not with
     // obstacles (Fig. 5b's Baymax on the ground: contacts on bone vertices in the reduced step);
     // cloth is refused.
     let grounded = scene::load(

@@ -54,7 +54,7 @@ fn paper_scenes_with_cloth_actuators_and_skeletons_load() {
     assert_eq!(col.names.len(), 2);
     assert!((col.settings.friction - 0.1).abs() < 1e-15);
     assert!(cb.notes.iter().any(|n| n.contains("edge springs")), "{:?}", cb.notes);
-    // Actuators are simulated: the drone and the octopus load (tests/actuators.rs).
+    // Actuators are simulated: the drone and the octopus load (crates/harness/tests/harness/actuators.rs).
     for file in ["droneman/droneman.json", "octopus/octopus.json"] {
         assert!(scene::load(paper(file), LoadOptions::default())
             .unwrap()

@@ -40,6 +40,23 @@ use grid::Grid;
 pub use geometry::{edge_edge, geometry, segment_crosses, vertex_face, Regime};
 
 /// Settings of collisions between bodies.
+///
+/// ```
+/// use diffsoft::contact::pair::BodyCollision;
+/// use diffsoft::mesh::generate::BoxSpec;
+/// use diffsoft::{BodySpec, MassSpec, Material, ModelBuilder};
+///
+/// let m = Material { youngs_modulus: 1e5, poisson_ratio: 0.3 };
+/// let a = BoxSpec::new([1, 1, 1], [0.1, 0.1, 0.1]).build()?;
+/// let b = BoxSpec::new([1, 1, 1], [0.1, 0.1, 0.1]).origin([0.0, 0.2, 0.0]).build()?;
+/// let model = ModelBuilder::new()
+///     .body(BodySpec::new("a", a, m, MassSpec::Density(1000.0)))
+///     .body(BodySpec::new("b", b, m, MassSpec::Density(1000.0)))
+///     .collisions(BodyCollision { thickness: 1e-3, friction: 0.2 })
+///     .build()?;
+/// assert_eq!(model.n(), 16);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, serde::Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct BodyCollision {
