@@ -253,7 +253,7 @@ type Views = Vec<Panel>;
 fn run(sc: &Scene, with_bones: bool, steps: usize, arms: &[Arm]) -> Result<(Run, Views)> {
     let mut model = sc.model.clone();
     if !with_bones {
-        model = model.without_skeleton();
+        model.remove_skeleton();
     }
     let rest_height = height(model.rest());
     let rest_span = span(model.rest(), arms);
@@ -292,7 +292,7 @@ fn cost(sc: &Scene, iterations: usize, steps: usize) -> Result<Cost> {
     let time = |with_bones: bool| -> Result<f64> {
         let mut model = sc.model.clone();
         if !with_bones {
-            model = model.without_skeleton();
+            model.remove_skeleton();
         }
         let mut settings = sc.settings.clone();
         settings.max_iterations = iterations;

@@ -136,6 +136,88 @@ impl Model {
         self.skeleton.as_ref()
     }
 
+    /// Pneumatic cells and muscle fibres (`None`: no actuator code runs).
+    pub(crate) actuators: Option<Actuators>,
+    /// Cloth bodies (`None`: no cloth code runs).
+    pub(crate) cloth: Option<Cloth>,
+    /// Collisions between bodies (soft-soft, soft-cloth; `None`: bodies pass through each
+    /// other and no collision code runs).
+    pub(crate) collision: Option<Colliders>,
+    /// Characteristic length: the diagonal of the rest bounding box.
+    pub(crate) length_scale: f64,
+}
+
+impl Model {
+    /// Rest positions of all vertices.
+    pub fn rest(&self) -> &[Vector3<f64>] {
+        &self.rest
+    }
+
+    /// Initial velocities.
+    pub fn initial_velocity(&self) -> &[Vector3<f64>] {
+        &self.initial_velocity
+    }
+
+    /// All tets (global vertex numbering).
+    pub fn tets(&self) -> &[[usize; 4]] {
+        &self.tets
+    }
+
+    /// Per-tet geometry and the pattern of `L`.
+    pub fn fem(&self) -> &FemOperators {
+        &self.fem
+    }
+
+    /// Corotated weight per tet (`E/(1+nu) V`).
+    pub fn w_rot(&self) -> &[f64] {
+        &self.w_rot
+    }
+
+    /// Volume weight per tet (`nu E/(1+nu) V`, 0 when disabled).
+    pub fn w_vol(&self) -> &[f64] {
+        &self.w_vol
+    }
+
+    /// Lumped mass per vertex.
+    pub fn mass(&self) -> &[f64] {
+        &self.mass
+    }
+
+    /// External acceleration per vertex (gravity where enabled).
+    pub fn accel(&self) -> &[Vector3<f64>] {
+        &self.accel
+    }
+
+    /// Penalty attachments.
+    pub fn attachments(&self) -> &[Attachment] {
+        &self.attachments
+    }
+
+    /// Dirichlet vertices (held at their rest position).
+    pub fn fixed(&self) -> &[bool] {
+        &self.fixed
+    }
+
+    /// Obstacles (empty: no collision code runs).
+    pub fn obstacles(&self) -> &[Obstacle] {
+        &self.obstacles
+    }
+
+    /// Bodies.
+    pub fn bodies(&self) -> &[Body] {
+        &self.bodies
+    }
+
+    /// Vertex-to-tet adjacency for the right-hand-side gather.
+    pub fn vertex_tets(&self) -> &VertexTets {
+        &self.vertex_tets
+    }
+
+    /// Embedded skeleton (`None`: no skeleton code runs).
+    pub fn skeleton(&self) -> Option<&Skeleton> {
+        self.skeleton.as_ref()
+    }
+
     /// The same model without its skeleton: the bones' vertices become ordinary free vertices
     /// of their bodies (for comparisons with and without bones).
     ///
