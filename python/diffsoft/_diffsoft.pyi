@@ -79,6 +79,11 @@ class Scene:
     @property
     def notes(self) -> list[str]: ...
     @property
+    def materials(self) -> list[dict[str, Any]]:
+        """Every body's material: name, model, youngs_modulus, poisson_ratio and, for the
+        projective model, effective_youngs_modulus and effective_poisson_ratio."""
+        ...
+    @property
     def actuator_groups(self) -> list[str]:
         """Names of the actuator groups, the columns of ``activations``."""
     @property

@@ -222,6 +222,27 @@ impl Scene {
         self.inner.notes.clone()
     }
 
+    /// Every body's material: `name`, `model` (`projective`, `corotated`, `neo_hookean`),
+    /// `youngs_modulus`, `poisson_ratio`, and for the projective model the moduli it responds
+    /// with at small strain, `effective_youngs_modulus = E/(1 + 2nu/3)` and
+    /// `effective_poisson_ratio = nu/(3 + 2nu)` (`None` for the true models), as `run.json`.
+    #[getter]
+    fn materials<'py>(&self, py: Python<'py>) -> PyResult<Vec<Bound<'py, PyAny>>> {
+        self.inner
+            .model
+            .bodies()
+            .iter()
+            .map(|b| {
+                let log = diffsoft::output::BodyLog::of(b);
+                let mut v = serde_json::to_value(&log.material).map_err(errors::other)?;
+                if let Some(o) = v.as_object_mut() {
+                    o.insert("name".into(), serde_json::Value::String(log.name.clone()));
+                }
+                arrays::json(py, &v)
+            })
+            .collect()
+    }
+
     /// Names of the actuator groups (columns of `activations`).
     #[getter]
     fn actuator_groups(&self) -> Vec<String> {

@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
 import pytest
 
 import diffsoft
+from conftest import DATA, central
 
 
 def test_load_both_formats(beam, bridgesus):
@@ -141,3 +143,33 @@ def test_an_unconverged_forward_is_refused_unless_allowed(beam):
         diffsoft.grad_batch(stiff, 10, "final_com.y", ["density"], [{}])
     loss, grads = stiff.grad(10, params=["density"], allow_unconverged=True)
     assert math.isfinite(loss) and math.isfinite(grads["density"])
+
+
+def test_materials_report_the_model_and_the_projective_response(beam, tmp_path):
+    (m,) = beam.materials
+    assert m["model"] == "projective"
+    e, nu = m["youngs_modulus"], m["poisson_ratio"]
+    assert m["effective_youngs_modulus"] == pytest.approx(e / (1 + 2 * nu / 3), rel=1e-14)
+    assert m["effective_poisson_ratio"] == pytest.approx(nu / (3 + 2 * nu), rel=1e-14)
+    # The same beam in a hyperelastic model: exact moduli, Newton by default, implicit gradients.
+    scene = json.loads((DATA / "beam.json").read_text())
+    scene["bodies"][0]["material"]["model"] = "neo_hookean"
+    scene["solver"]["solver"] = "auto"
+    scene["bodies"][0]["mesh"] = str(DATA / "beam.obj")
+    path = tmp_path / "neo.json"
+    path.write_text(json.dumps(scene))
+    neo = diffsoft.Scene.load(path)
+    (m,) = neo.materials
+    assert m["model"] == "neo_hookean" and m["effective_youngs_modulus"] is None
+    run = neo.simulate(3)
+    assert run.stats["summary"]["converged_steps"] == 3
+    loss, grads = neo.grad(3, loss="final_com.y", params=["youngs_modulus"], mode="implicit")
+    h = 1e-4 * e
+    fd = central(lambda x: _loss_at(neo, x), e, h)
+    assert grads["youngs_modulus"] == pytest.approx(fd, rel=1e-4)
+
+
+def _loss_at(scene, e):
+    s = scene.copy()
+    s.set("youngs_modulus", e)
+    return s.grad(3, loss="final_com.y", params=[], mode="implicit")[0]

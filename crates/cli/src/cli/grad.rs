@@ -132,6 +132,20 @@ pub(crate) fn grad(a: GradArgs) -> Result<()> {
     })?;
     let mut gradient = std::collections::BTreeMap::new();
     let mut values = std::collections::BTreeMap::new();
+    for n in sc
+        .model
+        .bodies()
+        .iter()
+        .filter_map(diffsoft::output::BodyLog::material_note)
+    {
+        say!("note {n}");
+    }
+    if let Some(k) = g.stats.solver {
+        say!(
+            "solver auto: {} for the gradient (its backward pass exists for this scene)",
+            diffsoft::base::Choice::name(k)
+        );
+    }
     say!("loss {} = {:.17e}", a.loss, g.loss);
     for p in &params {
         let d = p.derivative(&sc.model, &g);

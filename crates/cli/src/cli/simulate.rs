@@ -37,7 +37,7 @@ pub(crate) fn simulate(
         None => None,
     };
     let model_size = diffsoft::report::ModelSize::of(&sc.model);
-    let bodies = sc.model.bodies().to_vec();
+    let bodies: Vec<diffsoft::output::BodyLog> = sc.model.bodies().iter().map(diffsoft::output::BodyLog::of).collect();
     let cloth = sc.model.cloth().map_or(Vec::new(), |c| c.bodies.clone());
     say!(
         "scene       {} ({:?}): {} vertices, {} tets, {} bodies{}",
@@ -53,6 +53,14 @@ pub(crate) fn simulate(
         }
     );
     for n in &sc.notes {
+        say!("note        {n}");
+    }
+    for n in sc
+        .model
+        .bodies()
+        .iter()
+        .filter_map(diffsoft::output::BodyLog::material_note)
+    {
         say!("note        {n}");
     }
     let mut sim = diffsoft::solver::Simulator::new(sc.model, sc.settings.clone())?;
@@ -78,6 +86,7 @@ pub(crate) fn simulate(
         cloth,
         size: model_size,
         settings: sim.settings().clone(),
+        damping_per_second: sim.settings().damping_per_second(),
         certificate: sim.certificate().clone(),
         summary: RunSummary::of(&[]),
         steps: Vec::new(),

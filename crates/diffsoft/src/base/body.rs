@@ -4,7 +4,7 @@ use std::ops::Range;
 
 use serde::Serialize;
 
-use super::Material;
+use super::{Material, MaterialModel};
 
 /// One soft body of an assembled model: its name, its ranges in the global vertex and tet
 /// numbering, and its material and mass.
@@ -16,8 +16,10 @@ pub struct Body {
     pub vertices: Range<usize>,
     /// Its tets in the global numbering.
     pub tets: Range<usize>,
-    /// Material.
+    /// Material parameters.
     pub material: Material,
+    /// The constitutive model they are used in.
+    pub model: MaterialModel,
     /// Total mass (kg).
     pub mass: f64,
     /// Density (kg/m^3; for a total-mass body, mass / volume).

@@ -58,4 +58,71 @@ impl Material {
     pub fn volume_stiffness(&self) -> f64 {
         self.poisson_ratio * self.youngs_modulus / (1.0 + self.poisson_ratio)
     }
+
+    /// The small-strain response of the projective model with these parameters (docs/method.md
+    /// Eq. H5): its volume term adds only a third of Lame's `lambda` (`2 mu nu / 3`), so it
+    /// responds as `E_eff = E / (1 + 2 nu / 3)`, `nu_eff = nu / (3 + 2 nu)` (never above 0.125);
+    /// exactly `(E, nu)` at `nu = 0`.
+    ///
+    /// ```
+    /// use diffsoft::Material;
+    ///
+    /// let m = Material { youngs_modulus: 1e6, poisson_ratio: 0.3 };
+    /// let r = m.projective_response();
+    /// assert!((r.youngs_modulus - 1e6 / 1.2).abs() < 1e-6);
+    /// assert!((r.poisson_ratio - 0.3 / 3.6).abs() < 1e-15);
+    /// ```
+    pub fn projective_response(&self) -> Material {
+        let nu = self.poisson_ratio;
+        Material {
+            youngs_modulus: self.youngs_modulus / (1.0 + 2.0 * nu / 3.0),
+            poisson_ratio: nu / (3.0 + 2.0 * nu),
+        }
+    }
+}
+
+/// The constitutive model of a body's material (scene key `material.model`; docs/method.md
+/// section 2.4).
+///
+/// * `projective` (the default): the paper's corotated and volume constraints (Eq. 3); its
+///   small-strain response is [`Material::projective_response`], not `(E, nu)` unless `nu = 0`.
+///   Runs with every solver.
+/// * `corotated`: the fixed-corotated energy (Stomakhin et al. 2012, Eq. H1) with the exact Lame
+///   parameters of `(E, nu)`.
+/// * `neo_hookean`: the stable Neo-Hookean energy (Smith et al. 2018, Eqs. H2-H3), re-parametrised
+///   so that its small-strain response is exactly `(E, nu)`; defined for inverted elements.
+///
+/// The two true models are hyperelastic energies, not projective constraints: they run with
+/// Newton's method (`solver: newton`, which `auto` picks for them).
+///
+/// ```
+/// use diffsoft::base::{Choice, MaterialModel};
+///
+/// assert_eq!(MaterialModel::default(), MaterialModel::Projective);
+/// assert_eq!(MaterialModel::from_name("neo_hookean"), Some(MaterialModel::NeoHookean));
+/// assert!(MaterialModel::Corotated.is_hyperelastic());
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, serde::Deserialize, schemars::JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum MaterialModel {
+    /// The paper's projective constraints (corotated and volume).
+    #[default]
+    Projective,
+    /// Fixed-corotated hyperelasticity with the exact Lame parameters.
+    Corotated,
+    /// Stable Neo-Hookean hyperelasticity, exact small-strain moduli.
+    NeoHookean,
+}
+
+crate::choice!(MaterialModel {
+    Projective => "projective",
+    Corotated => "corotated",
+    NeoHookean => "neo_hookean",
+});
+
+impl MaterialModel {
+    /// Whether it is a hyperelastic energy (runs with Newton's method only).
+    pub fn is_hyperelastic(self) -> bool {
+        self != MaterialModel::Projective
+    }
 }

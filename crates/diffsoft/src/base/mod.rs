@@ -21,5 +21,5 @@ mod schedule;
 pub use body::Body;
 pub use choice::Choice;
 pub use error::InputError;
-pub use material::Material;
+pub use material::{Material, MaterialModel};
 pub use schedule::Schedule;

@@ -167,6 +167,10 @@ impl ConstraintSet for Elasticity {
             .enumerate()
             .with_min_len(64)
             .try_for_each(|(t, (vw, lin))| {
+                if absent(w_rot[t], w_vol[t]) {
+                    *lin = TetLinearization::zero();
+                    return Ok(());
+                }
                 let s = svd3_warm(&model.tet_deformation(t, q), vw);
                 *vw = s.v;
                 *lin = TetLinearization::new(&s, w_rot[t], w_vol[t])
@@ -198,6 +202,11 @@ impl ConstraintSet for Elasticity {
                 let len = dp.len();
                 let mut process = |k: usize, lin: &TetLinearization| {
                     let t = t0 + k;
+                    if absent(w_rot[t], w_vol[t]) {
+                        // A hyperelastic tet: its parameter slots belong to that kind.
+                        dp[k] = Matrix3::zeros();
+                        return;
+                    }
                     let fy = model.tet_deformation(t, y);
                     dp[k] = lin.apply(&fy);
                     // d(J p)/dw minus dA/dw x_next (L_t = w A_t^T A_t per weight).
@@ -212,6 +221,10 @@ impl ConstraintSet for Elasticity {
                 } else if let Linearize::Recorded(rec) = lin {
                     for k in 0..len {
                         let t = t0 + k;
+                        if absent(w_rot[t], w_vol[t]) {
+                            process(k, &TetLinearization::zero());
+                            continue;
+                        }
                         let r = rec.get(t).ok_or_else(|| fail(t, "no recorded decomposition"))?;
                         let x = (w_vol[t] > 0.0).then_some(r.target);
                         let lin =
@@ -245,6 +258,10 @@ impl ConstraintSet for Elasticity {
                     for k in 0..len {
                         vw[k] = svds[k].v;
                         let t = t0 + k;
+                        if absent(w_rot[t], w_vol[t]) {
+                            process(k, &TetLinearization::zero());
+                            continue;
+                        }
                         let x = xs.as_ref().filter(|_| w_vol[t] > 0.0).map(|x| x[k]);
                         let lin =
                             TetLinearization::with_target(&svds[k], x, w_rot[t], w_vol[t]).map_err(|m| fail(t, m))?;
@@ -263,6 +280,9 @@ impl ConstraintSet for Elasticity {
             .enumerate()
             .with_min_len(64)
             .for_each(|(t, (gr, gv))| {
+                if absent(model.w_rot[t], model.w_vol[t]) {
+                    return;
+                }
                 let mut s = 0.0;
                 for (a, b) in pairs {
                     s += model.tet_deformation(t, a).dot(&model.tet_deformation(t, b));
@@ -271,6 +291,12 @@ impl ConstraintSet for Elasticity {
                 *gv -= s;
             });
     }
+}
+
+/// Whether a tet has no projective elasticity (both weights zero: a tet of a hyperelastic
+/// body, whose kind owns its parameter adjoints).
+fn absent(w_rot: f64, w_vol: f64) -> bool {
+    w_rot == 0.0 && w_vol == 0.0
 }
 
 /// One chunk's inputs and outputs (`len <= LANES` tets).

@@ -24,6 +24,7 @@ pub(crate) mod cloth_bend;
 pub(crate) mod cloth_stretch;
 pub(crate) mod elasticity;
 mod error;
+pub(crate) mod hyperelastic;
 pub(crate) mod muscle;
 pub(crate) mod pneumatic;
 mod sets;
@@ -103,6 +104,10 @@ pub(crate) enum HessianTerm {
     /// the projected Hessian leaves it out (the block `w G^T G` in `A` is positive
     /// semidefinite).
     Exact,
+    /// The kind builds and applies its own `K~` for Newton's Hessian
+    /// ([`ConstraintSet::linearize_hessian`], [`ConstraintSet::apply_hessian_add`]), exact or
+    /// projected; its exact `K` is also its backward linearization (hyperelastic tets).
+    Own,
     /// Newton's method cannot take this kind (the reason, for the error message).
     Unsupported(&'static str),
 }
@@ -169,6 +174,16 @@ pub(crate) trait ConstraintSet: Send + Sync + std::fmt::Debug {
         Ok(())
     }
 
+    /// Kinds with [`HessianTerm::Own`]: build `K~` at `q` for Newton's Hessian, exact or with
+    /// each element's block projected to be positive semidefinite; returns the clamped modes.
+    fn linearize_hessian(&mut self, _model: &Model, _q: &[Vector3<f64>], _projected: bool) -> usize {
+        0
+    }
+
+    /// Kinds with [`HessianTerm::Own`]: add `J K~ J^T y` (the last [`ConstraintSet::linearize_hessian`])
+    /// to `out` (all vertices).
+    fn apply_hessian_add(&self, _model: &Model, _y: &[Vector3<f64>], _out: &mut [Vector3<f64>]) {}
+
     /// Subtract the weights' matrix terms `sum_pairs a^T (dL/dw) b` from the weight adjoints
     /// (Eq. G3), for solves whose matrix term the adjoint left out (`x_next = None`).
     fn matrix_terms(&self, _model: &Model, _pairs: &[VectorPair<'_>], _grads: &mut ParamGrads<'_>) {}
@@ -198,6 +213,9 @@ pub(crate) fn sets_for(model: &Model) -> Vec<Box<dyn ConstraintSet>> {
         sets.push(Box::new(s));
     }
     if let Some(s) = muscle::Muscle::new(model) {
+        sets.push(Box::new(s));
+    }
+    if let Some(s) = hyperelastic::Hyperelastic::new(model) {
         sets.push(Box::new(s));
     }
     if let Some(s) = cloth_stretch::ClothStretch::new(model) {

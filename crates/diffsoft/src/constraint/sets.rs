@@ -36,6 +36,23 @@ impl Constraints {
         }
     }
 
+    /// Build the `K~` of the kinds with their own Hessian term at `q` (exact or projected);
+    /// returns the clamped modes.
+    pub(crate) fn linearize_hessian(&mut self, model: &Model, q: &[Vector3<f64>], projected: bool) -> usize {
+        self.sets
+            .iter_mut()
+            .filter(|s| s.hessian_term() == super::HessianTerm::Own)
+            .map(|s| s.linearize_hessian(model, q, projected))
+            .sum()
+    }
+
+    /// Add `J K~ J^T y` of the kinds with their own Hessian term to `out`.
+    pub(crate) fn apply_hessian_add(&self, model: &Model, y: &[Vector3<f64>], out: &mut [Vector3<f64>]) {
+        for s in self.sets.iter().filter(|s| s.hessian_term() == super::HessianTerm::Own) {
+            s.apply_hessian_add(model, y, out);
+        }
+    }
+
     /// How each kind enters Newton's Hessian, with its name.
     pub(crate) fn hessian_terms(&self) -> impl Iterator<Item = (&'static str, super::HessianTerm)> + '_ {
         self.sets.iter().map(|s| (s.name(), s.hessian_term()))

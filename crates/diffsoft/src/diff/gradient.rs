@@ -26,6 +26,42 @@ pub enum Progress {
     Backward(usize),
 }
 
+/// The solver a gradient runs its forward with: the settings' own, except that `auto` becomes
+/// one whose backward pass exists, `newton` for hyperelastic materials and `direct` with
+/// contacts (obstacles or collisions between bodies), where the iterative solvers keep no
+/// impulses; `None` when the settings stand. A requested solver is never changed (one that
+/// cannot be differentiated is an error of [`gradient`]).
+///
+/// ```
+/// use diffsoft::diff::differentiable_solver;
+/// use diffsoft::testing::ground_box;
+/// use diffsoft::{Settings, SolverKind};
+///
+/// let model = ground_box(0.5)?;
+/// assert_eq!(differentiable_solver(&model, &Settings::default()), Some(SolverKind::Direct));
+/// let direct = Settings { solver: SolverKind::Split, ..Settings::default() };
+/// assert_eq!(differentiable_solver(&model, &direct), None);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+pub fn differentiable_solver(model: &Model, settings: &Settings) -> Option<SolverKind> {
+    if settings.solver != SolverKind::Auto {
+        return None;
+    }
+    if model.bodies.iter().any(|b| b.model.is_hyperelastic()) {
+        return Some(SolverKind::Newton);
+    }
+    (!model.obstacles.is_empty() || model.collision.is_some()).then_some(SolverKind::Direct)
+}
+
+/// `settings` with [`differentiable_solver`] applied.
+fn differentiable(model: &Model, settings: &Settings) -> Settings {
+    let mut s = settings.clone();
+    if let Some(k) = differentiable_solver(model, settings) {
+        s.solver = k;
+    }
+    s
+}
+
 fn check_supported(model: &Model, settings: &Settings, mode: Mode) -> Result<(), DiffError> {
     if let Some(o) = model.obstacles.iter().find(|o| !o.shape.piecewise_planar()) {
         return Err(DiffError::Unsupported(format!(
@@ -124,6 +160,8 @@ pub fn loss_value_on(
     controls: &Controls,
     loss: &dyn Loss,
 ) -> Result<f64, DiffError> {
+    // The forward a gradient of the same settings runs (finite differences compare with it).
+    let settings = &differentiable(model, settings);
     let mut sim = Simulator::with_systems(model.clone(), settings.clone(), systems)?;
     Ok(forward(
         &mut sim,
@@ -257,6 +295,8 @@ pub fn gradient_on(
     if steps == 0 {
         return Err(DiffError::Input("steps must be at least 1".into()));
     }
+    let resolved = differentiable_solver(model, settings);
+    let settings = &differentiable(model, settings);
     check_supported(model, settings, opts.mode)?;
     let implicit = opts.mode == Mode::Implicit;
     let t0 = Instant::now();
@@ -305,6 +345,7 @@ pub fn gradient_on(
             forward_iterations: fwd.iterations,
             unconverged_steps: fwd.unconverged,
             one_iteration_steps: fwd.one_iteration,
+            solver: resolved,
             ..Default::default()
         },
     };
@@ -337,6 +378,11 @@ pub fn gradient_on(
     } else {
         Some((sim.replayer()?, Recording::new(true)))
     };
+    // BDF2's first step is implicit Euler, differentiated on that scheme's system.
+    let ie = Scheme::implicit_euler(settings.dt, settings.damping);
+    let mut ie_system = if bdf2 { Some(system_of(ie)?) } else { None };
+    // The forward's buffers are done with (its systems live on in the backward pass).
+    drop(sim);
     let (mut qbar, mut vbar) = (vec![Vector3::zeros(); n], vec![Vector3::zeros(); n]);
     // BDF2: a step's adjoints of the state before its start, added to the next (earlier)
     // step's output; the other pair is that step's own.
@@ -402,8 +448,8 @@ pub fn gradient_on(
             let first = match bw_first.take() {
                 Some(b) => b,
                 None => {
-                    let ie = Scheme::implicit_euler(settings.dt, settings.damping);
-                    let mut b = Backward::new(model, ie, system_of(ie)?, opts)?;
+                    let system = ie_system.take().expect("a BDF2 run keeps its first step's system");
+                    let mut b = Backward::new(model, ie, system, opts)?;
                     // The skeleton's adjoint of z_1 carries over from the later steps.
                     if let (Some(dst), Some(src)) = (b.skel.as_mut(), bw.skel.as_ref()) {
                         dst.z_bar.copy_from_slice(&src.z_bar);

@@ -50,11 +50,12 @@ mod skeletal_state;
 use nalgebra::Vector3;
 use serde::Serialize;
 
+use crate::kernel::hyperelastic::Lame;
 use crate::model::Model;
 use crate::solver::SolverError;
 
 pub use cotangent::{vjp, Cotangent};
-pub use gradient::{gradient, gradient_on, gradient_with, loss_value, loss_value_on, Progress};
+pub use gradient::{differentiable_solver, gradient, gradient_on, gradient_with, loss_value, loss_value_on, Progress};
 pub use params::Param;
 pub use rollout::{rollout, Rollout};
 
@@ -215,6 +216,9 @@ pub struct Controls {
 /// Cost and accuracy figures of one gradient evaluation.
 #[derive(Debug, Clone, Copy, Default, Serialize, schemars::JsonSchema)]
 pub struct DiffStats {
+    /// The solver the forward ran with when the settings asked for `auto`: one whose backward
+    /// pass exists ([`differentiable_solver`]); `null` when the settings' own ran.
+    pub solver: Option<crate::solver::SolverKind>,
     /// Forward pass wall time (ms).
     pub forward_ms: f64,
     /// Backward pass wall time (ms), replays included.
@@ -284,12 +288,20 @@ pub struct Gradient {
 }
 
 impl Gradient {
-    /// `dL/dE_t` per tet (`w_rot = E V/(1+nu)`, `w_vol = nu E V/(1+nu)`).
+    /// `dL/dE_t` per tet (projective: `w_rot = E V/(1+nu)`, `w_vol = nu E V/(1+nu)`;
+    /// hyperelastic: through the Lame parameters, whose adjoints are in the tet's `w_rot` and
+    /// `w_vol` slots).
     pub fn youngs_modulus(&self, model: &Model) -> Vec<f64> {
         let mut out = vec![0.0; model.tets.len()];
+        let per_tet = params::youngs_modulus_per_tet(model);
         for b in &model.bodies {
             let nu = b.material.poisson_ratio;
             for t in b.tets.clone() {
+                if b.model.is_hyperelastic() {
+                    let (dmu, dla, _, _) = Lame::derivatives(per_tet[t], nu);
+                    out[t] = self.w_rot[t] * dmu + self.w_vol[t] * dla;
+                    continue;
+                }
                 let vol = model.fem.geometry[t].volume;
                 let mut d = self.w_rot[t] * vol / (1.0 + nu);
                 if b.volume_constraint {
@@ -301,12 +313,19 @@ impl Gradient {
         out
     }
 
-    /// `dL/dnu_t` per tet.
+    /// `dL/dnu_t` per tet, at each tet's own Young's modulus (a per-tet modulus included).
     pub fn poisson_ratio(&self, model: &Model) -> Vec<f64> {
         let mut out = vec![0.0; model.tets.len()];
+        let per_tet = params::youngs_modulus_per_tet(model);
         for b in &model.bodies {
-            let (e, nu) = (b.material.youngs_modulus, b.material.poisson_ratio);
+            let nu = b.material.poisson_ratio;
             for t in b.tets.clone() {
+                let e = per_tet[t];
+                if b.model.is_hyperelastic() {
+                    let (_, _, dmu, dla) = Lame::derivatives(e, nu);
+                    out[t] = self.w_rot[t] * dmu + self.w_vol[t] * dla;
+                    continue;
+                }
                 let vol = model.fem.geometry[t].volume;
                 let k = e * vol / ((1.0 + nu) * (1.0 + nu));
                 let mut d = -self.w_rot[t] * k;

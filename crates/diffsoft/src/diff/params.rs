@@ -14,6 +14,7 @@ use std::str::FromStr;
 
 use nalgebra::Vector3;
 
+use crate::kernel::hyperelastic::Lame;
 use crate::model::Model;
 
 use super::{DiffError, Gradient};
@@ -447,17 +448,26 @@ fn uniform(name: &str, values: impl Iterator<Item = f64>) -> Result<f64, DiffErr
     first.ok_or_else(|| DiffError::Input(format!("the model has nothing that '{name}' applies to")))
 }
 
-/// Change every body's material, updating the tets' rotation and volume weights.
+/// Change every body's material, updating the tets' rotation and volume weights (or, for a
+/// hyperelastic body, its tets' Lame parameters); every body is checked before any changes.
 fn set_material(model: &mut Model, change: impl Fn(&mut crate::base::Material)) -> Result<(), DiffError> {
-    for b in &mut model.bodies {
+    let mut next = Vec::with_capacity(model.bodies.len());
+    for b in &model.bodies {
         let mut m = b.material;
         change(&mut m);
         m.validate(&b.name).map_err(|e| DiffError::Input(e.to_string()))?;
-        b.material = m;
-        for t in b.tets.clone() {
+        next.push(m);
+    }
+    for (k, m) in next.into_iter().enumerate() {
+        model.bodies[k].material = m;
+        let (tets, volume_constraint) = (model.bodies[k].tets.clone(), model.bodies[k].volume_constraint);
+        for t in tets {
             let vol = model.fem.geometry[t].volume;
+            if set_hyper(model, t, m.youngs_modulus, m.poisson_ratio) {
+                continue;
+            }
             model.w_rot[t] = m.rotation_stiffness() * vol;
-            model.w_vol[t] = if b.volume_constraint {
+            model.w_vol[t] = if volume_constraint {
                 m.volume_stiffness() * vol
             } else {
                 0.0
@@ -492,16 +502,34 @@ fn with_gravity(model: &Model) -> impl Iterator<Item = usize> + '_ {
 }
 
 /// Young's modulus of every tet (Pa), read back from the tets' weights (`w_rot = E V/(1+nu)`,
-/// Eq. 24); tets of cloth-free models only, in model order.
+/// Eq. 24) or, for a hyperelastic tet, from its Lame parameters; in model order.
 pub fn youngs_modulus_per_tet(model: &Model) -> Vec<f64> {
     let mut out = vec![0.0; model.tets.len()];
     for b in &model.bodies {
         let nu = b.material.poisson_ratio;
         for t in b.tets.clone() {
-            out[t] = model.w_rot[t] * (1.0 + nu) / model.fem.geometry[t].volume;
+            out[t] = match model.hyper.as_ref().and_then(|h| h.position(t).map(|i| h.lame[i])) {
+                Some(l) => l.mu * (3.0 * l.lambda + 2.0 * l.mu) / (l.lambda + l.mu),
+                None => model.w_rot[t] * (1.0 + nu) / model.fem.geometry[t].volume,
+            };
         }
     }
     out
+}
+
+/// Give hyperelastic tet `t` the Lame parameters of `(e, nu)` (and the matching weight in `L`);
+/// `false` when `t` is not hyperelastic.
+fn set_hyper(model: &mut Model, t: usize, e: f64, nu: f64) -> bool {
+    let vol = model.fem.geometry[t].volume;
+    let Some(h) = model.hyper.as_mut() else {
+        return false;
+    };
+    let Some(i) = h.position(t) else {
+        return false;
+    };
+    h.lame[i] = Lame::from_young(e, nu);
+    h.weight[i] = crate::model::hyper_weight(h.lame[i], vol);
+    true
 }
 
 /// Set Young's modulus tet by tet (`values` in model order, finite and positive), updating the
@@ -520,12 +548,19 @@ pub fn set_youngs_modulus_per_tet(model: &mut Model, values: &[f64]) -> Result<(
             values[t]
         )));
     }
-    for b in &model.bodies {
-        let nu = b.material.poisson_ratio;
-        for t in b.tets.clone() {
+    let bodies: Vec<_> = model
+        .bodies
+        .iter()
+        .map(|b| (b.tets.clone(), b.material.poisson_ratio, b.volume_constraint))
+        .collect();
+    for (tets, nu, volume_constraint) in bodies {
+        for t in tets {
             let vol = model.fem.geometry[t].volume;
+            if set_hyper(model, t, values[t], nu) {
+                continue;
+            }
             model.w_rot[t] = values[t] * vol / (1.0 + nu);
-            model.w_vol[t] = if b.volume_constraint {
+            model.w_vol[t] = if volume_constraint {
                 nu * values[t] * vol / (1.0 + nu)
             } else {
                 0.0

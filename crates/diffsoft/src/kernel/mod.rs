@@ -17,6 +17,7 @@
 
 pub mod actuator;
 pub mod corotated;
+pub mod hyperelastic;
 pub mod linearization;
 pub mod polar32;
 pub mod svd;

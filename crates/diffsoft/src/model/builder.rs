@@ -4,9 +4,9 @@ use nalgebra::Vector3;
 use serde::Serialize;
 
 use super::Attachment;
-use super::{Model, VertexTets};
+use super::{HyperTets, Model, VertexTets};
 use crate::actuator::{ActuatorSpec, Actuators};
-use crate::base::{Body, InputError, Material};
+use crate::base::{Body, InputError, Material, MaterialModel};
 use crate::cloth::ClothSpec;
 use crate::contact::pair::{BodyCollision, Colliders};
 use crate::contact::Obstacle;
@@ -48,6 +48,8 @@ pub struct BodySpec {
     pub mesh: TetMesh,
     /// Material.
     pub material: Material,
+    /// The constitutive model of the material (default projective).
+    pub model: MaterialModel,
     /// Mass.
     pub mass: MassSpec,
     /// Whether gravity acts on the body.
@@ -88,6 +90,7 @@ impl BodySpec {
             name: name.to_string(),
             mesh,
             material,
+            model: MaterialModel::Projective,
             mass,
             gravity: true,
             initial_velocity: Vector3::zeros(),
@@ -213,6 +216,12 @@ impl ModelBuilder {
         let mut tets = Vec::new();
         let mut w_rot = Vec::new();
         let mut w_vol = Vec::new();
+        let mut hyper = HyperTets {
+            tets: Vec::new(),
+            energy: Vec::new(),
+            lame: Vec::new(),
+            weight: Vec::new(),
+        };
         let mut bodies = Vec::new();
         let mut initial_velocity = Vec::new();
         let mut accel = Vec::new();
@@ -251,8 +260,16 @@ impl ModelBuilder {
             let m = fem.lumped_mass(Coefficient::Uniform(rho)).expect("density validated");
             let body_mass: f64 = m.iter().sum();
             mass.extend(m);
-            for g in &fem.geometry {
+            let energy = HyperTets::energy_of(b.model);
+            for (k, g) in fem.geometry.iter().enumerate() {
                 volumes.push(g.volume);
+                if let Some(e) = energy {
+                    // A hyperelastic tet: no projective constraint (Eq. H6).
+                    hyper.push(t0 + k, e, b.material, g.volume);
+                    w_rot.push(0.0);
+                    w_vol.push(0.0);
+                    continue;
+                }
                 w_rot.push(b.material.rotation_stiffness() * g.volume);
                 w_vol.push(if b.volume_constraint {
                     b.material.volume_stiffness() * g.volume
@@ -329,6 +346,7 @@ impl ModelBuilder {
                 vertices: v0..v0 + nb,
                 tets: t0..t0 + b.mesh.num_tets(),
                 material: b.material,
+                model: b.model,
                 mass: body_mass,
                 density: rho,
                 gravity: b.gravity,
@@ -397,6 +415,7 @@ impl ModelBuilder {
             cloth,
             collision,
             length_scale,
+            hyper: (!hyper.is_empty()).then_some(hyper),
         })
     }
 }

@@ -7,16 +7,19 @@
 mod attachment;
 mod builder;
 mod cloth;
+mod hyper;
 mod vertex_tets;
 
 pub use attachment::Attachment;
 pub use builder::{BodySpec, MassSpec, ModelBuilder, MIN_MESH_THICKNESS};
+pub(crate) use hyper::weight as hyper_weight;
+pub use hyper::HyperTets;
 pub use vertex_tets::VertexTets;
 
 use nalgebra::{Matrix3, Vector3};
 
 use crate::actuator::Actuators;
-use crate::base::Body;
+use crate::base::{Body, InputError};
 use crate::cloth::Cloth;
 use crate::contact::pair::Colliders;
 use crate::contact::Obstacle;
@@ -63,6 +66,9 @@ pub struct Model {
     pub(crate) collision: Option<Colliders>,
     /// Characteristic length: the diagonal of the rest bounding box.
     pub(crate) length_scale: f64,
+    /// Tets of hyperelastic bodies (`None`: every body is projective and no hyperelastic code
+    /// runs). Their projective weights `w_rot`, `w_vol` are zero.
+    pub(crate) hyper: Option<HyperTets>,
 }
 
 impl Model {
@@ -131,6 +137,11 @@ impl Model {
         &self.vertex_tets
     }
 
+    /// Tets of hyperelastic bodies (`None` when every body is projective).
+    pub fn hyper(&self) -> Option<&HyperTets> {
+        self.hyper.as_ref()
+    }
+
     /// Embedded skeleton (`None`: no skeleton code runs).
     pub fn skeleton(&self) -> Option<&Skeleton> {
         self.skeleton.as_ref()
@@ -154,6 +165,82 @@ impl Model {
     /// Characteristic length: the diagonal of the rest bounding box.
     pub fn length_scale(&self) -> f64 {
         self.length_scale
+    }
+
+    /// Give body `body` the material model `model` (its Young's modulus per tet and Poisson
+    /// ratio kept), rebuilding the tets' projective weights or hyperelastic parameters.
+    ///
+    /// ```
+    /// use diffsoft::base::MaterialModel;
+    /// use diffsoft::mesh::generate::BoxSpec;
+    /// use diffsoft::{BodySpec, MassSpec, Material, ModelBuilder};
+    ///
+    /// let mesh = BoxSpec::new([1, 1, 1], [0.1, 0.1, 0.1]).build()?;
+    /// let m = Material { youngs_modulus: 1e5, poisson_ratio: 0.3 };
+    /// let mut model = ModelBuilder::new().body(BodySpec::new("box", mesh, m, MassSpec::Density(1e3))).build()?;
+    /// model.set_material_model("box", MaterialModel::NeoHookean)?;
+    /// assert_eq!(model.hyper().map(|h| h.len()), Some(model.tets().len()));
+    /// model.set_material_model("box", MaterialModel::Projective)?;
+    /// assert!(model.hyper().is_none() && model.w_rot().iter().all(|&w| w > 0.0));
+    /// assert!(model.set_material_model("ball", MaterialModel::Corotated).is_err());
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
+    pub fn set_material_model(&mut self, body: &str, model: crate::base::MaterialModel) -> Result<(), InputError> {
+        let k = self
+            .bodies
+            .iter()
+            .position(|b| b.name == body)
+            .ok_or_else(|| InputError::new(format!("no body named '{body}'")))?;
+        // Every tet's Young's modulus as it stands (per-tet values included).
+        let e: Vec<f64> = (0..self.tets.len())
+            .map(
+                |t| match self.hyper.as_ref().and_then(|h| h.position(t).map(|i| h.lame[i])) {
+                    Some(l) => l.mu * (3.0 * l.lambda + 2.0 * l.mu) / (l.lambda + l.mu),
+                    None => {
+                        let nu = self
+                            .bodies
+                            .iter()
+                            .find(|b| b.tets.contains(&t))
+                            .map_or(0.0, |b| b.material.poisson_ratio);
+                        self.w_rot[t] * (1.0 + nu) / self.fem.geometry[t].volume
+                    }
+                },
+            )
+            .collect();
+        self.bodies[k].model = model;
+        let mut hyper = HyperTets {
+            tets: Vec::new(),
+            energy: Vec::new(),
+            lame: Vec::new(),
+            weight: Vec::new(),
+        };
+        for b in &self.bodies {
+            let energy = HyperTets::energy_of(b.model);
+            for t in b.tets.clone() {
+                let vol = self.fem.geometry[t].volume;
+                let m = crate::base::Material {
+                    youngs_modulus: e[t],
+                    poisson_ratio: b.material.poisson_ratio,
+                };
+                match energy {
+                    Some(en) => {
+                        hyper.push(t, en, m, vol);
+                        self.w_rot[t] = 0.0;
+                        self.w_vol[t] = 0.0;
+                    }
+                    None => {
+                        self.w_rot[t] = m.rotation_stiffness() * vol;
+                        self.w_vol[t] = if b.volume_constraint {
+                            m.volume_stiffness() * vol
+                        } else {
+                            0.0
+                        };
+                    }
+                }
+            }
+        }
+        self.hyper = (!hyper.is_empty()).then_some(hyper);
+        Ok(())
     }
 
     /// Remove every obstacle (the same bodies falling freely).

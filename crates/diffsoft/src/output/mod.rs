@@ -13,5 +13,5 @@ pub use file::{check_writable, refuse_input};
 pub use grad::{GradReport, GRAD_SCHEMA};
 pub use run_dir::{RunDir, RunStatus, COLLECTION, RUN_LOG};
 
-pub use runlog::{RunLog, RunSummary, RUN_SCHEMA};
+pub use runlog::{BodyLog, MaterialLog, RunLog, RunSummary, RUN_SCHEMA};
 pub use vtk::FrameWriter;

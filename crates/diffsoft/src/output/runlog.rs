@@ -3,7 +3,7 @@
 
 use serde::Serialize;
 
-use crate::base::Body;
+use crate::base::{Body, MaterialModel};
 use crate::cloth::ClothBody;
 use crate::report::{Header, ModelSize};
 use crate::solver::{Certificate, Settings, StepStats};
@@ -40,6 +40,80 @@ pub struct RunSummary {
     pub energy_last_step: f64,
 }
 
+/// A body's material as the run log reports it: the model, the moduli given, and for the
+/// projective model the moduli it responds with at small strain (docs/method.md Eq. H5).
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
+pub struct MaterialLog {
+    /// The constitutive model.
+    pub model: MaterialModel,
+    /// Young's modulus given (Pa).
+    pub youngs_modulus: f64,
+    /// Poisson ratio given (1).
+    pub poisson_ratio: f64,
+    /// Projective model: the Young's modulus it responds with at small strain,
+    /// `E / (1 + 2 nu / 3)` (Pa); `null` for the true models, which respond with the one given.
+    pub effective_youngs_modulus: Option<f64>,
+    /// Projective model: the Poisson ratio it responds with at small strain, `nu / (3 + 2 nu)`.
+    pub effective_poisson_ratio: Option<f64>,
+}
+
+/// One soft body in the run log.
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
+pub struct BodyLog {
+    /// Name.
+    pub name: String,
+    /// Its vertices in the global numbering.
+    pub vertices: std::ops::Range<usize>,
+    /// Its tets in the global numbering.
+    pub tets: std::ops::Range<usize>,
+    /// Material.
+    pub material: MaterialLog,
+    /// Total mass (kg).
+    pub mass: f64,
+    /// Density (kg/m^3).
+    pub density: f64,
+    /// Whether gravity acts on it.
+    pub gravity: bool,
+    /// Whether its volume constraint is on (projective model).
+    pub volume_constraint: bool,
+}
+
+impl BodyLog {
+    /// The log entry of `b`.
+    pub fn of(b: &Body) -> Self {
+        let eff = (b.model == MaterialModel::Projective).then(|| b.material.projective_response());
+        Self {
+            name: b.name.clone(),
+            vertices: b.vertices.clone(),
+            tets: b.tets.clone(),
+            material: MaterialLog {
+                model: b.model,
+                youngs_modulus: b.material.youngs_modulus,
+                poisson_ratio: b.material.poisson_ratio,
+                effective_youngs_modulus: eff.map(|m| m.youngs_modulus),
+                effective_poisson_ratio: eff.map(|m| m.poisson_ratio),
+            },
+            mass: b.mass,
+            density: b.density,
+            gravity: b.gravity,
+            volume_constraint: b.volume_constraint,
+        }
+    }
+
+    /// The one-line note for a projective body with `nu > 0`, whose response differs from the
+    /// moduli given (`None` otherwise).
+    pub fn material_note(b: &Body) -> Option<String> {
+        if b.model != MaterialModel::Projective || b.material.poisson_ratio == 0.0 {
+            return None;
+        }
+        let r = b.material.projective_response();
+        Some(format!(
+            "body '{}': the projective material with E = {:e} Pa, nu = {} responds as E_eff = {:.6e} Pa, nu_eff = {:.4}; use model corotated or neo_hookean for the stated moduli",
+            b.name, b.material.youngs_modulus, b.material.poisson_ratio, r.youngs_modulus, r.poisson_ratio
+        ))
+    }
+}
+
 /// The run log.
 #[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct RunLog {
@@ -51,13 +125,15 @@ pub struct RunLog {
     /// What the importer did.
     pub notes: Vec<String>,
     /// Bodies.
-    pub bodies: Vec<Body>,
+    pub bodies: Vec<BodyLog>,
     /// Cloth bodies.
     pub cloth: Vec<ClothBody>,
     /// Vertices and tets in total.
     pub size: ModelSize,
-    /// Solver settings.
+    /// Solver settings (`damping` is the velocity factor per step).
     pub settings: Settings,
+    /// The velocity damping over one second, `damping^(1/dt)`: what a time-step override keeps.
+    pub damping_per_second: f64,
     /// Certification outcome.
     pub certificate: Certificate,
     /// Summary.

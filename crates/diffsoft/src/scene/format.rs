@@ -331,10 +331,16 @@ pub struct TorqueFile {
     pub values: Vec<f64>,
 }
 
-/// Material parameters.
+/// Material: its model and parameters. The paper's `projective` model (the default) responds at
+/// small strain as `E_eff = E/(1 + 2nu/3)`, `nu_eff = nu/(3 + 2nu)`; `corotated` and
+/// `neo_hookean` respond exactly as `(E, nu)` and run with `solver: newton` (docs/method.md
+/// section 2.4).
 #[derive(Debug, Clone, Copy, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct MaterialFile {
+    /// The constitutive model: `projective` (default), `corotated` or `neo_hookean`.
+    #[serde(default)]
+    pub model: crate::base::MaterialModel,
     /// Young's modulus (Pa).
     pub youngs_modulus: f64,
     /// Poisson ratio (1).

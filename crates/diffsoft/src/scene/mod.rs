@@ -517,6 +517,7 @@ fn from_diffsoft(path: &Path, file: SceneFile, solver_gives_dt: bool) -> Result<
             },
             mass,
         );
+        spec.model = b.material.model;
         spec.gravity = b.gravity;
         spec.initial_velocity = finite3(&scene, "initial_velocity", &b.initial_velocity)?;
         spec.volume_constraint = b.constraints.volume;

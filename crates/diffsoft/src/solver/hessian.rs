@@ -132,7 +132,13 @@ struct ExactK {
 /// the unprojected Hessian (the projected one leaves those kinds' `K` out).
 pub(crate) struct ConstraintHessian {
     elastic: ElasticHessian,
+    /// Every set, for the kinds with an exact `K` of their own ([`HessianTerm::Exact`]) or their
+    /// own `K~` ([`HessianTerm::Own`]); `None` without such kinds.
     exact: Option<Box<ExactK>>,
+    /// Some kind's term is [`HessianTerm::Exact`].
+    needs_exact: bool,
+    /// Some kind's term is [`HessianTerm::Own`].
+    has_own: bool,
     unprojected: bool,
 }
 
@@ -142,7 +148,8 @@ impl ConstraintHessian {
     pub(crate) fn new(model: &Model) -> Self {
         let constraints = Constraints::new(model);
         let needs_exact = constraints.hessian_terms().any(|(_, t)| t == HessianTerm::Exact);
-        let exact = needs_exact.then(|| {
+        let has_own = constraints.hessian_terms().any(|(_, t)| t == HessianTerm::Own);
+        let exact = (needs_exact || has_own).then(|| {
             Box::new(ExactK {
                 constraints,
                 w_rot: vec![0.0; model.tets.len()],
@@ -153,6 +160,8 @@ impl ConstraintHessian {
         Self {
             elastic: ElasticHessian::new(model),
             exact,
+            needs_exact,
+            has_own,
             unprojected: true,
         }
     }
@@ -171,8 +180,15 @@ impl ConstraintHessian {
     pub(crate) fn prepare(&mut self, model: &Model, rec: &[TetSvd], q: &[Vector3<f64>], unprojected: bool) -> bool {
         self.unprojected = unprojected;
         self.elastic.build(model, rec, !unprojected);
-        if let (true, Some(ex)) = (unprojected, self.exact.as_mut()) {
+        let Some(ex) = self.exact.as_mut() else {
+            return true;
+        };
+        if unprojected && self.needs_exact {
+            // Every set's exact K, the own terms' included (their linearization is exact).
             return ex.constraints.linearize(model, q).is_ok();
+        }
+        if self.has_own {
+            ex.constraints.linearize_hessian(model, q, !unprojected);
         }
         true
     }
@@ -192,7 +208,7 @@ impl ConstraintHessian {
         y: &[Vector3<f64>],
         out: &mut [Vector3<f64>],
     ) -> bool {
-        match (self.unprojected, self.exact.as_mut()) {
+        match (self.unprojected && self.needs_exact, self.exact.as_mut()) {
             (true, Some(ex)) => {
                 let grads = ParamGrads {
                     w_rot: &mut ex.w_rot,
@@ -203,8 +219,11 @@ impl ConstraintHessian {
                     .adjoint(model, q, y, None, activations, Linearize::Cached, out, grads)
                     .is_ok()
             }
-            _ => {
+            (_, ex) => {
                 self.elastic.apply(model, y, out);
+                if let (true, Some(ex)) = (self.has_own, ex) {
+                    ex.constraints.apply_hessian_add(model, y, out);
+                }
                 true
             }
         }

@@ -218,6 +218,7 @@ pub(crate) fn step_objective(
 #[cfg(all(test, feature = "testing"))]
 mod tests {
     use super::*;
+    use crate::base::MaterialModel;
     use crate::testing::actuated_beam;
 
     /// A deterministic pseudo-random number in `[-1, 1)`.
@@ -237,12 +238,29 @@ mod tests {
         let mut model = beam.model;
         // One Dirichlet vertex besides the springs.
         model.fixed[beam.tip] = true;
+        check_terms(&model, &["elasticity", "pneumatic", "muscle", "attachment"]);
+        // The hyperelastic materials: with actuators (every kind's exact K) and without (their
+        // own K~ beside the elastic one).
+        for m in [MaterialModel::Corotated, MaterialModel::NeoHookean] {
+            let mut hyper = model.clone();
+            let name = hyper.bodies[0].name.clone();
+            hyper.set_material_model(&name, m).unwrap();
+            check_terms(&hyper, &["hyperelastic", "pneumatic", "muscle", "attachment"]);
+            let mut plain = crate::testing::ground_box(0.5).unwrap();
+            let name = plain.bodies[0].name.clone();
+            plain.set_material_model(&name, m).unwrap();
+            check_terms(&plain, &["hyperelastic"]);
+        }
+    }
+
+    fn check_terms(model: &crate::model::Model, expected: &[&str]) {
+        let model = model.clone();
         let h = 1e-2;
         let sys = GlobalSystem::new(&model, h).unwrap();
         let mut constraints = Constraints::new(&model);
         let kinds: Vec<_> = constraints.hessian_terms().map(|(k, _)| k).collect();
-        for k in ["elasticity", "pneumatic", "muscle", "attachment"] {
-            assert!(kinds.contains(&k), "{k} missing from {kinds:?}");
+        for k in expected {
+            assert!(kinds.contains(k), "{k} missing from {kinds:?}");
         }
         let n = model.n();
         let scale = model.length_scale;
@@ -253,10 +271,11 @@ mod tests {
         let mut base = vec![Vector3::zeros(); sys.n()];
         constant_rhs(&model, &sys, &constraints, &s, ih2, &mut base);
         let activations = [0.8, 0.3];
+        let activations = &activations[..model.actuators.as_ref().map_or(0, |a| a.groups.len())];
         let p = StepProblem {
             model: &model,
             sys: &sys,
-            activations: &activations,
+            activations,
             s: &s,
             ih2,
             base: &base,

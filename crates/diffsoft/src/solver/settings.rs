@@ -122,7 +122,19 @@ impl Settings {
     /// assert!(s.set("no_such_setting", 1.into()).is_err());
     /// # Ok::<(), Box<dyn std::error::Error>>(())
     /// ```
+    ///
+    /// Setting `dt` keeps the damping per second: the per-step factor becomes
+    /// `damping^(dt' / dt)` ([`Settings::with_dt`]), so refining the time step changes no physics.
     pub fn set(&mut self, name: &str, value: serde_json::Value) -> Result<(), SolverError> {
+        if name == "dt" {
+            let dt = value
+                .as_f64()
+                .ok_or_else(|| SolverError::input(format!("dt must be a finite number, got {value}")))?;
+            let next = self.with_dt(dt);
+            next.validate()?;
+            *self = next;
+            return Ok(());
+        }
         let mut fields = match serde_json::to_value(&*self) {
             Ok(serde_json::Value::Object(fields)) => fields,
             _ => return Err(SolverError::input("settings: cannot be written as JSON")),
@@ -143,6 +155,32 @@ impl Settings {
         next.validate()?;
         *self = next;
         Ok(())
+    }
+
+    /// These settings with time step `dt`, the velocity damping rescaled to the same damping
+    /// per second (`damping^(dt/self.dt)`; docs/method.md Eq. 4): how the command line's `--dt`,
+    /// Python's `configure(dt=)` and the trade-off study's step refinements change the step.
+    ///
+    /// ```
+    /// use diffsoft::Settings;
+    ///
+    /// let s = Settings { dt: 0.01, damping: 0.9999, ..Settings::default() };
+    /// let fine = s.with_dt(0.005);
+    /// assert!((fine.damping * fine.damping - 0.9999).abs() < 1e-15);
+    /// assert!((fine.damping_per_second() - s.damping_per_second()).abs() < 1e-12);
+    /// ```
+    pub fn with_dt(&self, dt: f64) -> Settings {
+        let mut s = self.clone();
+        if dt.is_finite() && dt > 0.0 && self.dt > 0.0 && self.damping != 1.0 {
+            s.damping = self.damping.powf(dt / self.dt);
+        }
+        s.dt = dt;
+        s
+    }
+
+    /// The velocity damping over one second, `damping^(1/dt)` (1: none).
+    pub fn damping_per_second(&self) -> f64 {
+        self.damping.powf(1.0 / self.dt)
     }
 
     /// The names of the settings, in declaration order.

@@ -200,7 +200,8 @@ impl Simulator {
         let g = model.accel.iter().map(|a| a.norm()).fold(0.0, f64::max);
         let total_mass: f64 = model.mass.iter().sum();
         let v0 = state.v.iter().map(|v| v.norm()).fold(0.0, f64::max);
-        let e_scale = total_mass * (g * model.length_scale + v0 * v0) + model.w_rot.iter().sum::<f64>() * 1e-6;
+        let stiffness = model.w_rot.iter().sum::<f64>() + model.hyper.as_ref().map_or(0.0, |h| h.weight.iter().sum());
+        let e_scale = total_mass * (g * model.length_scale + v0 * v0) + stiffness * 1e-6;
         let dofs = model.skeleton.as_ref().map_or(0, |sk| sk.dofs);
         let groups = model.actuators.as_ref().map_or(0, |a| a.groups.len());
         Ok(Self {
@@ -518,7 +519,8 @@ impl Simulator {
         &self.certificate
     }
 
-    /// Change the time step: rebuilds, re-certifies and refactors the global system. Under
+    /// Change the time step (the velocity damping per second kept, [`Settings::with_dt`]):
+    /// rebuilds, re-certifies and refactors the global system. Under
     /// BDF2 only before the first step or after [`Simulator::set_state`] (its formula assumes
     /// a constant step).
     pub fn set_dt(&mut self, dt: f64) -> Result<(), SolverError> {
@@ -528,8 +530,8 @@ impl Simulator {
                 self.settings.dt
             )));
         }
-        let mut s = self.settings.clone();
-        s.dt = dt;
+        // The damping per second stays (Settings::with_dt).
+        let s = self.settings.with_dt(dt);
         s.validate()?;
         let scheme = Scheme::for_step(s.integrator, s.dt, s.damping, s.integrator == Integrator::Bdf2);
         let system = self.systems.get(&self.model, scheme.h_e())?;

@@ -249,16 +249,11 @@ impl Case {
                 controls.initial = Some((q, v));
             }
             Group::YoungsPerTet => {
-                for b in &model.bodies {
-                    let nu = b.material.poisson_ratio;
-                    for t in b.tets.clone() {
-                        let de = step * d.u[t] * model.fem.geometry[t].volume / (1.0 + nu);
-                        model.w_rot[t] += de;
-                        if b.volume_constraint {
-                            model.w_vol[t] += nu * de;
-                        }
-                    }
+                let mut e = crate::diff::params::youngs_modulus_per_tet(&model);
+                for (x, u) in e.iter_mut().zip(&d.u) {
+                    *x += step * u;
                 }
+                crate::diff::params::set_youngs_modulus_per_tet(&mut model, &e)?;
             }
             Group::Activations => {
                 let mut a = activations(self);

@@ -5,6 +5,7 @@ mod common;
 mod constraint_props;
 mod contact_props;
 mod fem_props;
+mod materials;
 mod mesh_errors;
 mod mesh_formats;
 mod newton;

@@ -10,6 +10,7 @@ mod cloth;
 mod doc_numbers;
 mod extremes;
 mod gradients;
+mod materials;
 mod newton_contact;
 mod newton_skeleton;
 mod physics;

@@ -41,6 +41,7 @@ use super::stationary::Stationary;
 use super::system::{CertKey, System};
 use super::work::Work;
 use super::{Settings, SolverError, StepStats};
+use crate::base::Choice;
 use crate::constraint::Constraints;
 use crate::model::Model;
 use crate::skeleton::Skeleton;
@@ -132,6 +133,33 @@ pub(crate) fn build(
         tolerance: settings.inner_absolute_tolerance(model),
         max_iterations: settings.inner_max_iterations,
     };
+    if let Some(body) = model.bodies.iter().find(|b| b.model.is_hyperelastic()) {
+        // A hyperelastic energy has no projection: only Newton's method minimises it.
+        match settings.solver {
+            SolverKind::Newton => {}
+            SolverKind::Auto => {
+                let mut newton = settings.clone();
+                newton.solver = SolverKind::Newton;
+                let (it, mut cert) = build(model, &newton, system)?;
+                cert.requested = SolverKind::Auto;
+                cert.message = format!(
+                    "auto: Newton's method, the solver of hyperelastic materials (body '{}' is {}); {}",
+                    body.name,
+                    body.model.name(),
+                    cert.message
+                );
+                return Ok((it, cert));
+            }
+            other => {
+                return Err(SolverError::input(format!(
+                    "solver {} cannot handle material model {} (body '{}'): local-global iterations need projective constraints; use solver newton (or auto)",
+                    other.name(),
+                    body.model.name(),
+                    body.name
+                )))
+            }
+        }
+    }
     if settings.solver == SolverKind::Newton {
         newton::check_supported(model, settings)?;
         return match &model.skeleton {
