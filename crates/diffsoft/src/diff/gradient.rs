@@ -75,6 +75,13 @@ fn check_supported(model: &Model, settings: &Settings, mode: Mode) -> Result<(),
             "unrolled gradients through Anderson acceleration; use anderson = 0 or --mode implicit".into(),
         ));
     }
+    if let (Mode::Unrolled, Some(b)) = (mode, model.bodies.iter().find(|b| b.model.is_hyperelastic())) {
+        return Err(DiffError::Unsupported(format!(
+            "unrolled gradients of a hyperelastic material (body '{}' is {}): it runs with Newton's method, whose gradients differentiate the converged step; use --mode implicit (mode=\"implicit\")",
+            b.name,
+            crate::base::Choice::name(b.model)
+        )));
+    }
     if mode == Mode::Unrolled && settings.solver == SolverKind::Newton {
         return Err(DiffError::Unsupported(
             "unrolled gradients through Newton's method (they differentiate local-global iterations); use --mode implicit, which differentiates the converged step whichever solver found it, or solver: direct".into(),
