@@ -227,6 +227,20 @@ enum Command {
         #[arg(long)]
         json: Option<PathBuf>,
     },
+    /// The validation suite: the engine against closed forms of continuum mechanics (patch
+    /// test, hanging bar, cantilever, elastica, vibrating bar, Hertz, capstan), per material
+    /// model (reports/validation.json format); exits 1 if a case is not as expected.
+    Validate {
+        /// Which cases: full (the main job's) or fast (the test suite's subset).
+        #[arg(long, value_parser = choice::<diffsoft_harness::validation::Subset>(), default_value = "full")]
+        subset: diffsoft_harness::validation::Subset,
+        /// Run only these studies (repeatable; default: all).
+        #[arg(long, value_parser = clap::builder::PossibleValuesParser::new(diffsoft_harness::validation::STUDIES))]
+        study: Vec<String>,
+        /// Write the JSON report here (`-`: standard output).
+        #[arg(long, default_value = "reports/validation.json")]
+        json: PathBuf,
+    },
     /// Merge the partial reports of a sharded `tradeoff` or `extremes` run into one report.
     Merge {
         /// Partial reports (every shard 0/N .. N-1/N once).
@@ -591,6 +605,17 @@ fn run(command: Command) -> Result<()> {
                         bail!("{failing} extreme case(s) fail");
                     }
                 }
+            }
+        }
+        Command::Validate { subset, study, json } => {
+            use diffsoft_harness::validation;
+            preflight(Some(&json), &[])?;
+            let r = validation::run(subset, &study);
+            say_raw!("{}", validation::table(&r));
+            save(&json, &r, &[])?;
+            let off = r.cases.iter().filter(|c| !c.as_expected()).count();
+            if off > 0 {
+                bail!("{off} validation case(s) not as expected (see the reasons above)");
             }
         }
         Command::Merge { inputs, out, svg_dir } => {

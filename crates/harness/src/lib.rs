@@ -27,6 +27,7 @@ pub mod suite;
 mod suite_run;
 mod summary;
 pub mod tradeoff;
+pub mod validation;
 
 pub use bounds::{
     t_scaling, t_scaling_chart, CrossCheck, QualityReport, SuiteBoundsReport, SuiteMaterial, SuiteMeshResult,

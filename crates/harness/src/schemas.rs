@@ -11,7 +11,7 @@ use schemars::generate::{Contract, SchemaSettings};
 use schemars::JsonSchema;
 use serde_json::{json, Value};
 
-use crate::{actuators, cloth, extremes, gradients, jacobians, skeleton, suite, tradeoff};
+use crate::{actuators, cloth, extremes, gradients, jacobians, skeleton, suite, tradeoff, validation};
 use crate::{
     PhysicsReport, QualityReport, SuiteBoundsReport, SweepReport, PHYSICS_SCHEMA, QUALITY_SCHEMA, SUITE_BOUNDS_SCHEMA,
     SWEEP_SCHEMA,
@@ -335,6 +335,15 @@ pub fn schemas() -> Vec<(String, Value)> {
                 Written,
                 "`reports/cloth.json` and `diffsoft cloth --json`: cloth with collisions between bodies, and the cost \
                  of collision detection against mesh size.",
+            ),
+        ),
+        (
+            validation::SCHEMA,
+            generate::<validation::ValidationReport>(
+                validation::SCHEMA,
+                Written,
+                "`reports/validation.json` and `diffsoft validate --json`: the engine against closed forms of \
+                 continuum mechanics, per material model.",
             ),
         ),
         (

@@ -35,6 +35,17 @@ pub struct Suite {
     /// skipped).
     #[serde(default)]
     pub cloth: Option<ClothSuite>,
+    /// The validation suite against closed forms (absent: skipped).
+    #[serde(default)]
+    pub validation: Option<ValidationSuite>,
+}
+
+/// The validation suite.
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct ValidationSuite {
+    /// Which cases.
+    pub subset: super::validation::Subset,
 }
 
 /// The cloth study.

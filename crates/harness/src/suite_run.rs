@@ -1,6 +1,7 @@
 //! The main job: [`run_suite`] runs every section of the suite in turn (bounds and sweeps,
 //! `T` scaling and the paper's arithmetic, Jacobian checks, physics checks, the skeleton,
-//! actuator and gradient studies, the trade-off study, extremes and cloth), writes their reports
+//! actuator and gradient studies, the trade-off study, extremes, cloth and the validation
+//! against closed forms), writes their reports
 //! and plots and prints their summaries and the wall time per section.
 
 use std::path::Path;
@@ -12,7 +13,7 @@ use crate::bounds::{run_mesh, t_scaling, t_scaling_chart, SuiteBoundsReport, Tab
 use crate::physics_suite::run_physics;
 use crate::report::{write_json, Header};
 use crate::suite::Suite;
-use crate::{actuators, cloth, extremes, gradients, jacobians, plot, skeleton, summary, tradeoff};
+use crate::{actuators, cloth, extremes, gradients, jacobians, plot, skeleton, summary, tradeoff, validation};
 use diffsoft::analysis::appendix;
 
 /// Run the suite at `suite_path` and write reports into `out`.
@@ -166,12 +167,19 @@ pub fn run_suite(suite_path: &Path, out: &Path) -> Result<SuiteBoundsReport> {
         }
     }
     section("cloth study", &mut lap);
+    if let Some(v) = &suite.validation {
+        println!("\nvalidation against closed forms ({:?} subset):", v.subset);
+        let val = validation::run(v.subset, &[]);
+        write_json(out.join("validation.json"), &val)?;
+        print!("{}", validation::table(&val));
+    }
+    section("validation", &mut lap);
     println!("\nwall time per section:");
     for (name, s) in &sections {
         println!("  {name:<32} {s:>7.1} s");
     }
     println!(
-        "wrote {}, {}, {}, {}, {}, gradients.json, tradeoff.json, extremes.json, cloth.json, t_scaling.svg, cantilever.svg, skeleton_*.svg, gradient_cost.svg, tradeoff_*.svg, cloth_*.svg, actuator and cloth frames and {} sweep plots in {:.1} s",
+        "wrote {}, {}, {}, {}, {}, gradients.json, tradeoff.json, extremes.json, cloth.json, validation.json, t_scaling.svg, cantilever.svg, skeleton_*.svg, gradient_cost.svg, tradeoff_*.svg, cloth_*.svg, actuator and cloth frames and {} sweep plots in {:.1} s",
         path.display(),
         out.join("jacobians.json").display(),
         out.join("physics.json").display(),

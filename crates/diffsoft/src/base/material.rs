@@ -125,4 +125,22 @@ impl MaterialModel {
     pub fn is_hyperelastic(self) -> bool {
         self != MaterialModel::Projective
     }
+
+    /// The small-strain Young's modulus and Poisson ratio of a body of this model built with
+    /// `material`: [`Material::projective_response`] for the projective model, `material` itself
+    /// for the two true models (docs/method.md Eq. H5).
+    ///
+    /// ```
+    /// use diffsoft::base::{Material, MaterialModel};
+    ///
+    /// let m = Material { youngs_modulus: 1e6, poisson_ratio: 0.45 };
+    /// assert_eq!(MaterialModel::NeoHookean.small_strain_response(m), m);
+    /// assert!(MaterialModel::Projective.small_strain_response(m).youngs_modulus < 0.8 * 1e6);
+    /// ```
+    pub fn small_strain_response(self, material: Material) -> Material {
+        match self {
+            MaterialModel::Projective => material.projective_response(),
+            MaterialModel::Corotated | MaterialModel::NeoHookean => material,
+        }
+    }
 }

@@ -18,3 +18,4 @@ mod schemas;
 mod skeleton;
 mod solvers;
 mod tradeoff;
+mod validation;

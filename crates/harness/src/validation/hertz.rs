@@ -1,0 +1,200 @@
+//! Hertz contact: the contact radius of an elastic hemisphere resting on its pole on a rigid,
+//! frictionless ground under its own weight, `a = (3 F R / (4 E*))^(1/3)`.
+//!
+//! Hertz's solution depends only on the radius of curvature at the contact, the force and the
+//! moduli (the half-space approximation, valid for `a << R`), so the lower half of a ball carries
+//! it as well as the whole ball at half the cost. Its mesh maps a graded half-cube onto the
+//! hemisphere (`p -> R p |p|_inf / |p|_2`), with cells clustered at the pole so that the contact
+//! disc spans several vertex rings.
+
+use std::time::Instant;
+
+use nalgebra::Vector3;
+
+use super::case::{moduli, Case, Spec};
+use super::closed::hertz_radius;
+use super::common::{body, boundary_faces, rel, solve_static};
+use diffsoft::base::Material;
+use diffsoft::base::{Choice, MaterialModel};
+use diffsoft::contact::Obstacle;
+use diffsoft::mesh::generate::BoxSpec;
+use diffsoft::mesh::TetMesh;
+use diffsoft::model::ModelBuilder;
+
+const R: f64 = 0.1;
+
+/// Whether the suite solves this case. It does not yet: see [`NOT_SOLVED`].
+const SOLVES: bool = false;
+
+/// Why the Hertz case is reported as not run.
+pub const NOT_SOLVED: &str = "the static solve with contact does not converge: one implicit step of 100 s     starts from an inertial target h^2 g = 98 km below the ground, from where the contact solve stalls     (projective: unconverged, contact radius 3.6x the closed form) and Newton on the true models diverges     (measured 2026-11-27, 1158 s for the three models on 2 cores); a quasi-static contact solve (load     stepping with contact, or a damped settling) is needed first";
+const RHO: f64 = 1000.0;
+const G: f64 = 9.81;
+
+/// The monotone grading of `[0, 1]` onto itself with slope `beta` at 0: `t (beta + (1 - beta) t^4)`
+/// (nearly uniform cells of relative size `beta` out to about `t = 0.5`).
+fn grade(t: f64, beta: f64) -> f64 {
+    t * (beta + (1.0 - beta) * t.powi(4))
+}
+
+/// The hemisphere `|x - c| <= R, y <= c_y` with its pole at the origin: `n x n/2 x n` cells of the
+/// half-cube `[-1, 1] x [-1, 0] x [-1, 1]`, graded towards the pole's axis (slope `beta`) and the
+/// pole, mapped onto the half-ball and shifted up by `R`.
+pub fn hemisphere(n: usize, beta: f64) -> TetMesh {
+    let cube = BoxSpec::new([n, n / 2, n], [2.0, 1.0, 2.0])
+        .origin([-1.0, -1.0, -1.0])
+        .build()
+        .expect("a valid box");
+    let vertices: Vec<Vector3<f64>> = cube
+        .vertices
+        .iter()
+        .map(|p| {
+            let g = |t: f64| t.signum() * grade(t.abs(), beta);
+            // Towards y = -1 (the pole).
+            let y = grade(1.0 + p.y, beta) - 1.0;
+            let q = Vector3::new(g(p.x), y, g(p.z));
+            let l2 = q.norm();
+            let mapped = if l2 > 0.0 { q * (q.amax() / l2) } else { q };
+            mapped * R + Vector3::new(0.0, R, 0.0)
+        })
+        .collect();
+    TetMesh::new(vertices, cube.tets).expect("the mapped hemisphere is a valid mesh")
+}
+
+/// One resting hemisphere: contact radius, its bracket, contact vertices, load, reference
+/// radius, Newton iterations, converged.
+type HertzRun = (f64, f64, usize, f64, f64, usize, bool);
+
+/// The hemisphere's mesh parameters.
+const CELLS: usize = 16;
+const BETA: f64 = 0.3;
+
+/// Contact radius estimates from the bottom surface: `(a_low, a_high, rings, h)`: the radii of the
+/// discs with the area of the surface triangles with all, resp. at least one, vertex on the
+/// ground; the number of contact vertices; the mean edge length of the triangles in contact.
+fn contact_radius(q: &[Vector3<f64>], faces: &[[usize; 3]], tol: f64) -> (f64, f64, usize, f64) {
+    let on = |i: usize| q[i].y <= tol;
+    let area = |f: &[usize; 3]| {
+        // Projected on the ground.
+        let p = |i: usize| Vector3::new(q[f[i]].x, 0.0, q[f[i]].z);
+        0.5 * (p(1) - p(0)).cross(&(p(2) - p(0))).norm()
+    };
+    let (mut all, mut any, mut edges, mut count) = (0.0, 0.0, 0.0, 0usize);
+    for f in faces {
+        let k = f.iter().filter(|&&i| on(i)).count();
+        if k == 3 {
+            all += area(f);
+            for e in 0..3 {
+                edges += (q[f[e]] - q[f[(e + 1) % 3]]).norm();
+                count += 1;
+            }
+        }
+        if k > 0 {
+            any += area(f);
+        }
+    }
+    let contact: std::collections::BTreeSet<usize> = faces.iter().flatten().copied().filter(|&i| on(i)).collect();
+    (
+        (all / std::f64::consts::PI).sqrt(),
+        (any / std::f64::consts::PI).sqrt(),
+        contact.len(),
+        edges / count.max(1) as f64,
+    )
+}
+
+/// The Hertz cases of `model`: E = 7.6e5 Pa, nu = 0.4, rho = 1000 kg/m^3, R = 0.1 m, on a
+/// frictionless ground; one static Newton solve with contact.
+pub fn cases(model: MaterialModel) -> Vec<Case> {
+    let t0 = Instant::now();
+    let material = Material {
+        youngs_modulus: 7.6e5,
+        poisson_ratio: 0.4,
+    };
+    let mesh = hemisphere(CELLS, BETA);
+    let faces = boundary_faces(&mesh);
+    let run = || -> Result<HertzRun, String> {
+        let spec = body("hemisphere", mesh.clone(), material, model, RHO)?;
+        let m = ModelBuilder::new()
+            .gravity(Vector3::new(0.0, -G, 0.0))
+            .body(spec)
+            .obstacle(Obstacle::plane("ground", Vector3::zeros(), Vector3::y(), 0.0))
+            .build()
+            .map_err(|e| e.to_string())?;
+        let weight: f64 = m.mass().iter().sum::<f64>() * G;
+        let s = solve_static(m, None, 1e-10)?;
+        let (lo, hi, n, h) = contact_radius(&s.q, &faces, 1e-9 * R);
+        let drop = -s.q.iter().zip(&s.rest).map(|(q, x)| q.y - x.y).sum::<f64>() / s.q.len() as f64;
+        Ok((lo, hi, n, h, weight, s.iterations, s.converged && drop.is_finite()))
+    };
+    let result = if SOLVES { run() } else { Err(NOT_SOLVED.to_string()) };
+    let seconds = t0.elapsed().as_secs_f64();
+    let mut variants = vec![(moduli(model, true), model.small_strain_response(material), true)];
+    if model == MaterialModel::Projective {
+        variants.insert(0, ("E, nu".to_string(), material, false));
+    }
+    let mut out = Vec::new();
+    for (k, (label, m, expected)) in variants.into_iter().enumerate() {
+        let mut spec = Spec::new("hertz", "hemisphere", model.name(), &label);
+        spec.setup = format!(
+            "hemisphere R = 0.1 m resting on its pole on a rigid frictionless plane under its own weight (rho = \
+             1000 kg/m^3, g = 9.81 m/s^2), E = 7.6e5 Pa, nu = 0.4, {} model; {} tets mapped from a {CELLS} x {} x \
+             {CELLS} half-cube graded towards the pole (cells of about {:.1} mm there); one static Newton solve \
+             with contact; contact vertices within 1e-10 m of the ground",
+            model.name(),
+            mesh.num_tets(),
+            CELLS / 2,
+            2.0 * BETA / CELLS as f64 * R * 1e3
+        );
+        spec.quantity = "contact radius: the mean of the radii of the discs with the area of the surface triangles \
+                         with all and with at least one vertex on the ground (m)"
+            .into();
+        spec.formula = if expected && model == MaterialModel::Projective {
+            "a = (3 F R / (4 E*))^(1/3), E* = E_eff / (1 - nu_eff^2), F the weight".into()
+        } else {
+            "a = (3 F R / (4 E*))^(1/3), E* = E / (1 - nu^2), F the weight".into()
+        };
+        spec.source =
+            "Hertz 1882; Johnson, Contact Mechanics (1985), section 4.2: a sphere on a rigid half-space".into();
+        spec.expected_to_hold = expected;
+        spec.tolerance = 0.08;
+        spec.tolerance_basis = "the contact edge is quantised by the vertex rings: the two area radii bracket it, \
+                                and their mean is within a quarter of a ring (h ~ a/4 here: about 6%); Hertz's \
+                                half-space approximation is O((a/R)^2) at a/R = 0.15: 8%"
+            .into();
+        match &result {
+            Ok((lo, hi, n, h, weight, its, conv)) => {
+                let a_ref = hertz_radius(*weight, R, m.youngs_modulus, m.poisson_ratio);
+                let a = 0.5 * (lo + hi);
+                let err = rel(a, a_ref);
+                out.push(
+                    spec.measured(a_ref, a, err, |s| {
+                        if s.expected_to_hold {
+                            format!(
+                                "contact radius between {lo:.4e} and {hi:.4e} m vs {a_ref:.4e} m ({n} contact vertices, \
+                                 converged: {conv})"
+                            )
+                        } else {
+                            format!(
+                                "expected: the projective model responds with E_eff, nu_eff: the contact radius is \
+                                 {:.3}x the closed form with E, nu",
+                                a / a_ref
+                            )
+                        }
+                    })
+                    .with(&[
+                        ("radius_low_m", *lo),
+                        ("radius_high_m", *hi),
+                        ("contact_vertices", *n as f64),
+                        ("contact_edge_m", *h),
+                        ("force_n", *weight),
+                        ("a_over_r", a_ref / R),
+                        ("newton_iterations", *its as f64),
+                    ])
+                    .timed(if k == 0 { seconds } else { 0.0 }),
+                );
+            }
+            Err(e) => out.push(spec.not_run(e)),
+        }
+    }
+    out
+}
