@@ -265,10 +265,11 @@ fn texts(mode: Mode, calibrated: bool) -> (&'static str, &'static str, f64, &'st
             "torsional vibration of a clamped-free shaft with Saint-Venant's torsion constant of a square section \
              (Timoshenko and Goodier, Theory of Elasticity)",
             0.05,
-            "expected not to hold on this mesh: linear tets lock in torsion as in bending (the twist varies along \
-             the bar, a bilinear displacement linear tets cannot represent), and 4 x 4 cells resolve the section's \
-             warping coarsely (without warping J would be I_p, 8.9% higher in frequency); 5% would be the \
-             tolerance of a mesh fine enough",
+            "linear tets on 10 x 4 x 4 cells resolve the section's warping coarsely (without warping J would be \
+             I_p, 8.9% higher in frequency) and lock somewhat in torsion: 5%. On 2026-11-27 the measured frequency \
+             was 1.75x the closed form for every model, more than locking or warping explain; the cause (the \
+             fitted root may be another mode's, or the initial twist field excites a stiffer mode) is not yet \
+             found, so the case is reported as not holding unexpectedly",
         ),
     }
 }
@@ -343,7 +344,9 @@ pub fn cases(model: MaterialModel, fast: bool) -> Vec<Case> {
                 variants.push((own_label.clone(), own, false, false));
                 variants.push((format!("{own_label}, calibrated EI"), own, true, true));
             }
-            Mode::Torsion => variants.push((own_label.clone(), own, false, false)),
+            // Expected to hold: locking alone does not explain the measured 1.75x (see the
+            // tolerance basis), so a miss is reported as unexplained, not as expected.
+            Mode::Torsion => variants.push((own_label.clone(), own, false, true)),
             Mode::Axial => {
                 if model == MaterialModel::Projective {
                     variants.push(("E, nu".into(), material, false, false));
@@ -384,7 +387,13 @@ pub fn cases(model: MaterialModel, fast: bool) -> Vec<Case> {
                     let wh_mesh = omega_h_of_angle(cfg.scheme, r.z.arg());
                     out.push(
                         spec.measured(f_ref, f_meas, err, |s| {
-                            if s.expected_to_hold {
+                            if s.expected_to_hold && mode == Mode::Torsion {
+                                format!(
+                                    "measured {f_meas:.5} Hz vs {f_ref:.5} Hz ({:.3}x): not explained by locking or \
+                                     warping; under investigation",
+                                    f_meas / f_ref
+                                )
+                            } else if s.expected_to_hold {
                                 format!("measured {f_meas:.5} Hz vs {f_ref:.5} Hz")
                             } else {
                                 match mode {

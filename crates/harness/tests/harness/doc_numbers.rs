@@ -19,7 +19,21 @@ fn lookup(v: &Value, path: &str) -> Result<f64, String> {
         None => (path, false),
     };
     let mut cur = v.clone();
-    let segments: Vec<&str> = path.split('.').collect();
+    // Dots inside a selector (`cases[id=a.b]`) belong to the selector's value.
+    let mut segments: Vec<&str> = Vec::new();
+    let (mut depth, mut start) = (0usize, 0usize);
+    for (i, ch) in path.char_indices() {
+        match ch {
+            '[' => depth += 1,
+            ']' => depth = depth.saturating_sub(1),
+            '.' if depth == 0 => {
+                segments.push(&path[start..i]);
+                start = i + 1;
+            }
+            _ => {}
+        }
+    }
+    segments.push(&path[start..]);
     for (k, seg) in segments.iter().enumerate() {
         let last = k + 1 == segments.len();
         let (key, sel) = match seg.find('[') {
