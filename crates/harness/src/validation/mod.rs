@@ -193,8 +193,10 @@ fn jobs(study: &str, subset: Subset) -> Vec<Job> {
             _ => {}
         }
     }
-    if study == "capstan" && !fast {
-        out.push(Box::new(move || capstan::cases(fast)));
+    if study == "capstan" {
+        for (variant, ratio) in capstan::variants(fast) {
+            out.push(Box::new(move || vec![capstan::case(variant, ratio)]));
+        }
     }
     out
 }

@@ -107,3 +107,16 @@ fn the_mapping_states_the_projective_moduli() {
         assert_eq!(m.effective_poisson_ratio, 0.3);
     }
 }
+
+/// Coulomb friction against the capstan equation with the belt's weight: 5% below the threshold
+/// the strip holds (its light end rises by round-off and elastic settling only), 5% above it
+/// slides by centimetres.
+#[test]
+fn the_capstan_sticks_below_its_threshold_and_slides_above() {
+    let stick = case("capstan.sticks_near.cloth");
+    let slide = case("capstan.slides_near.cloth");
+    assert_eq!(stick.status, Status::Holds, "{:?}", stick.reason);
+    assert_eq!(slide.status, Status::Holds, "{:?}", slide.reason);
+    assert!(stick.measured.unwrap() < 1e-5, "{:?}", stick.measured);
+    assert!(slide.measured.unwrap() > 1e-2, "{:?}", slide.measured);
+}
