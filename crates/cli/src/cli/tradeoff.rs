@@ -45,6 +45,13 @@ pub(crate) struct TradeoffArgs {
     /// Families run with the integrators after the first (default: every one of --families).
     #[arg(long, value_parser = choice::<diffsoft_harness::tradeoff::Family>(), value_delimiter = ',')]
     integrator_families: Vec<diffsoft_harness::tradeoff::Family>,
+    /// Material models to compare on the scene (every body switched to each, Newton at every
+    /// grid step, against neo_hookean at h/R); default none.
+    #[arg(long, value_parser = choice::<diffsoft::base::MaterialModel>(), value_delimiter = ',')]
+    models: Vec<diffsoft::base::MaterialModel>,
+    /// Newton tolerance of the model comparison.
+    #[arg(long, default_value_t = 1e-8)]
+    model_tolerance: f64,
     /// Iteration caps of the newton family (default: --caps).
     #[arg(long, value_delimiter = ',')]
     newton_caps: Vec<usize>,
@@ -101,6 +108,8 @@ pub(crate) fn tradeoff(args: TradeoffArgs) -> Result<()> {
         integrator_families,
         reference_integrator,
         newton_caps,
+        models,
+        model_tolerance,
         caps,
         tolerances,
         gradient_dt_divisors,
@@ -159,6 +168,8 @@ pub(crate) fn tradeoff(args: TradeoffArgs) -> Result<()> {
             s.integrator_families = integrator_families;
             s.reference_integrator = reference_integrator;
             s.newton_caps = newton_caps;
+            s.models = models;
+            s.model_tolerance = model_tolerance;
             s.caps = caps.0;
             s.tolerances = tolerances.0;
             s.gradient_dt_divisors = gradient_dt_divisors;

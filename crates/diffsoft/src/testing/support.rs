@@ -151,6 +151,8 @@ pub const RUN_DEPENDENT_KEYS: &[&str] = &[
     "timing",
     "wall_s",
     "cpu_s",
+    "cpu_s_per_sim_s",
+    "reference_cpu_s_per_sim_s",
     "wall_time_s",
     "workers",
     "shards",

@@ -90,6 +90,12 @@ pub fn finalize(parts: Vec<TradeoffPartial>, paths: &[String]) -> Result<SceneTr
             rows.len()
         )));
     }
+    let models = parts.iter().find_map(|p| p.models.clone());
+    if !spec.models.is_empty() && models.is_none() {
+        return Err(ShardError::Mismatch(
+            "the sweep compares material models, but no shard holds the comparison (the first shard runs it)".into(),
+        ));
+    }
     let workers: Vec<usize> = parts.iter().map(|p| p.workers).collect();
     let wall_time_s = parts.iter().map(|p| p.wall_time_s).sum();
     let grad_ref = |i: Integrator, d: usize| {
@@ -150,6 +156,7 @@ pub fn finalize(parts: Vec<TradeoffPartial>, paths: &[String]) -> Result<SceneTr
         recommendations,
         observed_orders,
         verdicts,
+        models,
         svg: Vec::new(),
         wall_time_s,
     })

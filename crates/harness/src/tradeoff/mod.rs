@@ -21,6 +21,7 @@
 mod assess;
 mod chart;
 mod merge;
+pub mod models;
 pub mod pareto;
 mod report;
 mod run;
@@ -162,6 +163,9 @@ fn default_targets() -> Vec<f64> {
 fn default_min_timing_s() -> f64 {
     0.2
 }
+fn default_model_tolerance() -> f64 {
+    1e-8
+}
 fn default_families() -> Vec<Family> {
     vec![Family::Direct, Family::Split, Family::Chebyshev, Family::Certified]
 }
@@ -245,6 +249,14 @@ pub struct TradeoffSpec {
     /// gives the mean CPU time and the median wall time per run.
     #[serde(default = "default_min_timing_s")]
     pub min_timing_s: f64,
+    /// Material models to compare on this scene ([`models`]; empty: no comparison): every body
+    /// switched to each, Newton's method at every grid step, against the `neo_hookean` model at
+    /// `h/R`.
+    #[serde(default)]
+    pub models: Vec<diffsoft::base::MaterialModel>,
+    /// Newton tolerance of the model comparison's rows (1).
+    #[serde(default = "default_model_tolerance")]
+    pub model_tolerance: f64,
 }
 
 /// Errors of the trade-off study.
@@ -312,6 +324,8 @@ impl TradeoffSpec {
             targets: default_targets(),
             time_axis: TimeAxis::Cpu,
             min_timing_s: default_min_timing_s(),
+            models: Vec::new(),
+            model_tolerance: default_model_tolerance(),
         }
     }
 
@@ -372,6 +386,15 @@ impl TradeoffSpec {
         let positive = |v: f64| v.is_finite() && v > 0.0;
         if !self.tolerances.iter().all(|&t| positive(t)) || !positive(self.reference_tolerance) {
             return bad("tolerances must be finite and positive".into());
+        }
+        if !positive(self.model_tolerance) {
+            return bad(format!(
+                "model_tolerance must be finite and positive, got {}",
+                self.model_tolerance
+            ));
+        }
+        if !distinct(&self.models) {
+            return bad(format!("models must not repeat, got {:?}", self.models));
         }
         if !self.targets.iter().all(|&t| positive(t)) {
             return bad(format!("targets must be finite and positive, got {:?}", self.targets));

@@ -216,6 +216,10 @@ pub struct TradeoffPartial {
     pub gradient_references: Vec<GradientReference>,
     /// This shard's rows.
     pub rows: Vec<Row>,
+    /// The material-model comparison (the first shard runs it; `None` in the others and when
+    /// the sweep names no models).
+    #[serde(default)]
+    pub models: Option<super::models::ModelStudy>,
     /// Settings run at once (one thread each).
     pub workers: usize,
     /// Wall time (s).
@@ -354,6 +358,8 @@ pub struct SceneTradeoff {
     pub observed_orders: Vec<ObservedOrder>,
     /// Checks of what theory predicts.
     pub verdicts: Vec<Verdict>,
+    /// The material-model comparison (`null` when the sweep names no models).
+    pub models: Option<super::models::ModelStudy>,
     /// Plots, relative to the report (set by the writer).
     pub svg: Vec<String>,
     /// Wall time summed over shards (s).

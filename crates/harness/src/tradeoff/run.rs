@@ -399,8 +399,13 @@ pub fn run_shard(
             }
         }
     }
+    let model_runs = if shard.index == 0 && !spec.models.is_empty() {
+        1 + spec.models.len() * spec.dt_divisors.len()
+    } else {
+        0
+    };
     let bar = progress(
-        divisors.len() + grad_divisors.len() + owned.len(),
+        divisors.len() + grad_divisors.len() + owned.len() + model_runs,
         &spec.name,
         show_progress,
     );
@@ -496,6 +501,12 @@ pub fn run_shard(
             }),
         }
     }
+    // The material models (the first shard's), after the grid.
+    let models = if shard.index == 0 {
+        super::models::study(spec, &model, &base_settings, workers, &bar)?
+    } else {
+        None
+    };
     bar.finish_and_clear();
     rows.sort_by_key(|r| r.index);
     gradient_references.sort_by_key(|g| (g.integrator, g.dt_divisor));
@@ -511,6 +522,7 @@ pub fn run_shard(
         dt_references,
         gradient_references,
         rows,
+        models,
         workers,
         wall_time_s: t0.elapsed().as_secs_f64(),
     })

@@ -88,6 +88,29 @@ pub fn summary(s: &SceneTradeoff) -> String {
             show(&r.gradient_at_scene_dt, &r.gradient_at_scene_dt_note)
         );
     }
+    if let Some(m) = &s.models {
+        let _ = writeln!(
+            o,
+            "    material models against {} at h/{} (Newton, tolerance {:e}; relative to {:.3e} m):",
+            m.reference_model.name(),
+            m.reference_divisor,
+            m.reference_tolerance,
+            m.displacement_scale
+        );
+        for r in &m.rows {
+            let _ = match (r.max_relative, r.cpu_s_per_sim_s) {
+                (Some(e), c) => writeln!(
+                    o,
+                    "      {:<22} max error {e:.3e}, rms {:.3e}, {} CPU s per simulated s, {:.1} Newton iterations per step",
+                    r.id,
+                    r.rms_relative.unwrap_or(f64::NAN),
+                    c.map_or("-".into(), |c| format!("{c:.3e}")),
+                    r.iterations_per_step.unwrap_or(f64::NAN)
+                ),
+                (None, _) => writeln!(o, "      {:<22} {}", r.id, r.status),
+            };
+        }
+    }
     for v in &s.verdicts {
         let _ = writeln!(
             o,

@@ -4,6 +4,7 @@
 
 use std::path::Path;
 
+use diffsoft::base::MaterialModel;
 use diffsoft::solver::Integrator;
 use diffsoft_harness::shard::Shard;
 use diffsoft_harness::tradeoff::{
@@ -109,6 +110,8 @@ fn merge_spec() -> TradeoffSpec {
     // BDF2 rows with their own references and reference gradients, keyed by integrator.
     spec.integrators = vec![Integrator::ImplicitEuler, Integrator::Bdf2];
     spec.integrator_families = vec![Family::Direct];
+    // The material-model comparison rides with the first shard.
+    spec.models = vec![MaterialModel::Projective, MaterialModel::NeoHookean];
     spec
 }
 
@@ -144,6 +147,11 @@ fn shards_merge_into_the_unsharded_report() {
         .iter()
         .filter(bdf2)
         .any(|r| r["gradient"]["solver_error"].is_number()));
+    assert_eq!(
+        expected["scenes"][0]["models"]["rows"].as_array().map(Vec::len),
+        Some(2 * 2),
+        "the model comparison survives the merge"
+    );
     let refs = expected["scenes"][0]["dt_references"].as_array().unwrap();
     assert!(refs.iter().any(|r| r["integrator"] == "bdf2"));
     // Every reference gradient of this smooth scene is checked against central differences of
@@ -167,4 +175,43 @@ fn shards_merge_into_the_unsharded_report() {
     other[1].spec.steps = 5;
     let e = tradeoff::merge(other, &names).unwrap_err().to_string();
     assert!(e.contains("sweep inputs differ") && e.contains("part1.json"), "{e}");
+}
+
+/// The material model as a knob: against a refined Neo-Hookean reference, the Neo-Hookean rows
+/// converge with the time step, and the projective rows stop at the model's own error (it
+/// responds with `E_eff = E / (1 + 2 nu / 3)`: 0.83 E at nu = 0.3), far above the Neo-Hookean
+/// model's time-discretisation error at the finest step.
+#[test]
+fn the_material_model_is_a_knob_with_its_own_error() {
+    let mut spec = small(10);
+    spec.families = vec![Family::Newton];
+    spec.caps = vec![];
+    spec.tolerances = vec![1e-2];
+    spec.dt_divisors = vec![1, 2, 4];
+    spec.reference_divisor = 16;
+    spec.reference_integrator = Integrator::Bdf2;
+    spec.models = vec![
+        MaterialModel::Projective,
+        MaterialModel::Corotated,
+        MaterialModel::NeoHookean,
+    ];
+    let s = tradeoff::run_scene(&spec, Path::new("."), 2, false).unwrap();
+    let m = s.models.as_ref().expect("the sweep names models");
+    assert_eq!(m.reference_unconverged_steps, 0);
+    assert_eq!(m.rows.len(), 3 * 3);
+    let err = |model: MaterialModel, d: usize| {
+        let r = m.rows.iter().find(|r| r.model == model && r.dt_divisor == d).unwrap();
+        assert_eq!(r.status, "ok", "{}", r.id);
+        assert_eq!(r.unconverged_steps, Some(0), "{}", r.id);
+        r.max_relative.unwrap()
+    };
+    let nh: Vec<f64> = [1, 2, 4].iter().map(|&d| err(MaterialModel::NeoHookean, d)).collect();
+    assert!(nh[0] > nh[1] && nh[1] > nh[2], "Neo-Hookean converges in h: {nh:?}");
+    // BDF2: second order, so a halving of h takes off at least a factor 3 here.
+    assert!(nh[1] / nh[2] > 3.0, "{nh:?}");
+    let projective = err(MaterialModel::Projective, 4);
+    assert!(projective > 10.0 * nh[2], "projective {projective:e} vs {:e}", nh[2]);
+    // The corotated model shares the small-strain moduli: closer than the projective one.
+    assert!(err(MaterialModel::Corotated, 4) < 0.5 * projective);
+    assert!(tradeoff::summary(&s).contains("material models against neo_hookean"));
 }
