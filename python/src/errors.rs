@@ -166,7 +166,9 @@ pub fn diff(e: DiffError) -> PyErr {
         DiffError::Solver(s) => return solver(s),
         DiffError::Input(_) => Class::Input,
         DiffError::Unsupported(_) => Class::Unsupported,
-        DiffError::Unconverged { .. } | DiffError::NotReplayable { .. } => Class::Convergence,
+        DiffError::Unconverged { .. } | DiffError::CappedSolves { .. } | DiffError::NotReplayable { .. } => {
+            Class::Convergence
+        }
         _ => Class::Simulation,
     };
     class.err(e.to_string())

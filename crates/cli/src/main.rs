@@ -17,26 +17,38 @@ use diffsoft::output::write_json;
 /// to standard error, so the JSON on standard output is parseable as it stands.
 static JSON_ON_STDOUT: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
 
-/// `println!`, or `eprintln!` when a report goes to standard output.
+/// `println!`, or `eprintln!` when a report goes to standard output. Never panics: a closed
+/// pipe or a full disk loses the text, not the run (its files are written and checked on
+/// their own).
 macro_rules! say {
-    ($($t:tt)*) => {
-        if crate::JSON_ON_STDOUT.load(std::sync::atomic::Ordering::Relaxed) {
-            eprintln!($($t)*)
+    ($($t:tt)*) => {{
+        use std::io::Write as _;
+        let _ = if crate::JSON_ON_STDOUT.load(std::sync::atomic::Ordering::Relaxed) {
+            writeln!(std::io::stderr(), $($t)*)
         } else {
-            println!($($t)*)
-        }
-    };
+            writeln!(std::io::stdout(), $($t)*)
+        };
+    }};
 }
 
-/// `print!`, or `eprint!` when a report goes to standard output.
+/// `print!`, or `eprint!` when a report goes to standard output; never panics (see `say!`).
 macro_rules! say_raw {
-    ($($t:tt)*) => {
-        if crate::JSON_ON_STDOUT.load(std::sync::atomic::Ordering::Relaxed) {
-            eprint!($($t)*)
+    ($($t:tt)*) => {{
+        use std::io::Write as _;
+        let _ = if crate::JSON_ON_STDOUT.load(std::sync::atomic::Ordering::Relaxed) {
+            write!(std::io::stderr(), $($t)*)
         } else {
-            print!($($t)*)
-        }
-    };
+            write!(std::io::stdout(), $($t)*)
+        };
+    }};
+}
+
+/// `eprintln!` that never panics (a closed or full standard error loses the text only).
+macro_rules! warn {
+    ($($t:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stderr(), $($t)*);
+    }};
 }
 
 mod cli;
@@ -338,7 +350,7 @@ fn main() {
     // A thread count far beyond the machine only costs memory and start-up time.
     const MAX_THREADS: usize = 4096;
     if cli.threads.is_some_and(|t| t > MAX_THREADS) {
-        eprintln!(
+        warn!(
             "error: --threads {}: at most {MAX_THREADS} (this machine has {})",
             cli.threads.unwrap_or(0),
             std::thread::available_parallelism().map_or(1, |n| n.get())
@@ -351,12 +363,12 @@ fn main() {
     {
         Ok(pool) => pool,
         Err(e) => {
-            eprintln!("error: cannot set thread count: {e}");
+            warn!("error: cannot set thread count: {e}");
             std::process::exit(2);
         }
     };
     if let Err(e) = pool.install(|| run(cli.command)) {
-        eprintln!("error: {e:#}");
+        warn!("error: {e:#}");
         std::process::exit(1);
     }
 }

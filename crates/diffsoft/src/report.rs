@@ -278,15 +278,28 @@ pub fn write_json<T: Serialize>(path: impl AsRef<Path>, report: &T) -> std::io::
 /// Write `bytes` to `path` so that it is never seen half-written: the content goes to a
 /// temporary file beside the target, which is then renamed over it (atomic on POSIX file
 /// systems). Errors name the path.
+///
+/// What `path` really is decides where the bytes go: a symbolic link is written through (the
+/// file it points to is replaced, the link stays); a device, pipe or socket (`/dev/null`,
+/// `/dev/stdout`, a FIFO) is written to in place, never replaced by a regular file; a directory
+/// is an error. The temporary file is created exclusively under a fresh name, so no existing
+/// file, whatever its name, is ever truncated or removed.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     let named = |e: std::io::Error| std::io::Error::new(e.kind(), format!("{}: {e}", path.display()));
-    let tmp = temporary_name(path);
+    let target = match output_target(path).map_err(named)? {
+        Target::InPlace => {
+            // A device, FIFO or socket: write to it as it is.
+            let mut f = std::fs::OpenOptions::new().write(true).open(path).map_err(named)?;
+            return f.write_all(bytes).and_then(|()| f.flush()).map_err(named);
+        }
+        Target::File(t) => t,
+    };
+    let (tmp, mut f) = create_temporary(&target).map_err(named)?;
     let result = (|| {
-        let mut f = std::fs::File::create(&tmp)?;
         f.write_all(bytes)?;
         f.flush()?;
         drop(f);
-        std::fs::rename(&tmp, path)
+        std::fs::rename(&tmp, &target)
     })();
     if result.is_err() {
         let _ = std::fs::remove_file(&tmp);
@@ -294,13 +307,62 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     result.map_err(named)
 }
 
-/// `dir/.name.tmp.PID`: hidden, in the target's directory (so the rename stays on one file
-/// system), unique per process.
-pub(crate) fn temporary_name(path: &Path) -> PathBuf {
+/// Where the bytes of an output path go.
+pub(crate) enum Target {
+    /// Written in place through the path (a device, FIFO or socket, possibly behind links).
+    InPlace,
+    /// A regular file, existing or not, at this path (links followed): replaced atomically.
+    File(PathBuf),
+}
+
+/// What `path` really is, links followed: a directory is an error.
+pub(crate) fn output_target(path: &Path) -> std::io::Result<Target> {
+    match std::fs::metadata(path) {
+        Ok(m) if m.is_dir() => Err(std::io::Error::new(
+            std::io::ErrorKind::IsADirectory,
+            "is a directory, expected a file",
+        )),
+        Ok(m) if !m.is_file() => Ok(Target::InPlace),
+        Ok(_) => Ok(Target::File(path.canonicalize()?)),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(Target::File(resolve_links(path)?)),
+        Err(e) => Err(e),
+    }
+}
+
+/// `path` with every symbolic link along its final component followed (a dangling link gives
+/// the path it points to); at most 40 links, as the kernel allows.
+fn resolve_links(path: &Path) -> std::io::Result<PathBuf> {
+    let mut p = path.to_path_buf();
+    for _ in 0..40 {
+        match std::fs::symlink_metadata(&p) {
+            Ok(m) if m.file_type().is_symlink() => {
+                let to = std::fs::read_link(&p)?;
+                p = match p.parent() {
+                    Some(dir) if to.is_relative() => dir.join(to),
+                    _ => to,
+                };
+            }
+            _ => return Ok(p),
+        }
+    }
+    Err(std::io::Error::other("too many levels of symbolic links"))
+}
+
+/// A new, empty file beside `path` named `.name.tmp.PID.K`, created exclusively (`K` counts up
+/// past names already taken), and its handle.
+pub(crate) fn create_temporary(path: &Path) -> std::io::Result<(PathBuf, std::fs::File)> {
     let name = path
         .file_name()
         .map_or_else(|| "out".into(), |n| n.to_string_lossy().into_owned());
-    path.with_file_name(format!(".{name}.tmp.{}", std::process::id()))
+    for k in 0..1000 {
+        let tmp = path.with_file_name(format!(".{name}.tmp.{}.{k}", std::process::id()));
+        match std::fs::OpenOptions::new().write(true).create_new(true).open(&tmp) {
+            Ok(f) => return Ok((tmp, f)),
+            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => continue,
+            Err(e) => return Err(e),
+        }
+    }
+    Err(std::io::Error::other("no free temporary name beside the output"))
 }
 
 #[cfg(test)]
@@ -322,6 +384,21 @@ mod tests {
         assert_eq!(names, vec![std::ffi::OsString::from("a.json")]);
         let e = write_atomic(&dir.join("missing/b.json"), b"x").unwrap_err();
         assert!(e.to_string().contains("missing/b.json"), "{e}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// The temporary file never takes over an existing file, whatever its name.
+    #[test]
+    fn a_file_named_like_the_temporary_survives() {
+        let dir = std::env::temp_dir().join(format!("diffsoft-atomic-tmp-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let p = dir.join("a.json");
+        let squatter = dir.join(format!(".a.json.tmp.{}.0", std::process::id()));
+        std::fs::write(&squatter, b"an input").unwrap();
+        write_atomic(&p, b"report").unwrap();
+        crate::output::check_writable(&p).unwrap();
+        assert_eq!(std::fs::read(&squatter).unwrap(), b"an input");
+        assert_eq!(std::fs::read(&p).unwrap(), b"report");
         std::fs::remove_dir_all(&dir).unwrap();
     }
 

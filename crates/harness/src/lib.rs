@@ -7,6 +7,34 @@
 //! The engine it measures is the `diffsoft` crate; this crate adds no physics.
 #![deny(missing_docs)]
 
+/// `println!` that never panics: a closed pipe or a full disk on standard output loses the
+/// text, not the run (the reports are files, written and checked on their own).
+#[macro_export]
+macro_rules! say {
+    ($($t:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stdout(), $($t)*);
+    }};
+}
+
+/// `print!` that never panics (see [`say!`]).
+#[macro_export]
+macro_rules! say_raw {
+    ($($t:tt)*) => {{
+        use std::io::Write as _;
+        let _ = write!(std::io::stdout(), $($t)*);
+    }};
+}
+
+/// `eprintln!` that never panics (see [`say!`]).
+#[macro_export]
+macro_rules! warn {
+    ($($t:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stderr(), $($t)*);
+    }};
+}
+
 pub mod actuators;
 mod bounds;
 pub mod cloth;

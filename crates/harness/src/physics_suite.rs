@@ -67,13 +67,13 @@ pub(crate) fn run_physics(base: &Path, out: &Path, suite: &suite::PhysicsSuite) 
             max_contacts,
         });
     }
-    println!("  cantilever levels {:?} ...", suite.cantilever_levels);
+    crate::say!("  cantilever levels {:?} ...", suite.cantilever_levels);
     let cantilever = physics::cantilever(&suite.cantilever_levels)?;
     let solver_agreement = physics::solver_agreement()?;
     let mut scenes = Vec::new();
     for sc in &suite.scenes {
         let r = physics::run_scene(&base.join(&sc.scene), sc.steps).map_err(|e| anyhow!("{e}"))?;
-        println!(
+        crate::say!(
             "  {:<45} {:>8.3} ms/step {:>6.2} it/step",
             sc.scene.display(),
             r.median_ms_per_step,

@@ -26,7 +26,7 @@ pub fn run_suite(suite_path: &Path, out: &Path) -> Result<SuiteBoundsReport> {
     for entry in &suite.bounds.meshes {
         let t = Instant::now();
         let r = run_mesh(base, out, entry, suite.bounds.empirical, suite.bounds.sweep_points)?;
-        println!(
+        crate::say!(
             "  {:<22} {:>6} v {:>7} t  analysed in {:.2} s",
             entry.name,
             r.bounds.mesh.vertices,
@@ -80,21 +80,21 @@ pub fn run_suite(suite_path: &Path, out: &Path) -> Result<SuiteBoundsReport> {
     let table = summary::table(&report);
     // The table as printed, for the documentation that quotes it (crates/harness/tests/harness/doc_numbers.rs).
     diffsoft::output::write_atomic(&out.join("bounds_table.txt"), table.as_bytes())?;
-    print!("{table}");
+    crate::say_raw!("{table}");
     section("t-scaling and paper arithmetic", &mut lap);
-    println!("\nJacobian checks of the skeleton:");
+    crate::say!("\nJacobian checks of the skeleton:");
     let jac = jacobians::run(2021);
     write_json(out.join("jacobians.json"), &jac)?;
     for v in &jac.verdicts {
-        println!("  [{}] {}", if v.holds { "holds" } else { "FAILS" }, v.claim);
+        crate::say!("  [{}] {}", if v.holds { "holds" } else { "FAILS" }, v.claim);
     }
     section("Jacobian checks", &mut lap);
-    println!("\nphysics checks of the forward solver:");
+    crate::say!("\nphysics checks of the forward solver:");
     let phys = run_physics(base, out, &suite.physics)?;
     write_json(out.join("physics.json"), &phys)?;
-    print!("{}", summary::physics_table(&phys));
+    crate::say_raw!("{}", summary::physics_table(&phys));
     section("physics checks", &mut lap);
-    println!("\nskeleton study ({}):", suite.skeleton.scene.display());
+    crate::say!("\nskeleton study ({}):", suite.skeleton.scene.display());
     let sk = skeleton::study(
         &base.join(&suite.skeleton.scene),
         suite.skeleton.steps,
@@ -102,9 +102,9 @@ pub fn run_suite(suite_path: &Path, out: &Path) -> Result<SuiteBoundsReport> {
         out,
     )?;
     write_json(out.join("skeleton.json"), &sk)?;
-    print!("{}", summary::skeleton_table(&sk));
+    crate::say_raw!("{}", summary::skeleton_table(&sk));
     section("skeleton study", &mut lap);
-    println!("\nactuator study:");
+    crate::say!("\nactuator study:");
     let ac = &suite.actuators;
     let act = actuators::study(
         &actuators::StudyInputs {
@@ -119,9 +119,9 @@ pub fn run_suite(suite_path: &Path, out: &Path) -> Result<SuiteBoundsReport> {
         out,
     )?;
     write_json(out.join("actuators.json"), &act)?;
-    print!("{}", actuators::table(&act));
+    crate::say_raw!("{}", actuators::table(&act));
     section("actuator study", &mut lap);
-    println!(
+    crate::say!(
         "\ngradient checks (unrolled reverse mode, implicit mode for Newton cases, vs central differences, rtol {:e}):",
         gradients::RTOL
     );
@@ -140,45 +140,45 @@ pub fn run_suite(suite_path: &Path, out: &Path) -> Result<SuiteBoundsReport> {
     )?;
     write_json(out.join("gradients.json"), &grad)?;
     for v in &grad.verdicts {
-        println!("  [{}] {}", if v.holds { "holds" } else { "FAILS" }, v.claim);
+        crate::say!("  [{}] {}", if v.holds { "holds" } else { "FAILS" }, v.claim);
     }
     section("gradient study", &mut lap);
     if let Some(t) = &suite.tradeoff {
-        println!("\ntrade-off of solver settings (accuracy against cost):");
+        crate::say!("\ntrade-off of solver settings (accuracy against cost):");
         tradeoff::suite_section(base, out, &t.scenes)?;
     }
     section("trade-off study", &mut lap);
     if let Some(x) = &suite.extremes {
-        println!("\nextremes ({:?} subset):", x.subset);
+        crate::say!("\nextremes ({:?} subset):", x.subset);
         let ex = extremes::run(x.subset, true);
         write_json(out.join("extremes.json"), &ex)?;
-        print!("{}", extremes::table(&ex));
+        crate::say_raw!("{}", extremes::table(&ex));
     }
     section("extremes", &mut lap);
     if let Some(c) = &suite.cloth {
-        println!("\ncloth study:");
+        crate::say!("\ncloth study:");
         let scenes: Vec<(std::path::PathBuf, usize)> =
             c.scenes.iter().map(|s| (base.join(&s.scene), s.steps)).collect();
         let cl = cloth::study(&scenes, &c.detection_sizes, out)?;
         write_json(out.join("cloth.json"), &cl)?;
-        print!("{}", cloth::table(&cl));
+        crate::say_raw!("{}", cloth::table(&cl));
         for e in &cl.plot_errors {
-            eprintln!("warning: cloth plot not drawn: {e}");
+            crate::warn!("warning: cloth plot not drawn: {e}");
         }
     }
     section("cloth study", &mut lap);
     if let Some(v) = &suite.validation {
-        println!("\nvalidation against closed forms ({:?} subset):", v.subset);
+        crate::say!("\nvalidation against closed forms ({:?} subset):", v.subset);
         let val = validation::run(v.subset, &[]);
         write_json(out.join("validation.json"), &val)?;
-        print!("{}", validation::table(&val));
+        crate::say_raw!("{}", validation::table(&val));
     }
     section("validation", &mut lap);
-    println!("\nwall time per section:");
+    crate::say!("\nwall time per section:");
     for (name, s) in &sections {
-        println!("  {name:<32} {s:>7.1} s");
+        crate::say!("  {name:<32} {s:>7.1} s");
     }
-    println!(
+    crate::say!(
         "wrote {}, {}, {}, {}, {}, gradients.json, tradeoff.json, extremes.json, cloth.json, validation.json, t_scaling.svg, cantilever.svg, skeleton_*.svg, gradient_cost.svg, tradeoff_*.svg, cloth_*.svg, actuator and cloth frames and {} sweep plots in {:.1} s",
         path.display(),
         out.join("jacobians.json").display(),

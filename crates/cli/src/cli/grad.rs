@@ -125,7 +125,9 @@ pub(crate) fn grad(a: GradArgs) -> Result<()> {
         },
     )
     .map_err(|e| match e {
-        diff::DiffError::Unconverged { .. } | diff::DiffError::NotReplayable { .. } => {
+        diff::DiffError::Unconverged { .. }
+        | diff::DiffError::CappedSolves { .. }
+        | diff::DiffError::NotReplayable { .. } => {
             anyhow::anyhow!("{e} (--allow-unconverged)")
         }
         e => e.into(),

@@ -107,7 +107,7 @@ pub(crate) fn simulate(
             std::process::exit(130);
         }
     }) {
-        eprintln!("warning: cannot catch SIGINT/SIGTERM ({e}); an interrupted run keeps its last log refresh");
+        warn!("warning: cannot catch SIGINT/SIGTERM ({e}); an interrupted run keeps its last log refresh");
     }
     let bar = ProgressBar::new(steps as u64);
     if steps < 50 || !std::io::IsTerminal::is_terminal(&std::io::stderr()) {
@@ -186,7 +186,7 @@ pub(crate) fn simulate(
     }
     match (log.status, log.error) {
         (RunStatus::Interrupted, _) => {
-            eprintln!("interrupted after {} of {steps} steps", log.steps.len());
+            warn!("interrupted after {} of {steps} steps", log.steps.len());
             std::process::exit(130);
         }
         (_, Some(e)) => bail!(e),

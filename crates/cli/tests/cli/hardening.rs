@@ -434,3 +434,163 @@ fn simulate_takes_tolerance_and_anderson() {
     assert!(!bad.status.success());
     assert!(stderr(&bad).contains("tolerance"), "{}", stderr(&bad));
 }
+
+/// Collisions between bodies whose contact solve stops at its cap: the steps "converge" (the
+/// outer test passes on the capped contact iterate), but their states solve no contact problem
+/// and an unrolled gradient through them can be off by many orders of magnitude. Such a
+/// gradient is refused in both modes, from the library and the CLI, and `simulate` warns.
+#[test]
+fn a_gradient_through_capped_contact_solves_is_refused() {
+    let path = root().join("verification/scenes/ball_on_cloth.json");
+    let sc = diffsoft::scene::load(&path, Default::default()).unwrap();
+    let mut settings = sc.settings.clone();
+    settings.solver = diffsoft::solver::SolverKind::Direct;
+    settings.inner_max_iterations = 1;
+    let loss = diff::loss::by_name("final_com.y").unwrap();
+    for mode in [Mode::Unrolled, Mode::Implicit] {
+        let e = diff::gradient(
+            &sc.model,
+            &settings,
+            60,
+            &Controls::default(),
+            loss.as_ref(),
+            Options::mode(mode),
+        )
+        .unwrap_err();
+        match e {
+            DiffError::CappedSolves { steps, of: 60, .. } => assert!(steps > 0),
+            other => panic!("{mode:?}: {other}"),
+        }
+        let allowed = diff::gradient(
+            &sc.model,
+            &settings,
+            60,
+            &Controls::default(),
+            loss.as_ref(),
+            Options {
+                allow_unconverged: true,
+                ..Options::mode(mode)
+            },
+        );
+        if let Ok(g) = allowed {
+            assert!(g.stats.unconverged_steps > 0, "{mode:?}: the stats say so");
+        }
+    }
+    // The CLI: exit 1, the reason and the way out named.
+    let dir = tmp_dir("hard-capped");
+    let mut v = json(&path);
+    v["solver"]["inner_max_iterations"] = serde_json::json!(1);
+    v["cloths"][0]["mesh"] = serde_json::json!(root().join("verification/paper/cloth_ball/flag2.obj"));
+    v["bodies"][0]["mesh"] = serde_json::json!(root().join("verification/paper/droneman/ball_tet.obj"));
+    let scene = write(&dir, "capped.json", &v.to_string());
+    let o = diffsoft(&["grad", scene.to_str().unwrap(), "--steps", "60", "--param", "density"]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("stopped a global or contact solve unconverged"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(stderr(&o).contains("--allow-unconverged"), "{}", stderr(&o));
+}
+
+/// Input that passes the scene's checks but breaks double precision or memory: a Young's
+/// modulus whose weight underflows, and an Anderson memory of a million slots (8 TB). Each is a
+/// clear error (exit 1) naming what to change, never a panic (101) or an abort.
+#[test]
+fn weights_that_underflow_and_huge_anderson_memories_are_errors() {
+    let dir = tmp_dir("hard-underflow");
+    for e in ["5e-324", "1e-320"] {
+        let scene = cube_scene(&dir, DENSITY, "");
+        let text = std::fs::read_to_string(&scene).unwrap().replace("1e5", e);
+        let scene = write(&dir, "tiny.json", &text);
+        for args in [
+            vec!["simulate", scene.to_str().unwrap(), "--steps", "2"],
+            vec!["grad", scene.to_str().unwrap(), "--steps", "2", "--param", "density"],
+        ] {
+            let o = diffsoft(&args);
+            assert_eq!(o.status.code(), Some(1), "{args:?}: {}", stderr(&o));
+            let err = stderr(&o);
+            assert!(
+                err.contains("body 'c', tet 0") && err.contains("rescale the units"),
+                "{err}"
+            );
+        }
+    }
+    let scene = cube_scene(&dir, DENSITY, "");
+    let o = diffsoft(&[
+        "simulate",
+        scene.to_str().unwrap(),
+        "--steps",
+        "2",
+        "--anderson",
+        "1000000",
+    ]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("anderson memory must be at most 64"),
+        "{}",
+        stderr(&o)
+    );
+    let o = diffsoft(&["simulate", scene.to_str().unwrap(), "--steps", "2", "--anderson", "8"]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+}
+
+/// `--json` writes what the path really is: through a symbolic link (the link stays), into a
+/// character device in place (never replaced by a regular file); and a closed or full standard
+/// output loses the text only (no panic, the run's files still written).
+#[test]
+fn outputs_respect_links_devices_and_closed_streams() {
+    let dir = tmp_dir("hard-files");
+    let scene = cube_scene(&dir, DENSITY, "");
+    let s = scene.to_str().unwrap();
+    let link = dir.join("link.json");
+    let _ = std::fs::remove_file(&link);
+    let _ = std::fs::remove_file(dir.join("real.json"));
+    std::os::unix::fs::symlink("real.json", &link).unwrap();
+    let o = diffsoft(&[
+        "grad",
+        s,
+        "--steps",
+        "2",
+        "--param",
+        "density",
+        "--json",
+        link.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(std::fs::symlink_metadata(&link).unwrap().file_type().is_symlink());
+    assert!(json(&dir.join("real.json"))["schema"].is_string());
+    // A device is written in place.
+    let o = diffsoft(&["grad", s, "--steps", "2", "--param", "density", "--json", "/dev/null"]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    use std::os::unix::fs::FileTypeExt;
+    assert!(std::fs::metadata("/dev/null").unwrap().file_type().is_char_device());
+    // Standard output full (Linux's /dev/full) or closed: no panic, the log still written.
+    let run = dir.join("run-full");
+    let full = std::fs::OpenOptions::new().write(true).open("/dev/full").unwrap();
+    let o = Command::new(env!("CARGO_BIN_EXE_diffsoft"))
+        .args([
+            "simulate",
+            s,
+            "--steps",
+            "3",
+            "--out",
+            run.to_str().unwrap(),
+            "--overwrite",
+        ])
+        .stdout(full)
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert_eq!(json(&run.join("run.json"))["status"], "completed");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_diffsoft"))
+        .args(["grad", s, "--steps", "20", "--param", "density"])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take()); // the reader goes away at once
+    let o = child.wait_with_output().unwrap();
+    assert_ne!(o.status.code(), Some(101), "{}", stderr(&o));
+    assert!(!stderr(&o).contains("panicked"), "{}", stderr(&o));
+}

@@ -239,7 +239,7 @@ pub(crate) fn sets_for(model: &Model) -> Vec<Box<dyn ConstraintSet>> {
 /// let mesh = BoxSpec::new([1, 1, 1], [0.1, 0.1, 0.1]).build()?;
 /// let material = Material { youngs_modulus: 1e5, poisson_ratio: 0.3 };
 /// let model = ModelBuilder::new().body(BodySpec::new("box", mesh, material, MassSpec::Density(1000.0))).build()?;
-/// let l = stiffness_values(&model);
+/// let l = stiffness_values(&model)?;
 /// assert_eq!(l.len(), model.fem().pattern.nnz());
 /// // Without pins a Laplacian: positive diagonal, constants in its kernel.
 /// let diag = model.fem().pattern.diagonal(&l);
@@ -247,6 +247,9 @@ pub(crate) fn sets_for(model: &Model) -> Vec<Box<dyn ConstraintSet>> {
 /// assert!(l.iter().sum::<f64>().abs() < 1e-9 * diag.iter().sum::<f64>());
 /// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```
-pub fn stiffness_values(model: &Model) -> Vec<f64> {
-    Constraints::stiffness_values(model, &sets_for(model))
+///
+/// # Errors
+/// A tet whose stiffness weight underflows or overflows double precision, named with its body.
+pub fn stiffness_values(model: &Model) -> Result<Vec<f64>, crate::base::InputError> {
+    Constraints::stiffness_values(model, &sets_for(model)).map_err(crate::base::InputError::new)
 }

@@ -60,19 +60,40 @@ impl Constraints {
 
     /// `L` (per axis) as values in the model's stiffness pattern: the isotropic tet terms
     /// first (Eq. 22), then every set's other blocks.
-    pub(crate) fn stiffness_values(model: &Model, sets: &[Box<dyn ConstraintSet>]) -> Vec<f64> {
+    ///
+    /// Every tet's coefficient must be a positive normal number: a Young's modulus whose weight
+    /// `E V / (1 + nu)` underflows (5e-324 Pa, or 1e-250 Pa on a 1e-50 m mesh) or overflows is
+    /// refused with the tet and its body named (an error, never a panic or a singular matrix).
+    pub(crate) fn stiffness_values(model: &Model, sets: &[Box<dyn ConstraintSet>]) -> Result<Vec<f64>, String> {
         let mut k = vec![0.0; model.tets.len()];
         for s in sets {
             s.tet_coefficients(model, &mut k);
         }
+        if let Some(t) = k.iter().position(|c| !(c.is_normal() && *c > 0.0)) {
+            let body = model.bodies.iter().find(|b| b.tets.contains(&t));
+            return Err(format!(
+                "body '{}', tet {}: its stiffness per volume is {:e} (Young's modulus {:e} Pa, Poisson ratio {}, volume {:e} m^3): its weight underflows or overflows double precision; rescale the units (kPa or MPa, mm) so that E and the element volumes are moderate numbers",
+                body.map_or("?", |b| b.name.as_str()),
+                body.map_or(t, |b| t - b.tets.start),
+                k[t],
+                body.map_or(f64::NAN, |b| b.material.youngs_modulus),
+                body.map_or(f64::NAN, |b| b.material.poisson_ratio),
+                model.fem.geometry[t].volume,
+            ));
+        }
         let mut values = model
             .fem
             .laplacian_values(Coefficient::PerTet(&k))
-            .expect("weights validated");
+            .map_err(|e| e.to_string())?;
+        if let Some(v) = values.iter().find(|v| !v.is_finite()) {
+            return Err(format!(
+                "the stiffness matrix has an entry {v}: the Young's moduli over the element sizes overflow double precision; rescale the units"
+            ));
+        }
         for s in sets {
             s.add_blocks(model, &mut values);
         }
-        values
+        Ok(values)
     }
 
     /// The local step at positions `q` (all vertices): project every set's elements; returns

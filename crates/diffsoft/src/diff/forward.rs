@@ -169,6 +169,10 @@ pub(crate) struct Forward {
     pub stored_bytes: usize,
     pub iterations: usize,
     pub unconverged: usize,
+    /// Steps with a global or contact solve that stopped unconverged (capped or stalled).
+    pub capped: usize,
+    /// Steps unconverged or with such a solve.
+    pub flagged: usize,
     /// Steps that met the tolerance in their first iteration.
     pub one_iteration: usize,
 }
@@ -336,6 +340,8 @@ pub(crate) fn forward(
         stored_bytes: 0,
         iterations: 0,
         unconverged: 0,
+        capped: 0,
+        flagged: 0,
         one_iteration: 0,
     };
     f.q.push(&sim.state().q);
@@ -359,6 +365,8 @@ pub(crate) fn forward(
         };
         f.iterations += st.iterations;
         f.unconverged += usize::from(!st.converged);
+        f.capped += usize::from(st.capped_solves > 0);
+        f.flagged += usize::from(!st.converged || st.capped_solves > 0);
         f.one_iteration += usize::from(st.converged && st.iterations == 1 && settings.tolerance > 0.0);
         if let Some(sk) = sim.skeleton() {
             joints.iter_mut().for_each(|j| *j = 0.0);

@@ -331,6 +331,13 @@ pub fn gradient_on(
             max_iterations: settings.max_iterations,
         });
     }
+    if !opts.allow_unconverged && fwd.capped > 0 {
+        return Err(DiffError::CappedSolves {
+            steps: fwd.capped,
+            of: steps,
+            inner_max_iterations: settings.inner_max_iterations,
+        });
+    }
     let t1 = Instant::now();
     let n = model.n();
     let groups = model.actuators.as_ref().map_or(0, |a| a.groups.len());
@@ -350,7 +357,7 @@ pub fn gradient_on(
         stats: DiffStats {
             forward_ms,
             forward_iterations: fwd.iterations,
-            unconverged_steps: fwd.unconverged,
+            unconverged_steps: fwd.flagged,
             one_iteration_steps: fwd.one_iteration,
             solver: resolved,
             ..Default::default()

@@ -87,6 +87,21 @@ pub enum DiffError {
         /// The iteration cap.
         max_iterations: usize,
     },
+    /// A global or contact solve inside some forward steps stopped unconverged (at its cap, or
+    /// stalled on an infeasible or badly conditioned contact set): those steps' states solve no
+    /// contact problem, so neither the unrolled nor the implicit backward pass differentiates
+    /// the simulation (opt in with [`Options::allow_unconverged`]).
+    #[error(
+        "{steps} of {of} forward steps stopped a global or contact solve unconverged (at its cap of {inner_max_iterations} iterations, or stalled on an infeasible or badly conditioned contact set): the backward pass would differentiate states that solve no contact problem, and the gradient could be wrong by orders of magnitude; lower the time step or the impact speed, raise the solver's inner_max_iterations, or allow unconverged steps explicitly"
+    )]
+    CappedSolves {
+        /// Steps with a capped or stalled solve.
+        steps: usize,
+        /// Steps simulated.
+        of: usize,
+        /// The inner solves' iteration cap.
+        inner_max_iterations: usize,
+    },
     /// Unrolled mode: replaying a step from its checkpoint did not reproduce the forward pass
     /// (e.g. an accelerated forward that did not converge), so the backward pass would
     /// differentiate another trajectory.
@@ -231,7 +246,8 @@ pub struct DiffStats {
     pub forward_iterations: usize,
     /// Adjoint iterations of the backward pass.
     pub backward_iterations: usize,
-    /// Forward steps that stopped at the iteration cap.
+    /// Forward steps that stopped at the iteration cap, or in which a global or contact solve
+    /// stopped unconverged (capped or stalled).
     pub unconverged_steps: usize,
     /// Forward steps that met the tolerance in their first local-global iteration (their first
     /// iterate was already the fixed point, e.g. a body at rest or moving rigidly). Unrolled

@@ -3,7 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::report::temporary_name;
+use crate::report::{create_temporary, output_target, Target};
 
 /// Check, before a long computation, that `path` can be written: its directory is created if
 /// needed and a probe file is written into it and removed. Errors name the path.
@@ -16,13 +16,32 @@ pub fn check_writable(path: &Path) -> std::io::Result<()> {
             "is a directory, expected a file",
         )));
     }
-    let dir = match path.parent() {
+    // Where the bytes will go (links followed, as the writer follows them).
+    let target = match output_target(path).map_err(named)? {
+        Target::File(t) => t,
+        Target::InPlace => {
+            let meta = std::fs::metadata(path).map_err(named)?;
+            // A device or socket is written in place: it must open for writing. A FIFO is not
+            // opened here (that would wait for its reader, as the real write will).
+            #[cfg(unix)]
+            if std::os::unix::fs::FileTypeExt::is_fifo(&meta.file_type()) {
+                return Ok(());
+            }
+            drop(meta);
+            return std::fs::OpenOptions::new()
+                .write(true)
+                .open(path)
+                .map(drop)
+                .map_err(named);
+        }
+    };
+    let dir = match target.parent() {
         Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
         _ => PathBuf::from("."),
     };
     std::fs::create_dir_all(&dir).map_err(named)?;
-    let probe = temporary_name(path);
-    std::fs::write(&probe, b"").map_err(named)?;
+    let (probe, f) = create_temporary(&target).map_err(named)?;
+    drop(f);
     std::fs::remove_file(&probe).map_err(named)
 }
 

@@ -51,7 +51,8 @@ impl GlobalSystem {
             )));
         }
         let n = model.n();
-        let full = model.fem.pattern.to_sym_csc(crate::constraint::stiffness_values(model));
+        let values = crate::constraint::stiffness_values(model).map_err(|e| SolverError::input(e.to_string()))?;
+        let full = model.fem.pattern.to_sym_csc(values);
         let rigid: Vec<usize> = model.skeleton.as_ref().map_or(Vec::new(), |s| s.rigid.clone());
         let mut rigid_index = vec![usize::MAX; n];
         for (k, &v) in rigid.iter().enumerate() {

@@ -71,7 +71,7 @@ pub use contacts::{PAIR_OBSTACLE, PAIR_TOLERANCE};
 pub use error::SolverError;
 pub use global::{GlobalStats, SolverKind};
 pub use integrator::Integrator;
-pub use settings::Settings;
+pub use settings::{Settings, MAX_ANDERSON};
 pub(crate) use simulator::Checkpoint;
 pub use simulator::Simulator;
 pub use stats::StepStats;

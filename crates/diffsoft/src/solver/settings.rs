@@ -59,6 +59,11 @@ pub struct Settings {
 /// let s = Settings::default();
 /// assert_eq!((s.dt, s.solver, s.max_iterations), (0.01, SolverKind::Auto, 30));
 /// ```
+/// The largest Anderson memory accepted ([`Settings::anderson`]): the accelerator keeps two
+/// position-sized vectors per slot and solves a least-squares problem of this size every
+/// iteration, so a memory beyond a few dozen costs memory and time and gains nothing.
+pub const MAX_ANDERSON: usize = 64;
+
 impl Default for Settings {
     fn default() -> Self {
         Self {
@@ -100,6 +105,12 @@ impl Settings {
         }
         if !(self.damping.is_finite() && self.damping > 0.0 && self.damping <= 1.0) {
             return bad(format!("damping must be in (0, 1], got {}", self.damping));
+        }
+        if self.anderson > MAX_ANDERSON {
+            return bad(format!(
+                "anderson memory must be at most {MAX_ANDERSON}, got {} (it keeps 2 x memory copies of the positions; memories above about 10 rarely converge faster)",
+                self.anderson
+            ));
         }
         Ok(())
     }

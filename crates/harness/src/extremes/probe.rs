@@ -289,9 +289,12 @@ impl Probe {
 
 /// `kappa = 1 + h^2 max_i L_ii / m_i`, the diagonal estimate of the condition number of the
 /// global matrix `M/h^2 + L` relative to `M/h^2`: a solve's round-off is about `eps kappa` of
-/// the coordinates.
+/// the coordinates. NaN (`null` in reports) when the stiffness cannot be assembled (a weight
+/// that underflows or overflows: the run itself then stops with that error).
 pub fn condition_estimate(model: &Model, dt: f64) -> f64 {
-    let values = diffsoft::stiffness_values(model);
+    let Ok(values) = diffsoft::stiffness_values(model) else {
+        return f64::NAN;
+    };
     let worst = model
         .fem()
         .pattern

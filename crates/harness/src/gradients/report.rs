@@ -110,7 +110,7 @@ pub fn study(inp: &Inputs<'_>, out: &Path) -> Result<GradientsReport> {
     let mut lap = Instant::now();
     let checks = check_all(&cases, 2021);
     for c in &checks {
-        println!(
+        crate::say!(
             "  {:<16} {}",
             c.name,
             if c.passes {
@@ -128,7 +128,7 @@ pub fn study(inp: &Inputs<'_>, out: &Path) -> Result<GradientsReport> {
         );
     }
     let took = |what: &str, lap: &mut Instant| {
-        println!("  ({what}: {:.1} s)", lap.elapsed().as_secs_f64());
+        crate::say!("  ({what}: {:.1} s)", lap.elapsed().as_secs_f64());
         *lap = Instant::now();
     };
     took("checks", &mut lap);
@@ -146,7 +146,7 @@ pub fn study(inp: &Inputs<'_>, out: &Path) -> Result<GradientsReport> {
         .collect();
     for r in pool::run(tasks, rayon::current_num_threads(), &indicatif::ProgressBar::hidden()) {
         let s = r.map_err(|panic| anyhow::anyhow!("system identification panicked: {panic}"))??;
-        println!(
+        crate::say!(
             "  sys-id bridgesus: E {:.4e} -> {:.6e} (true {:.4e}), {} L-BFGS iterations, {} evaluations, relative error {:.1e}, {:.1} s",
             s.initial_youngs_modulus,
             s.recovered_youngs_modulus,
@@ -206,7 +206,7 @@ pub fn study(inp: &Inputs<'_>, out: &Path) -> Result<GradientsReport> {
     skg_case.settings = sk_case.settings.clone();
     mem.extend(memory(&skg_case, inp.memory_steps, Options::mode(Mode::Unrolled))?);
     for m in &mem {
-        println!(
+        crate::say!(
             "  backward {:<16} {:>5} steps {:?}{}: forward {:.0} ms, backward {:.0} ms ({:.2}x), peak heap {:.1} MB",
             m.scene,
             m.steps,

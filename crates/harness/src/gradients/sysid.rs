@@ -92,7 +92,7 @@ pub fn sysid(case: &Case, factor: f64) -> Result<SysId, DiffError> {
             g += 2.0 * r / d2 * Param::YOUNGS_MODULUS.derivative(&model, &gr) * e;
         }
         if std::env::var_os("DIFFSOFT_TRACE").is_some() {
-            eprintln!("sysid eval E {e:.6e} f {f:.3e} g {g:.3e} target {target:?} d2 {d2:.3e}");
+            crate::warn!("sysid eval E {e:.6e} f {f:.3e} g {g:.3e} target {target:?} d2 {d2:.3e}");
         }
         Ok((f, vec![g]))
     };

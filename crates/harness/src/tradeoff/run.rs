@@ -569,7 +569,7 @@ pub fn suite_section(base: &Path, out: &Path, specs: &[TradeoffSpec]) -> Result<
         if let Err(e) = write_plots(&mut s, out) {
             plots = plots.and(Err(e));
         }
-        print!("{}", super::summary(&s));
+        crate::say_raw!("{}", super::summary(&s));
         scenes.push(s);
     }
     let report = super::TradeoffReport::new(scenes);
