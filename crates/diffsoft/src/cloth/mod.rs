@@ -106,6 +106,8 @@ pub struct ClothBody {
     pub area: f64,
     /// Interior vertices that carry a bending constraint.
     pub bending_vertices: usize,
+    /// Whether gravity acts on it (`gravity.*` parameters reach it then).
+    pub gravity: bool,
 }
 
 /// Rest geometry of one triangle: `F = sum_a x_a g_a^T` (3 x 2).

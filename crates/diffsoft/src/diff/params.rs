@@ -118,9 +118,18 @@ pub static PARAMETERS: &[ParamSpec] = &[
     initial_velocity::<0>("initial_velocity.x", "x component of every vertex's initial velocity"),
     initial_velocity::<1>("initial_velocity.y", "y component of every vertex's initial velocity"),
     initial_velocity::<2>("initial_velocity.z", "z component of every vertex's initial velocity"),
-    gravity::<0>("gravity.x", "x component of gravity, on the bodies with gravity"),
-    gravity::<1>("gravity.y", "y component of gravity, on the bodies with gravity"),
-    gravity::<2>("gravity.z", "z component of gravity, on the bodies with gravity"),
+    gravity::<0>(
+        "gravity.x",
+        "x component of gravity, on the bodies and cloth with gravity",
+    ),
+    gravity::<1>(
+        "gravity.y",
+        "y component of gravity, on the bodies and cloth with gravity",
+    ),
+    gravity::<2>(
+        "gravity.z",
+        "z component of gravity, on the bodies and cloth with gravity",
+    ),
     ParamSpec {
         name: "initial_positions",
         shape: "(n, 3)",
@@ -190,8 +199,8 @@ const fn initial_velocity<const K: usize>(name: &'static str, description: &'sta
     }
 }
 
-/// The entry of `gravity.<axis>`, axis `K`: the external acceleration of the bodies with
-/// gravity.
+/// The entry of `gravity.<axis>`, axis `K`: the external acceleration of the bodies and cloth
+/// with gravity.
 const fn gravity<const K: usize>(name: &'static str, description: &'static str) -> ParamSpec {
     ParamSpec {
         name,
@@ -201,10 +210,9 @@ const fn gravity<const K: usize>(name: &'static str, description: &'static str) 
         kind: ParamKind::Scalar {
             get: |m| uniform(AXES[K].1, with_gravity(m).map(|i| m.accel[i][K])),
             set: |m, v| {
-                for b in m.bodies.iter().filter(|b| b.gravity) {
-                    for i in b.vertices.clone() {
-                        m.accel[i][K] = v;
-                    }
+                let vertices: Vec<usize> = with_gravity(m).collect();
+                for i in vertices {
+                    m.accel[i][K] = v;
                 }
                 Ok(())
             },
@@ -492,13 +500,16 @@ fn set_density(model: &mut Model, value: f64) -> Result<(), DiffError> {
     Ok(())
 }
 
-/// The vertices of the bodies with gravity.
+/// The vertices of the bodies and cloth with gravity.
 fn with_gravity(model: &Model) -> impl Iterator<Item = usize> + '_ {
+    let cloth = model.cloth.as_ref().map_or(&[][..], |c| &c.bodies[..]);
     model
         .bodies
         .iter()
         .filter(|b| b.gravity)
-        .flat_map(|b| b.vertices.clone())
+        .map(|b| b.vertices.clone())
+        .chain(cloth.iter().filter(|c| c.gravity).map(|c| c.vertices.clone()))
+        .flatten()
 }
 
 /// Young's modulus of every tet (Pa), read back from the tets' weights (`w_rot = E V/(1+nu)`,

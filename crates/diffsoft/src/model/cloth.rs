@@ -86,6 +86,7 @@ impl ModelBuilder {
                 mass: body_mass,
                 area: p.area,
                 bending_vertices,
+                gravity: c.gravity,
             });
         }
         Ok(Some(parts))

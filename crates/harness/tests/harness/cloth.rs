@@ -211,3 +211,56 @@ fn a_capped_contact_solve_between_bodies_is_reported() {
     let free = run(2000);
     assert!(free.iter().all(|&(_, c)| c == 0), "{free:?}");
 }
+
+/// `gravity.*` reaches cloth: a free sheet falls as `y_n = g_y h^2 n (n + 1) / 2` under implicit
+/// Euler, so `d final_com.y / d gravity.y = h^2 n (n + 1) / 2` exactly, and setting `gravity.y`
+/// moves the cloth.
+#[test]
+fn gravity_parameters_reach_cloth() {
+    use diffsoft::cloth::ClothSpec;
+    use diffsoft::diff::{self, Controls, Options, Param};
+    use diffsoft::mesh::surface::parse_obj;
+    use diffsoft::{ModelBuilder, Settings, SolverKind};
+    use nalgebra::Vector3;
+    let s = parse_obj(
+        "sheet.obj",
+        "v 0 0 0\nv 1 0 0\nv 1 0 1\nv 0 0 1\nv 0.5 0.1 0.5\nf 1 2 5\nf 2 3 5\nf 3 4 5\nf 4 1 5\n",
+    )
+    .unwrap();
+    let mut model = ModelBuilder::new()
+        .gravity(Vector3::new(0.0, -9.81, 0.0))
+        .cloth(ClothSpec::new("sheet", s, 100.0, 1e-3, 0.2))
+        .build()
+        .unwrap();
+    assert_eq!(Param::GRAVITY_Y.get(&model).unwrap(), -9.81);
+    Param::GRAVITY_Y.set(&mut model, -5.0).unwrap();
+    assert_eq!(Param::GRAVITY_Y.get(&model).unwrap(), -5.0);
+    let (h, n) = (0.01, 10usize);
+    let settings = Settings {
+        dt: h,
+        solver: SolverKind::Direct,
+        tolerance: 1e-12,
+        max_iterations: 100,
+        ..Settings::default()
+    };
+    let loss = diff::loss::by_name("final_com.y").unwrap();
+    let g = diff::gradient(
+        &model,
+        &settings,
+        n,
+        &Controls::default(),
+        loss.as_ref(),
+        Options::default(),
+    )
+    .unwrap();
+    let expected = h * h * (n * (n + 1)) as f64 / 2.0;
+    let got = Param::GRAVITY_Y.derivative(&model, &g);
+    assert!((got / expected - 1.0).abs() < 1e-8, "{got:e} vs {expected:e}");
+    let y0 = diffsoft_harness::tradeoff::trajectory::com(&model, model.rest()).y;
+    assert!(
+        (g.loss - y0 - (-5.0) * expected).abs() < 1e-10,
+        "{} vs {}",
+        g.loss,
+        y0 - 5.0 * expected
+    );
+}
