@@ -410,6 +410,9 @@ fn run(command: Command) -> Result<()> {
         } => {
             preflight(json.as_deref(), &[&input.mesh])?;
             preflight(svg.as_deref(), &[&input.mesh])?;
+            if let (Some(j), Some(s)) = (json.as_deref(), svg.as_deref()) {
+                diffsoft::output::distinct_outputs(&[("--json", j), ("--svg", s)])?;
+            }
             // Each point holds its spectral radii, critical steps and verdicts.
             diffsoft::base::memory::check(&format!("--points {points}"), points, 1024)?;
             let (mesh, info) = input.load()?;

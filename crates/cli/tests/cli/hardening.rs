@@ -594,3 +594,54 @@ fn outputs_respect_links_devices_and_closed_streams() {
     assert_ne!(o.status.code(), Some(101), "{}", stderr(&o));
     assert!(!stderr(&o).contains("panicked"), "{}", stderr(&o));
 }
+
+/// Outputs never replace inputs the command line does not name: the scene's mesh (`grad
+/// scene.json --json box.obj`), the `.ele` of a `.node` mesh, and one output of the same
+/// command (`sweep --json X --svg X`). Each is refused before the work, the file untouched.
+#[test]
+fn outputs_never_replace_inputs_a_scene_or_mesh_brings() {
+    let dir = tmp_dir("hard-family");
+    let scene = cube_scene(&dir, DENSITY, "");
+    let mesh = dir.join("cube.obj");
+    let before = std::fs::read(&mesh).unwrap();
+    let o = diffsoft(&[
+        "grad",
+        scene.to_str().unwrap(),
+        "--steps",
+        "2",
+        "--param",
+        "density",
+        "--json",
+        mesh.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("refusing to write the output over the input"),
+        "{}",
+        stderr(&o)
+    );
+    assert_eq!(std::fs::read(&mesh).unwrap(), before);
+    let node = write(&dir, "t.node", "5 3 0 0\n0 0 0 0\n1 1 0 0\n2 0 1 0\n3 0 0 1\n4 1 1 1\n");
+    let ele = write(&dir, "t.ele", "2 4 0\n0 0 1 2 3\n1 1 2 3 4\n");
+    let ele_before = std::fs::read(&ele).unwrap();
+    let mesh_args = ["--mesh", node.to_str().unwrap(), "--rho", "1000", "--mu", "1e5"];
+    let mut args = vec!["bounds", "--dt", "0.01", "--json", ele.to_str().unwrap()];
+    args.extend(mesh_args);
+    let o = diffsoft(&args);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert_eq!(std::fs::read(&ele).unwrap(), ele_before);
+    let same = dir.join("same.out");
+    let mut args = vec![
+        "sweep",
+        "--points",
+        "3",
+        "--json",
+        same.to_str().unwrap(),
+        "--svg",
+        same.to_str().unwrap(),
+    ];
+    args.extend(mesh_args);
+    let o = diffsoft(&args);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(stderr(&o).contains("name the same file"), "{}", stderr(&o));
+}

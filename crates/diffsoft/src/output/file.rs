@@ -45,22 +45,114 @@ pub fn check_writable(path: &Path) -> std::io::Result<()> {
     std::fs::remove_file(&probe).map_err(named)
 }
 
-/// Refuse to write `out` when it is one of `inputs` (the same file, however named): an output
-/// never replaces what the command read. The error names both.
+/// Refuse to write `out` when it is one of `inputs` or a file they bring with them (the same
+/// file, however named): an output never replaces what the command read. The error names both.
+///
+/// An input brings its family ([`input_family`]): a TetGen `.node` its `.ele` and `.face`, and
+/// the other way round; a JSON file (a scene) every file its strings name relative to its
+/// directory (meshes, activations), so `grad scene.json --json box.obj` cannot replace the
+/// scene's mesh either.
 pub fn refuse_input(out: &Path, inputs: &[&Path]) -> std::io::Result<()> {
     let Ok(target) = out.canonicalize() else {
         return Ok(()); // does not exist yet: cannot be an input
     };
     for input in inputs {
-        if input.canonicalize().is_ok_and(|p| p == target) {
-            return Err(std::io::Error::new(
-                std::io::ErrorKind::AlreadyExists,
-                format!(
-                    "{}: refusing to write the output over the input {}; choose another output path",
-                    out.display(),
-                    input.display()
-                ),
-            ));
+        for member in input_family(input) {
+            if member.canonicalize().is_ok_and(|p| p == target) {
+                let via = if member.as_path() == *input {
+                    String::new()
+                } else {
+                    format!(" ({} reads it)", input.display())
+                };
+                return Err(std::io::Error::new(
+                    std::io::ErrorKind::AlreadyExists,
+                    format!(
+                        "{}: refusing to write the output over the input {}{via}; choose another output path",
+                        out.display(),
+                        member.display()
+                    ),
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// `input` and the files that come with it: the TetGen siblings of a `.node`, `.ele` or
+/// `.face` file, and, for a JSON file, every existing file that one of its strings names
+/// relative to its directory (one level: a scene's meshes and data files).
+pub fn input_family(input: &Path) -> Vec<PathBuf> {
+    let mut out = vec![input.to_path_buf()];
+    let ext = input.extension().and_then(|e| e.to_str()).unwrap_or("");
+    match ext {
+        "node" | "ele" | "face" | "edge" => {
+            for e in ["node", "ele", "face", "edge"] {
+                if e != ext {
+                    out.push(input.with_extension(e));
+                }
+            }
+        }
+        "json" => {
+            let dir = input.parent().unwrap_or(Path::new("."));
+            // A scene is small; anything that does not parse brings nothing.
+            if let Some(v) = std::fs::read_to_string(input)
+                .ok()
+                .filter(|t| t.len() < 64 << 20)
+                .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
+            {
+                let mut names = Vec::new();
+                strings(&v, &mut names);
+                for n in names {
+                    let p = dir.join(n);
+                    if p.is_file() {
+                        // One level: a JSON file named here is an input, not read further.
+                        if p.extension().is_some_and(|e| e == "json") {
+                            out.push(p);
+                        } else {
+                            out.extend(input_family(&p));
+                        }
+                    }
+                }
+            }
+        }
+        _ => {}
+    }
+    out
+}
+
+/// Every string in `v` that could be a relative or absolute path.
+fn strings<'a>(v: &'a serde_json::Value, out: &mut Vec<&'a str>) {
+    match v {
+        serde_json::Value::String(s) if !s.is_empty() && s.len() < 4096 => out.push(s),
+        serde_json::Value::Array(a) => a.iter().for_each(|x| strings(x, out)),
+        serde_json::Value::Object(o) => o.values().for_each(|x| strings(x, out)),
+        _ => {}
+    }
+}
+
+/// Refuse two outputs of one command that are the same file (`--json X --svg X`): the second
+/// would replace the first. Paths that do not exist yet are compared as given, made absolute.
+pub fn distinct_outputs(outputs: &[(&str, &Path)]) -> std::io::Result<()> {
+    let key = |p: &Path| {
+        p.canonicalize().unwrap_or_else(|_| {
+            std::env::current_dir()
+                .map(|d| d.join(p))
+                .unwrap_or_else(|_| p.to_path_buf())
+                .components()
+                .collect()
+        })
+    };
+    for (i, (a, pa)) in outputs.iter().enumerate() {
+        for (b, pb) in &outputs[..i] {
+            if *pa != Path::new("-") && key(pa) == key(pb) {
+                return Err(std::io::Error::new(
+                    std::io::ErrorKind::AlreadyExists,
+                    format!(
+                        "{b} and {a} name the same file {}: give each output its own path",
+                        pa.display()
+                    ),
+                ));
+            }
         }
     }
     Ok(())

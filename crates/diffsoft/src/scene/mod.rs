@@ -309,7 +309,7 @@ fn bones_from_file(
                 limits: l,
             } => {
                 let a = finite3(scene, "joint axis", axis)?;
-                if a.norm() == 0.0 {
+                if crate::skeleton::joint::unit_axis(a).is_none() {
                     return Err(invalid(format!("bone '{}': joint axis must be non-zero", b.name)));
                 }
                 let mut r = Rotational::new(finite3(scene, "joint position", position)?, a);
@@ -323,7 +323,7 @@ fn bones_from_file(
                 limits: l,
             } => {
                 let a = finite3(scene, "joint axis", axis)?;
-                if a.norm() == 0.0 {
+                if crate::skeleton::joint::unit_axis(a).is_none() {
                     return Err(invalid(format!("bone '{}': joint axis must be non-zero", b.name)));
                 }
                 let mut p = Prismatic::new(a);

@@ -18,7 +18,9 @@ pub struct Prismatic {
 }
 
 impl Prismatic {
-    /// A joint along `axis` (normalised here) at extension 0.
+    /// A joint along `axis` (normalised here by [`super::joint::unit_axis`], which no finite axis
+    /// over- or underflows; a zero or non-finite axis, which the scene loaders refuse, gives the
+    /// zero axis) at extension 0.
     ///
     /// ```
     /// use diffsoft::skeleton::prismatic::Prismatic;
@@ -35,7 +37,7 @@ impl Prismatic {
     /// ```
     pub fn new(axis: Vector3<f64>) -> Self {
         Self {
-            axis: axis.normalize(),
+            axis: super::joint::unit_axis(axis).unwrap_or(Vector3::zeros()),
             extension: 0.0,
             limits: None,
         }

@@ -36,7 +36,9 @@ pub fn rodrigues_derivative<T: RealField + Copy>(n: &Vector3<T>, t: T) -> Matrix
 }
 
 impl Rotational {
-    /// A joint at `position` about `axis` (normalised here) at angle 0.
+    /// A joint at `position` about `axis` (normalised here by [`super::joint::unit_axis`], which no
+    /// finite axis over- or underflows; a zero or non-finite axis, which the scene loaders refuse,
+    /// gives the zero axis) at angle 0.
     ///
     /// ```
     /// use diffsoft::skeleton::rotational::Rotational;
@@ -54,7 +56,7 @@ impl Rotational {
     pub fn new(position: Vector3<f64>, axis: Vector3<f64>) -> Self {
         Self {
             position,
-            axis: axis.normalize(),
+            axis: super::joint::unit_axis(axis).unwrap_or(Vector3::zeros()),
             angle: 0.0,
             limits: None,
         }
