@@ -645,3 +645,20 @@ fn outputs_never_replace_inputs_a_scene_or_mesh_brings() {
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     assert!(stderr(&o).contains("name the same file"), "{}", stderr(&o));
 }
+
+/// Under an address-space limit (`ulimit -v`) the memory guard counts the room the limit
+/// leaves, not the host's free memory: a gradient whose checkpoints cannot fit is an error
+/// naming the limit (exit 1), not an abort.
+#[test]
+fn the_memory_guard_respects_address_space_limits() {
+    let dir = tmp_dir("hard-rlimit");
+    let scene = cube_scene(&dir, DENSITY, "");
+    let script = format!(
+        "ulimit -v 800000 && exec '{}' grad '{}' --steps 30000000 --param density",
+        env!("CARGO_BIN_EXE_diffsoft"),
+        scene.display()
+    );
+    let o = Command::new("sh").args(["-c", &script]).output().unwrap();
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(stderr(&o).contains("address-space limit"), "{}", stderr(&o));
+}
