@@ -63,7 +63,17 @@ pub(crate) fn simulate(
     {
         say!("note        {n}");
     }
-    let mut sim = diffsoft::solver::Simulator::new(sc.model, sc.settings.clone())?;
+    // Set-up errors from here on are recorded in the run log before they are returned.
+    let fail = |run_dir: &mut Option<RunDir>, e: anyhow::Error| -> anyhow::Error {
+        if let Some(d) = run_dir.as_mut() {
+            if let Err(w) = d.write_setup_failure(&format!("{e:#}")) {
+                return e.context(format!("and the run log could not record it: {w}"));
+            }
+        }
+        e
+    };
+    let mut sim =
+        diffsoft::solver::Simulator::new(sc.model, sc.settings.clone()).map_err(|e| fail(&mut run_dir, e.into()))?;
     say!("solver      {}", sim.certificate().message);
     if sc.settings.integrator == diffsoft::solver::Integrator::Bdf2 {
         say!(
@@ -71,13 +81,14 @@ pub(crate) fn simulate(
         );
     }
     for (name, a) in activations {
-        sim.set_activation(name, *a)?;
+        sim.set_activation(name, *a).map_err(|e| fail(&mut run_dir, e.into()))?;
         say!("activation  {name} held at {a}");
     }
-    let mut frames = match (&run_dir, out.every) {
-        (Some(d), every) if every > 0 => Some(FrameWriter::new(d.path(), sim.model())?),
+    let frames = match (&run_dir, out.every) {
+        (Some(d), every) if every > 0 => Some(FrameWriter::new(d.path(), sim.model())),
         _ => None,
     };
+    let mut frames = frames.transpose().map_err(|e| fail(&mut run_dir, e.into()))?;
     let mut log = RunLog {
         header: Header::new(RUN_SCHEMA),
         scene: sc.path.display().to_string(),
@@ -96,10 +107,13 @@ pub(crate) fn simulate(
     };
     let frame_name = |p: PathBuf| p.file_name().unwrap_or_default().to_string_lossy().into_owned();
     if let Some(f) = frames.as_mut() {
-        log.frames.push(frame_name(f.write_state(&sim)?));
+        let first = f.write_state(&sim).map_err(|e| fail(&mut run_dir, e.into()))?;
+        log.frames.push(frame_name(first));
     }
     if let Some(d) = run_dir.as_mut() {
-        d.write_log(&log)?;
+        if let Err(e) = d.write_log(&log) {
+            return Err(fail(&mut run_dir, e.into()));
+        }
     }
     if let Err(e) = ctrlc::set_handler(|| {
         // A second signal ends the process at once; the log of the last refresh stays.

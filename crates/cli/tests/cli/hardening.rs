@@ -662,3 +662,43 @@ fn the_memory_guard_respects_address_space_limits() {
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     assert!(stderr(&o).contains("address-space limit"), "{}", stderr(&o));
 }
+
+/// A body that starts inside the ground is refused before the first step, naming the body,
+/// the vertex, the obstacle and the depth (it used to be flattened and launched at hundreds of
+/// m/s while the run reported no penetration); the run log records the failure instead of
+/// staying `starting`.
+#[test]
+fn a_body_starting_inside_an_obstacle_is_refused_and_logged() {
+    let dir = tmp_dir("hard-inside");
+    let ground = r#", "obstacles": [{ "name": "ground", "plane": { "point": [0, 0.5, 0], "normal": [0, 1, 0] }, "friction": 0.3 }]"#;
+    let scene = cube_scene(&dir, DENSITY, ground);
+    let run = dir.join("run");
+    let o = diffsoft(&[
+        "simulate",
+        scene.to_str().unwrap(),
+        "--steps",
+        "3",
+        "--out",
+        run.to_str().unwrap(),
+        "--overwrite",
+    ]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    let err = stderr(&o);
+    assert!(
+        err.contains("body 'c': vertex") && err.contains("inside obstacle 'ground'"),
+        "{err}"
+    );
+    let log = json(&run.join("run.json"));
+    assert_eq!(log["status"], "failed");
+    assert!(
+        log["error"].as_str().unwrap().contains("inside obstacle 'ground'"),
+        "{log}"
+    );
+    let o = diffsoft(&["grad", scene.to_str().unwrap(), "--steps", "3", "--param", "density"]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    // Resting exactly on the ground is not inside it.
+    let touching = r#", "obstacles": [{ "name": "ground", "plane": { "point": [0, 0, 0], "normal": [0, 1, 0] }, "friction": 0.3 }]"#;
+    let scene = cube_scene(&dir, DENSITY, touching);
+    let o = diffsoft(&["simulate", scene.to_str().unwrap(), "--steps", "3"]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+}

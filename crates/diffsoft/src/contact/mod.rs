@@ -143,6 +143,25 @@ pub fn max_penetration(obstacles: &[Obstacle], q_start: &[Vector3<f64>], q: &[Ve
     worst
 }
 
+/// The deepest vertex of `q` inside a one-sided obstacle (a half-space such as the ground),
+/// below the obstacle's surface itself (its contact thickness not counted): `(depth, vertex,
+/// obstacle)`, or `None` when no vertex is deeper than `tolerance`. Two-sided shapes (triangle
+/// meshes) have no inside and are not checked.
+pub fn initial_penetration(obstacles: &[Obstacle], q: &[Vector3<f64>], tolerance: f64) -> Option<(f64, usize, usize)> {
+    let mut worst: Option<(f64, usize, usize)> = None;
+    for (k, o) in obstacles.iter().enumerate().filter(|(_, o)| !o.shape.two_sided()) {
+        for (i, x) in q.iter().enumerate() {
+            if let Some((d, _, _)) = o.query(x, x, 0.0) {
+                let depth = -(d + o.thickness);
+                if depth > tolerance && worst.is_none_or(|w| depth > w.0) {
+                    worst = Some((depth, i, k));
+                }
+            }
+        }
+    }
+    worst
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

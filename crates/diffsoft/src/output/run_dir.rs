@@ -119,6 +119,17 @@ impl RunDir {
         self.last_log.is_none_or(|t| t.elapsed() >= self.interval)
     }
 
+    /// Record a failure before the first full log: `run.json` becomes `{schema, status:
+    /// "failed", error}` instead of staying `"starting"`. A no-op once a full log was written
+    /// (its own `status` and `error` then say how the run ended).
+    pub fn write_setup_failure(&mut self, error: &str) -> std::io::Result<()> {
+        if self.last_log.is_some() {
+            return Ok(());
+        }
+        let v = serde_json::json!({ "schema": super::RUN_SCHEMA, "status": RunStatus::Failed, "error": error });
+        write_atomic(&self.log_path(), format!("{v:#}\n").as_bytes())
+    }
+
     /// Write the run log (atomically).
     pub fn write_log(&mut self, log: &RunLog) -> std::io::Result<()> {
         let mut text = serde_json::to_string_pretty(log).map_err(std::io::Error::other)?;

@@ -186,6 +186,7 @@ impl Simulator {
         system: Arc<System>,
     ) -> Result<Self, SolverError> {
         settings.validate()?;
+        check_initial_state(&model)?;
         let scheme = Self::first_scheme(&settings);
         let (iteration, certificate) = iteration::build(&model, &settings, &system)?;
         let n = model.n();
@@ -544,4 +545,30 @@ impl Simulator {
         self.certificate = cert;
         Ok(())
     }
+}
+
+/// Refuse a model whose initial state has a vertex inside a one-sided obstacle (deeper than
+/// 1e-6 of the length scale below its surface): the first step would push it out at whatever
+/// speed that takes (a body flattened and launched at hundreds of m/s) while the run reports
+/// no penetration. The error names the body, its vertex, the obstacle and the depth.
+fn check_initial_state(model: &Model) -> Result<(), SolverError> {
+    let tolerance = 1e-6 * model.length_scale();
+    let Some((depth, v, k)) = crate::contact::initial_penetration(&model.obstacles, model.rest(), tolerance) else {
+        return Ok(());
+    };
+    let (body, local) = model
+        .bodies
+        .iter()
+        .find(|b| b.vertices.contains(&v))
+        .map(|b| (format!("body '{}'", b.name), v - b.vertices.start))
+        .or_else(|| {
+            let cloth = model.cloth.as_ref()?;
+            let c = cloth.bodies.iter().find(|c| c.vertices.contains(&v))?;
+            Some((format!("cloth '{}'", c.name), v - c.vertices.start))
+        })
+        .unwrap_or_else(|| ("the model".to_string(), v));
+    Err(SolverError::input(format!(
+        "{body}: vertex {local} starts {depth:.3e} m inside obstacle '{}' (the initial state must be outside every obstacle: move the body or the obstacle; the first step would otherwise push it out at whatever speed that takes)",
+        model.obstacles[k].name
+    )))
 }
