@@ -317,7 +317,7 @@ pub fn all() -> Vec<Case> {
         stable(
             "friction_1e3",
             "friction",
-            "cube at rest on ground with friction 1e3 under gravity tilted by 60 degrees (must stick)",
+            "cube resting on the ground (its jittered bottom layer flattened onto it) with friction 1e3 under gravity tilted by 30 degrees (must stick; a cube tips over beyond 45)",
             60,
             true,
             || sticking(1e3),
