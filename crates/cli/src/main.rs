@@ -493,6 +493,7 @@ fn run(command: Command) -> Result<()> {
             activation,
             overwrite,
         } => {
+            cli::simulate::catch_signals();
             let mut sc = diffsoft::scene::load(&scene, diffsoft::scene::LoadOptions { passive })?;
             overrides.apply(&mut sc.settings)?;
             let mut held = Vec::new();

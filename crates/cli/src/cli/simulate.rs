@@ -13,6 +13,21 @@ pub(crate) struct RunOutput<'a> {
     pub(crate) overwrite: bool,
 }
 
+/// Catch SIGINT and SIGTERM from here on: the first asks the run to stop after the current
+/// step (or before the first, when it comes during the set-up) with its log finalised and exit
+/// status 130; a second ends the process at once, also with 130. Called before the scene is
+/// loaded, so a signal during the set-up ends the run the same way.
+pub(crate) fn catch_signals() {
+    if let Err(e) = ctrlc::set_handler(|| {
+        // A second signal ends the process at once; the log of the last refresh stays.
+        if INTERRUPTED.swap(true, std::sync::atomic::Ordering::SeqCst) {
+            std::process::exit(130);
+        }
+    }) {
+        warn!("warning: cannot catch SIGINT/SIGTERM ({e}); an interrupted run keeps its last log refresh");
+    }
+}
+
 /// Run a scene, printing a summary and writing frames and the run log. The output directory is
 /// checked before the first step; the log is kept current during the run and finalised however
 /// it ends (completed, failed, or interrupted by SIGINT/SIGTERM, exit status 130).
@@ -114,14 +129,6 @@ pub(crate) fn simulate(
         if let Err(e) = d.write_log(&log) {
             return Err(fail(&mut run_dir, e.into()));
         }
-    }
-    if let Err(e) = ctrlc::set_handler(|| {
-        // A second signal ends the process at once; the log of the last refresh stays.
-        if INTERRUPTED.swap(true, Ordering::SeqCst) {
-            std::process::exit(130);
-        }
-    }) {
-        warn!("warning: cannot catch SIGINT/SIGTERM ({e}); an interrupted run keeps its last log refresh");
     }
     let bar = ProgressBar::new(steps as u64);
     if steps < 50 || !std::io::IsTerminal::is_terminal(&std::io::stderr()) {
