@@ -20,14 +20,15 @@ pub fn check_writable(path: &Path) -> std::io::Result<()> {
     let target = match output_target(path).map_err(named)? {
         Target::File(t) => t,
         Target::InPlace => {
-            let meta = std::fs::metadata(path).map_err(named)?;
             // A device or socket is written in place: it must open for writing. A FIFO is not
             // opened here (that would wait for its reader, as the real write will).
             #[cfg(unix)]
-            if std::os::unix::fs::FileTypeExt::is_fifo(&meta.file_type()) {
-                return Ok(());
+            {
+                let meta = std::fs::metadata(path).map_err(named)?;
+                if std::os::unix::fs::FileTypeExt::is_fifo(&meta.file_type()) {
+                    return Ok(());
+                }
             }
-            drop(meta);
             return std::fs::OpenOptions::new()
                 .write(true)
                 .open(path)

@@ -13,13 +13,57 @@ pub const RUN_LOG: &str = "run.json";
 /// The ParaView time collection.
 pub const COLLECTION: &str = "frames.pvd";
 
+/// The lock a run holds on its directory (its process id inside).
+pub const LOCK: &str = ".diffsoft-run.lock";
+
 /// Whether `name` is a file an earlier run wrote (`run.json`, `frames.pvd`, `frame_NNNNN.vtu`, or
-/// a temporary file an interrupted write left).
+/// the temporary file of one of those that an interrupted write left, `.run.json.tmp.PID.K`).
 fn is_run_output(name: &str) -> bool {
-    name == RUN_LOG
-        || name == COLLECTION
-        || (name.starts_with("frame_") && name.ends_with(".vtu"))
-        || (name.starts_with('.') && name.contains(".tmp."))
+    let written = |n: &str| n == RUN_LOG || n == COLLECTION || (n.starts_with("frame_") && n.ends_with(".vtu"));
+    written(name)
+        || name
+            .strip_prefix('.')
+            .and_then(|n| n.split_once(".tmp."))
+            .is_some_and(|(base, pid)| written(base) && pid.chars().all(|c| c.is_ascii_digit() || c == '.'))
+}
+
+/// Take the run lock of `dir`: created exclusively with this process's id; a lock whose process
+/// is gone (a run killed outright) is taken over, a live one refused with its id.
+fn lock(dir: &Path) -> std::io::Result<PathBuf> {
+    let path = dir.join(LOCK);
+    for _ in 0..2 {
+        match std::fs::OpenOptions::new().write(true).create_new(true).open(&path) {
+            Ok(mut f) => {
+                use std::io::Write as _;
+                write!(f, "{}", std::process::id())?;
+                return Ok(path);
+            }
+            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
+                let holder = std::fs::read_to_string(&path).unwrap_or_default();
+                let alive = holder
+                    .trim()
+                    .parse::<u32>()
+                    .is_ok_and(|pid| pid != std::process::id() && Path::new(&format!("/proc/{pid}")).exists());
+                if alive {
+                    return Err(std::io::Error::new(
+                        std::io::ErrorKind::WouldBlock,
+                        format!(
+                            "{}: another run (process {}) is writing into this directory; wait for it or choose another --out",
+                            dir.display(),
+                            holder.trim()
+                        ),
+                    ));
+                }
+                // Stale: its process is gone.
+                std::fs::remove_file(&path)?;
+            }
+            Err(e) => return Err(e),
+        }
+    }
+    Err(std::io::Error::other(format!(
+        "{}: cannot take the run lock",
+        path.display()
+    )))
 }
 
 /// The directory of one run.
@@ -28,12 +72,22 @@ pub struct RunDir {
     dir: PathBuf,
     last_log: Option<Instant>,
     interval: Duration,
+    /// The run lock, removed when the run's directory is dropped.
+    lock: PathBuf,
+}
+
+impl Drop for RunDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_file(&self.lock);
+    }
 }
 
 impl RunDir {
-    /// Prepare `dir`: create it, refuse (or with `overwrite`, remove) the files of an earlier run,
-    /// refuse to write over any of `inputs`, and check it is writable by writing a first run log
-    /// (`status: "starting"`). Errors name the directory and the file.
+    /// Prepare `dir`: create it, take its run lock (a second run into the same directory is
+    /// refused while the first goes on), refuse (or with `overwrite`, remove) the files of an
+    /// earlier run, refuse to write over any of `inputs` or the files they bring
+    /// ([`super::input_family`]), and check it is writable by writing a first run log (`status:
+    /// "starting"`). Errors name the directory and the file.
     ///
     /// ```
     /// use diffsoft::output::{RunDir, RUN_LOG};
@@ -52,7 +106,8 @@ impl RunDir {
         let named = |e: std::io::Error, p: &Path| std::io::Error::new(e.kind(), format!("{}: {e}", p.display()));
         std::fs::create_dir_all(dir).map_err(|e| named(e, dir))?;
         let canonical_dir = dir.canonicalize().map_err(|e| named(e, dir))?;
-        for input in inputs {
+        let family: Vec<PathBuf> = inputs.iter().flat_map(|p| super::input_family(p)).collect();
+        for input in &family {
             if let (Ok(p), Some(name)) = (input.canonicalize(), input.file_name()) {
                 if p.parent() == Some(canonical_dir.as_path()) && is_run_output(&name.to_string_lossy()) {
                     return Err(std::io::Error::new(
@@ -66,6 +121,26 @@ impl RunDir {
                 }
             }
         }
+        let lock = lock(dir)?;
+        let rest = Self::clear_and_start(dir, overwrite);
+        match rest {
+            Ok(()) => Ok(Self {
+                dir: dir.to_path_buf(),
+                last_log: None,
+                interval: Duration::from_secs(2),
+                lock,
+            }),
+            Err(e) => {
+                let _ = std::fs::remove_file(&lock);
+                Err(e)
+            }
+        }
+    }
+
+    /// The part of [`RunDir::prepare`] under the lock: an earlier run's files refused or removed,
+    /// the first run log written.
+    fn clear_and_start(dir: &Path, overwrite: bool) -> std::io::Result<()> {
+        let named = |e: std::io::Error, p: &Path| std::io::Error::new(e.kind(), format!("{}: {e}", p.display()));
         let mut earlier = Vec::new();
         for entry in std::fs::read_dir(dir).map_err(|e| named(e, dir))? {
             let entry = entry.map_err(|e| named(e, dir))?;
@@ -95,12 +170,7 @@ impl RunDir {
         }
         let first = serde_json::json!({ "schema": super::RUN_SCHEMA, "status": RunStatus::Starting });
         let path = dir.join(RUN_LOG);
-        write_atomic(&path, format!("{first:#}\n").as_bytes())?;
-        Ok(Self {
-            dir: dir.to_path_buf(),
-            last_log: None,
-            interval: Duration::from_secs(2),
-        })
+        write_atomic(&path, format!("{first:#}\n").as_bytes())
     }
 
     /// The directory.
@@ -159,6 +229,32 @@ pub enum RunStatus {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A run lock held by a live process (here init, pid 1) refuses a second run into the
+    /// directory; one left by a process that is gone is taken over; a finished run releases it.
+    #[test]
+    fn a_second_run_into_a_busy_directory_is_refused() {
+        let dir = std::env::temp_dir().join(format!("diffsoft-lock-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        std::fs::write(dir.join(LOCK), "1").unwrap();
+        let e = RunDir::prepare(&dir, &[], false).unwrap_err();
+        assert!(e.to_string().contains("another run (process 1)"), "{e}");
+        assert!(!dir.join(RUN_LOG).exists(), "nothing written");
+        std::fs::write(dir.join(LOCK), "999999999").unwrap();
+        let run = RunDir::prepare(&dir, &[], false).unwrap();
+        assert_eq!(
+            std::fs::read_to_string(dir.join(LOCK)).unwrap(),
+            std::process::id().to_string()
+        );
+        drop(run);
+        assert!(!dir.join(LOCK).exists());
+        // A file named like a temporary but not one of a run's is nobody's output.
+        std::fs::write(dir.join(".mesh.obj.tmp.1"), "an input").unwrap();
+        RunDir::prepare(&dir, &[], true).unwrap();
+        assert!(dir.join(".mesh.obj.tmp.1").exists());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 
     fn tmp(name: &str) -> PathBuf {
         let d = std::env::temp_dir().join(format!("diffsoft-rundir-{name}-{}", std::process::id()));

@@ -110,21 +110,16 @@ fn newton(base: &Settings, spec: &TradeoffSpec, divisor: usize, tolerance: f64, 
     s
 }
 
+/// A trajectory sampled at every grid step `h`, and its run's work and time.
+type Sampled = (Vec<Vec<nalgebra::Vector3<f64>>>, trajectory::RunOutcome);
+
 /// Run `model` under `settings` for the sweep's duration, sampling at every grid step `h`.
-fn run(
-    model: Model,
-    settings: Settings,
-    steps: usize,
-    every: usize,
-) -> Result<(Vec<Vec<nalgebra::Vector3<f64>>>, trajectory::RunOutcome), String> {
+fn run(model: Model, settings: Settings, steps: usize, every: usize) -> Result<Sampled, String> {
     let mut sim = Simulator::new(model, settings).map_err(|e| e.to_string())?;
     let mut q = Vec::with_capacity(steps);
     let out = advance(&mut sim, steps * every, every, |_, x| q.push(x.to_vec())).map_err(|f| f.to_string())?;
     Ok((q, out))
 }
-
-/// A trajectory sampled at every grid step `h`, and its run's work and time.
-type Sampled = (Vec<Vec<nalgebra::Vector3<f64>>>, trajectory::RunOutcome);
 
 /// The comparison of `spec.models` on `model` with the scene's settings `base`, the runs on
 /// `workers` one-thread pools at once ([`crate::pool`]); `None` when the sweep names no models.
