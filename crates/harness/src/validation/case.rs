@@ -173,29 +173,8 @@ impl Spec {
         let verdict = Verdict::at_most(self.claim(), error, self.tolerance);
         let holds = verdict.holds;
         let why = (!holds).then(|| reason(&self));
-        Case {
-            id: self.id,
-            study: self.study.into(),
-            model: self.model,
-            moduli: self.moduli,
-            setup: self.setup,
-            quantity: self.quantity,
-            formula: self.formula,
-            source: self.source,
-            reference: Some(reference),
-            measured: Some(measured),
-            error: Some(error),
-            tolerance: self.tolerance,
-            tolerance_basis: self.tolerance_basis,
-            expected_to_hold: self.expected_to_hold,
-            status: if holds { Status::Holds } else { Status::DoesNotHold },
-            reason: why,
-            verdict,
-            series: Vec::new(),
-            observed_order: None,
-            extra: Vec::new(),
-            seconds: 0.0,
-        }
+        let status = if holds { Status::Holds } else { Status::DoesNotHold };
+        self.into_case(verdict, status, why, Some((reference, measured, error)))
     }
 
     /// The case not run, with the reason.
@@ -207,6 +186,18 @@ impl Spec {
             Some(self.tolerance),
             format!("not run: {reason}"),
         );
+        self.into_case(verdict, Status::NotRun, Some(format!("not run: {reason}")), None)
+    }
+
+    /// The case with its verdict, status, reason and, when measured, `(reference, measured,
+    /// error)`.
+    fn into_case(
+        self,
+        verdict: Verdict,
+        status: Status,
+        reason: Option<String>,
+        values: Option<(f64, f64, f64)>,
+    ) -> Case {
         Case {
             id: self.id,
             study: self.study.into(),
@@ -216,14 +207,14 @@ impl Spec {
             quantity: self.quantity,
             formula: self.formula,
             source: self.source,
-            reference: None,
-            measured: None,
-            error: None,
+            reference: values.map(|v| v.0),
+            measured: values.map(|v| v.1),
+            error: values.map(|v| v.2),
             tolerance: self.tolerance,
             tolerance_basis: self.tolerance_basis,
             expected_to_hold: self.expected_to_hold,
-            status: Status::NotRun,
-            reason: Some(format!("not run: {reason}")),
+            status,
+            reason,
             verdict,
             series: Vec::new(),
             observed_order: None,

@@ -135,6 +135,18 @@ fn agrees(quoted: f64, decimals: i32, derived: f64) -> bool {
     (derived - quoted).abs() <= 0.5 * 10f64.powi(-decimals) * (1.0 + 1e-9)
 }
 
+impl Derivation {
+    /// `derived` against the value `quoted` to `decimals` decimals.
+    fn new(name: String, quoted: f64, decimals: i32, derived: f64) -> Self {
+        Self {
+            name,
+            quoted,
+            derived,
+            agrees: agrees(quoted, decimals, derived),
+        }
+    }
+}
+
 fn derivations() -> Vec<Derivation> {
     let mut out = Vec::new();
     for (wh, ie_a, ie_f, bdf_a, bdf_f) in FACTOR_TABLE {
@@ -146,12 +158,12 @@ fn derivations() -> Vec<Derivation> {
             ("bdf2 amplitude per period", bdf_a, 4, bdf.amplitude_per_period),
             ("bdf2 frequency ratio", bdf_f, 5, bdf.frequency_ratio),
         ] {
-            out.push(Derivation {
-                name: format!("{name} at omega h = {wh}"),
+            out.push(Derivation::new(
+                format!("{name} at omega h = {wh}"),
                 quoted,
+                decimals,
                 derived,
-                agrees: agrees(quoted, decimals, derived),
-            });
+            ));
         }
     }
     for (alpha, v, u, th) in ELASTICA_TABLE {
@@ -161,12 +173,12 @@ fn derivations() -> Vec<Derivation> {
             ("elastica (L-x)/L", u, 5, e.tip_shortening),
             ("elastica tip rotation (rad)", th, 4, e.tip_rotation),
         ] {
-            out.push(Derivation {
-                name: format!("{name} at alpha = {alpha}"),
+            out.push(Derivation::new(
+                format!("{name} at alpha = {alpha}"),
                 quoted,
+                decimals,
                 derived,
-                agrees: agrees(quoted, decimals, derived),
-            });
+            ));
         }
     }
     out
