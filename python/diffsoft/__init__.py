@@ -26,7 +26,9 @@ built-in it stands for, so ``except ValueError`` / ``OSError`` / ``RuntimeError`
 * ``InputError`` (``ValueError``): bad input (an unknown parameter, loss, mode or setting, a
   value out of range or of the wrong shape, a malformed scene or mesh file); its subclasses
   ``UnsupportedError`` (a feature the backward pass, the simulator or the mesh reader does not
-  support) and ``UncertifiedError`` (a time step the solver's certification refuses);
+  support), ``UncertifiedError`` (a time step the solver's certification refuses) and
+  ``OutOfMemoryError`` (also a ``MemoryError``: a run too large for the process's memory,
+  refused before anything is allocated);
 * ``FileError`` (``OSError``): a scene or mesh file that cannot be read;
 * ``SimulationError`` (``RuntimeError``): a run that failed (factorization, projections); its
   subclasses ``DivergenceError`` (divergence, a non-finite state) and ``ConvergenceError`` (a
@@ -55,6 +57,7 @@ from ._errors import (
     DivergenceError,
     FileError,
     InputError,
+    OutOfMemoryError,
     SimulationError,
     UncertifiedError,
     UnsupportedError,
@@ -74,6 +77,7 @@ __all__ = [
     "DivergenceError",
     "FileError",
     "InputError",
+    "OutOfMemoryError",
     "Run",
     "Scene",
     "SimulationError",

@@ -7,7 +7,8 @@ still catch them::
     DiffsoftError(Exception)
     |-- InputError(DiffsoftError, ValueError)
     |   |-- UnsupportedError
-    |   `-- UncertifiedError
+    |   |-- UncertifiedError
+    |   `-- OutOfMemoryError(InputError, MemoryError)
     |-- FileError(DiffsoftError, OSError)
     `-- SimulationError(DiffsoftError, RuntimeError)
         |-- DivergenceError
@@ -26,6 +27,7 @@ __all__ = [
     "DivergenceError",
     "FileError",
     "InputError",
+    "OutOfMemoryError",
     "SimulationError",
     "UncertifiedError",
     "UnsupportedError",
@@ -55,6 +57,12 @@ class UncertifiedError(InputError):
     ``certify="fallback"``."""
 
 
+class OutOfMemoryError(InputError, MemoryError):
+    """An input whose size (steps, vertices, a memory setting) needs more memory than the
+    process has: its free memory, address-space limit (``ulimit -v``) or control group's limit,
+    checked before anything is allocated, so the interpreter lives on."""
+
+
 class FileError(DiffsoftError, OSError):
     """A scene or mesh file that cannot be read (missing, unreadable)."""
 
@@ -81,6 +89,7 @@ for _cls in (
     InputError,
     UnsupportedError,
     UncertifiedError,
+    OutOfMemoryError,
     FileError,
     SimulationError,
     DivergenceError,

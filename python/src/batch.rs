@@ -1,9 +1,12 @@
-//! Independent parameter sets run in parallel on all cores (rayon), without the GIL.
+//! Independent parameter sets run in parallel on all cores (rayon), without the GIL; Ctrl-C
+//! stops every one of them ([`crate::interrupt`]).
 
+use diffsoft::base::cancel::{self, Cancel};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
 use rayon::prelude::*;
 
+use crate::interrupt;
 use crate::run::Run;
 use crate::scene::{self, Scene};
 
@@ -37,11 +40,12 @@ pub fn grad_batch<'py>(
     scene::names(&params)?;
     let m = scene::mode(mode)?;
     let runs = scenes(scene, &values)?;
-    let results: Vec<PyResult<diffsoft::Gradient>> = py.detach(|| {
+    let results: Vec<PyResult<diffsoft::Gradient>> = interrupt::run(py, || {
+        let token = Cancel::current();
         runs.par_iter()
-            .map(|s| s.gradient(steps, loss, m, allow_unconverged))
+            .map(|s| cancel::within(token.as_ref(), || s.gradient(steps, loss, m, allow_unconverged)))
             .collect()
-    });
+    })?;
     runs.iter()
         .zip(results)
         .map(|(s, g)| {
@@ -61,8 +65,12 @@ pub fn simulate_batch<'py>(
     values: Vec<Bound<'py, PyDict>>,
 ) -> PyResult<Vec<Run>> {
     let runs = scenes(scene, &values)?;
-    let results: Vec<PyResult<diffsoft::diff::Rollout>> =
-        py.detach(|| runs.par_iter().map(|s| s.rollout(steps)).collect());
+    let results: Vec<PyResult<diffsoft::diff::Rollout>> = interrupt::run(py, || {
+        let token = Cancel::current();
+        runs.par_iter()
+            .map(|s| cancel::within(token.as_ref(), || s.rollout(steps)))
+            .collect()
+    })?;
     runs.iter()
         .zip(results)
         .map(|(s, r)| Run::new(py, r?, &s.inner.settings))

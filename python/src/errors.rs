@@ -2,7 +2,8 @@
 //! (`python/diffsoft/_errors.py`), each a subclass of `diffsoft.DiffsoftError` and of the
 //! built-in that matches it, so `except ValueError` / `OSError` / `RuntimeError` catch them:
 //!
-//! * bad input is an `InputError` (`ValueError`); a feature that is not supported an
+//! * bad input is an `InputError` (`ValueError`), and an input too large for the process's
+//!   memory an `OutOfMemoryError` (an `InputError` and a `MemoryError`); a feature that is not supported an
 //!   `UnsupportedError` and a time step that certification refuses an `UncertifiedError`
 //!   (both `InputError`s);
 //! * a file that cannot be read is a `FileError` (`OSError`);
@@ -42,6 +43,8 @@ pub enum Class {
     Unsupported,
     /// `UncertifiedError` (an `InputError`).
     Uncertified,
+    /// `OutOfMemoryError` (an `InputError` and a `MemoryError`).
+    Memory,
     /// `FileError` (`OSError`).
     File,
     /// `SimulationError` (`RuntimeError`).
@@ -61,10 +64,11 @@ enum Builtin {
 
 impl Class {
     /// Every class, in declaration order (`self as usize` indexes the cache of classes).
-    const ALL: [Class; 7] = [
+    const ALL: [Class; 8] = [
         Class::Input,
         Class::Unsupported,
         Class::Uncertified,
+        Class::Memory,
         Class::File,
         Class::Simulation,
         Class::Divergence,
@@ -77,6 +81,7 @@ impl Class {
             Class::Input => "InputError",
             Class::Unsupported => "UnsupportedError",
             Class::Uncertified => "UncertifiedError",
+            Class::Memory => "OutOfMemoryError",
             Class::File => "FileError",
             Class::Simulation => "SimulationError",
             Class::Divergence => "DivergenceError",
@@ -86,7 +91,8 @@ impl Class {
 
     fn builtin(self) -> Builtin {
         match self {
-            Class::Input | Class::Unsupported | Class::Uncertified => Builtin::Value,
+            // An `OutOfMemoryError` is also a `ValueError` (its first base), so it is raised as is.
+            Class::Input | Class::Unsupported | Class::Uncertified | Class::Memory => Builtin::Value,
             Class::File => Builtin::OS,
             Class::Simulation | Class::Divergence | Class::Convergence => Builtin::Runtime,
         }
@@ -144,9 +150,12 @@ fn projection(source: &ProjectionError) -> Class {
 /// (factorization, the eigenvalues behind certification, projections) a `SimulationError`.
 pub fn solver(e: SolverError) -> PyErr {
     let class = match &e {
+        SolverError::Input(i) if i.is_out_of_memory() => Class::Memory,
         SolverError::Input(_) => Class::Input,
         SolverError::Uncertified(_) => Class::Uncertified,
         SolverError::NonFinite(_) | SolverError::Diverged(_) => Class::Divergence,
+        // Never seen by a user: an interrupted call raises the signal handler's exception.
+        SolverError::Interrupted => Class::Simulation,
         SolverError::Projection { source, .. } => projection(source),
         SolverError::Actuator { source, .. } => match source {
             ActuatorError::NonFinite => Class::Divergence,

@@ -10,6 +10,7 @@ use pyo3::prelude::*;
 
 use crate::arrays;
 use crate::errors;
+use crate::interrupt;
 use crate::params::Name;
 use crate::scene::{self, Scene};
 
@@ -41,7 +42,7 @@ pub fn bounds<'py>(
             )))
         }
     };
-    let report = py.detach(|| -> PyResult<_> {
+    let report = interrupt::run(py, || -> PyResult<_> {
         let loaded = diffsoft::mesh::load(&mesh).map_err(errors::mesh)?;
         let params = BoundsParams {
             rho,
@@ -52,7 +53,7 @@ pub fn bounds<'py>(
             empirical,
         };
         analyze(&loaded.mesh.scaled(scale), &loaded.info, &params).map_err(|e| errors::value(e.to_string()))
-    })?;
+    })??;
     arrays::report(py, &report)
 }
 
@@ -104,7 +105,7 @@ pub fn gradcheck<'py>(
         controls: scene.inputs.controls(&scene.inner.model),
         groups,
     };
-    let check = py.detach(|| gradients::check_case(&case, seed));
+    let check = interrupt::run(py, || gradients::check_case(&case, seed))?;
     arrays::report(py, &check)
 }
 
@@ -113,6 +114,6 @@ pub fn gradcheck<'py>(
 #[pyfunction]
 #[pyo3(signature = (seed = 2021))]
 pub fn jacobians(py: Python<'_>, seed: u64) -> PyResult<Bound<'_, PyAny>> {
-    let report = py.detach(|| diffsoft_harness::jacobians::run(seed));
+    let report = interrupt::run(py, || diffsoft_harness::jacobians::run(seed))?;
     arrays::report(py, &report)
 }

@@ -6,6 +6,7 @@ mod arrays;
 mod batch;
 mod errors;
 mod harness;
+mod interrupt;
 mod params;
 mod run;
 mod scene;
@@ -30,6 +31,10 @@ fn scalar_parameters() -> Vec<&'static str> {
 
 #[pymodule]
 fn _diffsoft(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    // numpy's C API is loaded now, at import: loaded lazily by the first array a call returns,
+    // a Ctrl-C pending at that moment made the loader fail, and that failure is a panic.
+    m.py().import("numpy")?;
+    drop(numpy::PyArray1::<f64>::zeros(m.py(), 0, false));
     m.add_class::<scene::Scene>()?;
     m.add_class::<run::Run>()?;
     m.add_function(wrap_pyfunction!(batch::grad_batch, m)?)?;

@@ -9,6 +9,7 @@ use pyo3::types::{PyDict, PyFloat, PyTuple};
 
 use crate::arrays;
 use crate::errors;
+use crate::interrupt;
 use crate::params::{self, Inputs, Name, Value};
 use crate::run::Run;
 
@@ -271,7 +272,7 @@ impl Scene {
 
     /// Simulate `steps` steps: positions and velocities of every state and the run log.
     fn simulate(&self, py: Python<'_>, steps: usize) -> PyResult<Run> {
-        let r = py.detach(|| self.rollout(steps))?;
+        let r = interrupt::run(py, || self.rollout(steps))??;
         Run::new(py, r, &self.inner.settings)
     }
 
@@ -290,7 +291,7 @@ impl Scene {
         let params = params.unwrap_or_default();
         names(&params)?;
         let m = self::mode(mode)?;
-        let g = py.detach(|| self.gradient(steps, loss, m, allow_unconverged))?;
+        let g = interrupt::run(py, || self.gradient(steps, loss, m, allow_unconverged))??;
         warn_one_iteration(py, m, &g, steps)?;
         let d = grads(py, &self.inner.model, &g, &params)?;
         PyTuple::new(py, [g.loss.into_pyobject(py)?.into_any(), d.into_any()])
@@ -332,21 +333,20 @@ impl Scene {
         Self::check_steps(steps)?;
         let cot = Cotangent::new(n, steps, cq, cv).map_err(errors::diff)?;
         let controls = self.inputs.controls(&self.inner.model);
-        let g = py
-            .detach(|| {
-                diff::vjp(
-                    &self.inner.model,
-                    &self.inner.settings,
-                    steps,
-                    &controls,
-                    &cot,
-                    Options {
-                        allow_unconverged,
-                        ..Options::mode(m)
-                    },
-                )
-            })
-            .map_err(errors::diff)?;
+        let g = interrupt::run(py, || {
+            diff::vjp(
+                &self.inner.model,
+                &self.inner.settings,
+                steps,
+                &controls,
+                &cot,
+                Options {
+                    allow_unconverged,
+                    ..Options::mode(m)
+                },
+            )
+        })?
+        .map_err(errors::diff)?;
         warn_one_iteration(py, m, &g, steps)?;
         grads(py, &self.inner.model, &g, &params)
     }

@@ -20,6 +20,7 @@ CLASSES = {
     diffsoft.InputError: ((diffsoft.DiffsoftError, ValueError), ValueError),
     diffsoft.UnsupportedError: ((diffsoft.InputError,), ValueError),
     diffsoft.UncertifiedError: ((diffsoft.InputError,), ValueError),
+    diffsoft.OutOfMemoryError: ((diffsoft.InputError, MemoryError), MemoryError),
     diffsoft.FileError: ((diffsoft.DiffsoftError, OSError), OSError),
     diffsoft.SimulationError: ((diffsoft.DiffsoftError, RuntimeError), RuntimeError),
     diffsoft.DivergenceError: ((diffsoft.SimulationError,), RuntimeError),
@@ -89,8 +90,10 @@ def test_input_refused_when_a_run_starts(beam):
         beam.simulate(2)
 
     raised(diffsoft.InputError, ValueError, negative_tolerance, match="tolerance")
-    # Checked by the library when the rollout starts: its trajectory cannot fit in memory.
-    raised(diffsoft.InputError, ValueError, beam.simulate, 10**15, match="memory")
+    # Checked by the library when the rollout starts: its trajectory cannot fit in memory (an
+    # OutOfMemoryError, which is also an InputError and a ValueError).
+    e = raised(diffsoft.OutOfMemoryError, MemoryError, beam.simulate, 10**15, match="memory")
+    assert isinstance(e, diffsoft.InputError) and isinstance(e, ValueError)
 
 
 def test_unsupported_features(ground, tmp_path):

@@ -7,6 +7,7 @@ use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Mutex;
 
+use diffsoft::base::cancel::{self, Cancel};
 use indicatif::ProgressBar;
 
 /// A task.
@@ -24,13 +25,16 @@ pub fn panic_message(payload: &(dyn std::any::Any + Send)) -> String {
 }
 
 /// Run `tasks` on `workers` threads (at least 1), in order of the queue, ticking `bar` once per
-/// finished task. Results are in task order; a task that panics gives `Err(message)`.
+/// finished task. Results are in task order; a task that panics gives `Err(message)`. The
+/// caller's cancellation token ([`Cancel::current`]) is installed for every task.
 pub fn run<'a, T: Send>(tasks: Vec<Task<'a, T>>, workers: usize, bar: &ProgressBar) -> Vec<Result<T, String>> {
     let n = tasks.len();
     let queue: Vec<Mutex<Option<Task<'a, T>>>> = tasks.into_iter().map(|t| Mutex::new(Some(t))).collect();
     let results: Vec<Mutex<Option<Result<T, String>>>> = (0..n).map(|_| Mutex::new(None)).collect();
     let next = AtomicUsize::new(0);
     let workers = workers.clamp(1, n.max(1));
+    // The caller's cancellation token reaches every task (they run on other threads).
+    let token = Cancel::current();
     std::thread::scope(|scope| {
         for _ in 0..workers {
             scope.spawn(|| {
@@ -44,6 +48,7 @@ pub fn run<'a, T: Send>(tasks: Vec<Task<'a, T>>, workers: usize, bar: &ProgressB
                     let Some(task) = task else {
                         continue;
                     };
+                    let task = || cancel::within(token.as_ref(), task);
                     let r = match &pool {
                         Ok(p) => p.install(|| catch_unwind(AssertUnwindSafe(task))),
                         Err(_) => catch_unwind(AssertUnwindSafe(task)),

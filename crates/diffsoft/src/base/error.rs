@@ -6,6 +6,9 @@
 #[error("{message}")]
 pub struct InputError {
     message: String,
+    /// The input asks for more memory than the process has (Python: `OutOfMemoryError`, a
+    /// `MemoryError`).
+    out_of_memory: bool,
 }
 
 impl InputError {
@@ -22,7 +25,29 @@ impl InputError {
     pub fn new(message: impl Into<String>) -> Self {
         Self {
             message: message.into(),
+            out_of_memory: false,
         }
+    }
+
+    /// An input whose size does not fit in the process's memory (checked before allocating).
+    ///
+    /// ```
+    /// use diffsoft::InputError;
+    ///
+    /// let e = InputError::out_of_memory("--steps 1e12: needs 40 TiB").context("grad");
+    /// assert!(e.is_out_of_memory());
+    /// assert!(!InputError::new("x").is_out_of_memory());
+    /// ```
+    pub fn out_of_memory(message: impl Into<String>) -> Self {
+        Self {
+            message: message.into(),
+            out_of_memory: true,
+        }
+    }
+
+    /// Whether the input was refused for its size ([`out_of_memory`](Self::out_of_memory)).
+    pub fn is_out_of_memory(&self) -> bool {
+        self.out_of_memory
     }
 
     /// The message.
@@ -34,6 +59,7 @@ impl InputError {
     pub fn context(self, context: &str) -> Self {
         Self {
             message: format!("{context}: {}", self.message),
+            out_of_memory: self.out_of_memory,
         }
     }
 }

@@ -81,13 +81,13 @@ fn cgroup_room() -> Option<u64> {
 /// `"mesh.msh line 5: 1e12 nodes"`).
 pub fn check(what: &str, count: usize, bytes_each: usize) -> Result<usize, InputError> {
     let bytes = count.checked_mul(bytes_each).ok_or_else(|| {
-        InputError::new(format!(
+        InputError::out_of_memory(format!(
             "{what}: {count} items of {bytes_each} bytes overflow the address space"
         ))
     })?;
     if let Some((free, limit)) = available() {
         if bytes as u64 > free {
-            return Err(InputError::new(format!(
+            return Err(InputError::out_of_memory(format!(
                 "{what}: needs {} of memory, the process has {} available (its {limit})",
                 human(bytes as u64),
                 human(free)

@@ -8,10 +8,12 @@
 //! * [`Body`]: where one body lives in the assembled system.
 //! * [`Schedule`]: a piecewise-linear time series (activations, torques).
 //! * [`Choice`]: settings chosen from a fixed list of names, one spelling each.
+//! * [`cancel`]: cooperative cancellation of long calls (a token polled before every step).
 //! * [`memory`]: sizes from files and flags checked against overflow and the machine's memory
 //!   before anything is allocated for them.
 
 mod body;
+pub mod cancel;
 mod choice;
 mod error;
 mod material;

@@ -14,7 +14,7 @@ use super::{Controls, DiffError, DiffStats, Gradient, Mode, Options};
 use crate::model::Model;
 use crate::solver::integrator::Scheme;
 use crate::solver::Checkpoint;
-use crate::solver::{Integrator, Settings, Simulator, SolverKind, Systems};
+use crate::solver::{Integrator, Settings, Simulator, SolverError, SolverKind, Systems};
 
 /// Where a gradient evaluation is (for progress reports and observers).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -404,6 +404,9 @@ pub fn gradient_on(
     let (mut pend_q, mut pend_v) = (vec![Vector3::zeros(); two], vec![Vector3::zeros(); two]);
     let (mut out_q, mut out_v) = (vec![Vector3::zeros(); n], vec![Vector3::zeros(); n]);
     for step in (0..steps).rev() {
+        if crate::base::cancel::requested() {
+            return Err(SolverError::Interrupted.into());
+        }
         let previous = (bdf2 && step > 0).then(|| (fwd.q.row(step - 1), fwd.v.row(step - 1)));
         // The loss term of the state after this step.
         let (qs, vs) = (fwd.q.row(step + 1), fwd.v.row(step + 1));

@@ -6,6 +6,7 @@ use nalgebra::Vector3;
 
 use super::forward::set_controls;
 use super::{Controls, DiffError};
+use crate::base::InputError;
 use crate::model::Model;
 use crate::solver::{Certificate, Settings, Simulator, StepStats};
 
@@ -72,7 +73,7 @@ pub fn rollout(model: &Model, settings: &Settings, steps: usize, controls: &Cont
     let states = steps
         .checked_add(1)
         .and_then(|s| s.checked_mul(n))
-        .ok_or_else(|| DiffError::Input(format!("{steps} steps of {n} vertices do not fit in memory")))?;
+        .ok_or_else(|| InputError::out_of_memory(format!("{steps} steps of {n} vertices do not fit in memory")))?;
     let row_bytes = 2 * n * std::mem::size_of::<Vector3<f64>>() + std::mem::size_of::<StepStats>() + 8;
     crate::base::memory::check(&format!("{steps} steps of {n} vertices"), steps + 1, row_bytes)?;
     let mut sim = Simulator::new(model.clone(), settings.clone())?;
@@ -88,7 +89,11 @@ pub fn rollout(model: &Model, settings: &Settings, steps: usize, controls: &Cont
         certificate: sim.certificate().clone(),
     };
     // Reserve the whole trajectory up front, and say so if it does not fit (never abort).
-    let no_room = |_| DiffError::Input(format!("{steps} steps of {n} vertices do not fit in memory"));
+    let no_room = |_| {
+        DiffError::from(InputError::out_of_memory(format!(
+            "{steps} steps of {n} vertices do not fit in memory"
+        )))
+    };
     out.positions.try_reserve_exact(states).map_err(no_room)?;
     out.velocities.try_reserve_exact(states).map_err(no_room)?;
     out.times.try_reserve_exact(steps + 1).map_err(no_room)?;

@@ -44,6 +44,9 @@ pub enum SolverError {
     /// The simulation or an iteration diverged.
     #[error("diverged: {0}")]
     Diverged(String),
+    /// The caller cancelled the run ([`crate::base::cancel`]); nothing it returns is complete.
+    #[error("interrupted")]
+    Interrupted,
 }
 
 impl From<crate::constraint::ConstraintError> for SolverError {

@@ -30,6 +30,9 @@ impl Simulator {
 
     /// Advance one time step with `observer` watching its phases.
     pub(crate) fn step_observed(&mut self, observer: &mut dyn StepObserver) -> Result<StepStats, SolverError> {
+        if crate::base::cancel::requested() {
+            return Err(SolverError::Interrupted);
+        }
         let t0 = Instant::now();
         self.prepare_scheme()?;
         self.begin_step();

@@ -222,7 +222,11 @@ pub fn run(subset: Subset, studies: &[String]) -> ValidationReport {
         studies.to_vec()
     };
     let all: Vec<Job> = chosen.iter().flat_map(|s| jobs(s, subset)).collect();
-    let mut cases: Vec<Case> = all.par_iter().flat_map_iter(|job| job()).collect();
+    let token = diffsoft::base::cancel::Cancel::current();
+    let mut cases: Vec<Case> = all
+        .par_iter()
+        .flat_map_iter(|job| diffsoft::base::cancel::within(token.as_ref(), job))
+        .collect();
     // Report order: by study, then as the jobs listed them.
     let rank = |c: &Case| STUDIES.iter().position(|s| *s == c.study).unwrap_or(usize::MAX);
     cases.sort_by_key(rank);

@@ -1,0 +1,73 @@
+//! Long calls that Ctrl-C can stop: the work runs on a worker thread without the GIL while the
+//! calling thread polls Python's signal handlers every [`POLL`]. When a handler raises (a
+//! `KeyboardInterrupt`, or whatever a user's handler raises), the work's cancellation token
+//! ([`diffsoft::base::cancel`]) is cancelled, the worker stops at its next step, its partial
+//! result is dropped, and the handler's exception is raised. Nothing the call was given is
+//! changed, so the scene stays usable.
+
+use std::sync::mpsc;
+use std::time::Duration;
+
+use diffsoft::base::cancel::Cancel;
+use pyo3::exceptions::PyRuntimeError;
+use pyo3::prelude::*;
+
+/// How often signal handlers run during a call.
+const POLL: Duration = Duration::from_millis(50);
+
+/// Run `work` without the GIL, raising the exception of a signal handler (Ctrl-C:
+/// `KeyboardInterrupt`) within [`POLL`] of the signal.
+pub fn run<T: Send>(py: Python<'_>, work: impl FnOnce() -> T + Send) -> PyResult<T> {
+    let token = Cancel::new();
+    std::thread::scope(|scope| {
+        let (tx, rx) = mpsc::channel();
+        let worker = {
+            let token = token.clone();
+            scope.spawn(move || {
+                let out = token.scope(work);
+                // The receiver lives until the worker is joined.
+                let _ = tx.send(out);
+            })
+        };
+        let finish = |worker: std::thread::ScopedJoinHandle<'_, ()>| {
+            worker.join().map_err(|p| {
+                let what = p
+                    .downcast_ref::<&str>()
+                    .map(|s| (*s).to_string())
+                    .or_else(|| p.downcast_ref::<String>().cloned())
+                    .unwrap_or_else(|| "a panic without a message".into());
+                PyRuntimeError::new_err(format!("internal error in diffsoft: {what}"))
+            })
+        };
+        // A receiver is not `Sync`: it moves into each wait and back.
+        let mut rx = rx;
+        loop {
+            let (back, got) = py.detach(move || {
+                let got = rx.recv_timeout(POLL);
+                (rx, got)
+            });
+            rx = back;
+            match got {
+                Ok(out) => {
+                    finish(worker)?;
+                    return Ok(out);
+                }
+                Err(mpsc::RecvTimeoutError::Disconnected) => {
+                    // The worker ended without a result: it panicked.
+                    finish(worker)?;
+                    return Err(PyRuntimeError::new_err(
+                        "internal error in diffsoft: the call ended without a result",
+                    ));
+                }
+                Err(mpsc::RecvTimeoutError::Timeout) => {
+                    if let Err(signal) = py.check_signals() {
+                        token.cancel();
+                        // The worker stops at its next step; its result is not wanted.
+                        let _ = py.detach(|| finish(worker));
+                        return Err(signal);
+                    }
+                }
+            }
+        }
+    })
+}
