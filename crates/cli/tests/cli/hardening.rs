@@ -702,3 +702,73 @@ fn a_body_starting_inside_an_obstacle_is_refused_and_logged() {
     let o = diffsoft(&["simulate", scene.to_str().unwrap(), "--steps", "3"]);
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
 }
+
+/// What a user gets wrong in a scene that parses: duplicates are errors naming what repeats;
+/// tiny but non-zero directions are directions; a file without an extension says so. Every
+/// message is one line.
+#[test]
+fn duplicates_are_errors_and_tiny_directions_are_directions() {
+    let dir = tmp_dir("hard-duplicates");
+    let check = |scene: &Path, wanted: &str| {
+        let o = diffsoft(&["simulate", scene.to_str().unwrap(), "--steps", "1"]);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(1), "{err}");
+        assert!(err.contains(wanted), "{wanted}: {err}");
+        assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+    };
+    // The same tet twice, its vertices in another order.
+    write(
+        &dir,
+        "dup.obj",
+        "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nt 0 1 2 3\nt 3 2 1 0\n",
+    );
+    let scene = write(
+        &dir,
+        "dup_tet.json",
+        r#"{ "schema": "diffsoft.scene/1", "time_step": 0.01, "bodies": [{ "name": "a", "mesh": "dup.obj",
+             "material": { "youngs_modulus": 1e5, "poisson_ratio": 0.3 }, "density": 1000 }] }"#,
+    );
+    check(&scene, "dup.obj:6: tet 1 repeats tet 0");
+    // Two bodies of one name.
+    write(&dir, "a.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nt 0 1 2 3\n");
+    write(&dir, "b.obj", "v 5 0 0\nv 6 0 0\nv 5 1 0\nv 5 0 1\nt 0 1 2 3\n");
+    let body = |mesh: &str| {
+        format!(
+            r#"{{ "name": "twin", "mesh": "{mesh}", "material": {{ "youngs_modulus": 1e5, "poisson_ratio": 0.3 }}, "density": 1000 }}"#
+        )
+    };
+    let scene = write(
+        &dir,
+        "dup_name.json",
+        &format!(
+            r#"{{ "schema": "diffsoft.scene/1", "time_step": 0.01, "bodies": [{}, {}] }}"#,
+            body("a.obj"),
+            body("b.obj")
+        ),
+    );
+    check(&scene, "body name 'twin' is used twice");
+    // An actuator that lists a tet twice.
+    let scene = cube_scene(
+        &dir,
+        r#", "density": 1000, "actuators": [{ "name": "p", "pneumatic": { "tets": { "indices": [0, 1, 0] } }, "stiffness": 1e4, "activation": 1.1 }]"#,
+        "",
+    );
+    check(&scene, "actuator 'p': tet 0 is listed twice");
+    // A plane normal of 1e-200 (its norm underflows to 0 when squared) is a direction.
+    let scene = cube_scene(
+        &dir,
+        DENSITY,
+        r#", "obstacles": [{ "name": "g", "plane": { "point": [0, -1, 0], "normal": [0, 1e-200, 0] }, "friction": 0.3 }]"#,
+    );
+    let o = diffsoft(&["simulate", scene.to_str().unwrap(), "--steps", "1"]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    // A mesh named `x.`: no extension, said so (not "extension '.'").
+    write(&dir, "x.", "v 0 0 0\n");
+    let scene = write(
+        &dir,
+        "no_ext.json",
+        r#"{ "schema": "diffsoft.scene/1", "time_step": 0.01, "bodies": [{ "name": "a", "mesh": "x.",
+             "material": { "youngs_modulus": 1e5, "poisson_ratio": 0.3 }, "density": 1000 }] }"#,
+    );
+    check(&scene, "no file extension (expected .obj");
+}

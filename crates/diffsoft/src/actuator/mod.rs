@@ -217,21 +217,26 @@ impl Actuators {
             }
             let group = self.groups.len();
             let c0 = self.cells.len();
+            let mut listed = std::collections::HashSet::with_capacity(spec.cells.len());
             for (t, d) in spec.cells {
                 if t >= num_tets {
                     return bad(format!("tet {t} out of range ({num_tets} tets)"));
                 }
+                // A tet listed twice would be actuated twice over.
+                if !listed.insert(t) {
+                    return bad(format!("tet {t} is listed twice"));
+                }
                 let direction = match spec.kind {
                     ActuatorKind::Pneumatic => Vector3::zeros(),
-                    ActuatorKind::Muscle => {
-                        let n = d.norm();
-                        if !(n.is_finite() && n > 0.0) {
+                    ActuatorKind::Muscle => match crate::base::unit_vector(d) {
+                        Some(u) => u,
+                        None => {
                             return bad(format!(
-                                "tet {t}: fibre direction must be finite and non-zero, got {d:?}"
-                            ));
+                                "tet {t}: fibre direction must be finite and non-zero, got [{}, {}, {}]",
+                                d.x, d.y, d.z
+                            ))
                         }
-                        d / n
-                    }
+                    },
                 };
                 self.cells.push(Cell {
                     tet: t + t0,

@@ -9,6 +9,7 @@
 //! * [`Schedule`]: a piecewise-linear time series (activations, torques).
 //! * [`Choice`]: settings chosen from a fixed list of names, one spelling each.
 //! * [`cancel`]: cooperative cancellation of long calls (a token polled before every step).
+//! * [`unit_vector`]: directions from input (axes, normals, fibres) normalised without overflow.
 //! * [`memory`]: sizes from files and flags checked against overflow and the machine's memory
 //!   before anything is allocated for them.
 
@@ -19,9 +20,11 @@ mod error;
 mod material;
 pub mod memory;
 mod schedule;
+mod vector;
 
 pub use body::Body;
 pub use choice::Choice;
 pub use error::InputError;
 pub use material::{Material, MaterialModel};
 pub use schedule::Schedule;
+pub use vector::unit_vector;

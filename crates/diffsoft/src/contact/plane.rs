@@ -34,7 +34,8 @@ impl Plane {
     pub fn new(point: Vector3<f64>, normal: Vector3<f64>) -> Self {
         Self {
             point,
-            normal: normal.normalize(),
+            // A zero normal stays zero, for `validate` to refuse.
+            normal: crate::base::unit_vector(normal).unwrap_or(normal),
         }
     }
 }

@@ -62,6 +62,14 @@ pub enum MeshErrorKind {
         /// The repeated vertex, in the file's numbering.
         vertex: i64,
     },
+    /// Two tets have the same four vertices (in any order): the element would count twice.
+    #[error("tet {tet} repeats tet {first} (the same four vertices)")]
+    DuplicateTet {
+        /// 0-based tet number in file order.
+        tet: usize,
+        /// The earlier tet it repeats.
+        first: usize,
+    },
     /// A tet has zero or near-zero volume.
     #[error("tet {tet}: degenerate (volume {volume:e}; 6*sqrt(2)*|V|/l_rms^3 = {quality:e} is below {threshold:e})")]
     DegenerateTet {

@@ -208,6 +208,15 @@ impl TetMesh {
                 }
             }
         }
+        let mut seen = std::collections::HashMap::with_capacity(raw.tets.len());
+        for (t, tet) in raw.tets.iter().enumerate() {
+            let mut key = *tet;
+            key.sort_unstable();
+            if let Some(&first) = seen.get(&key) {
+                return Err(err_at(t, MeshErrorKind::DuplicateTet { tet: t, first }));
+            }
+            seen.insert(key, t);
+        }
         // Drop nodes that no tet uses; keep file ids of the rest.
         const UNUSED: usize = usize::MAX;
         let mut new_index = vec![UNUSED; raw.nodes.len()];
@@ -430,12 +439,19 @@ pub fn load_with(path: impl AsRef<Path>, opts: LoadOptions) -> Result<LoadedMesh
             let (raw, format) = gmsh::parse(&shown, &text)?;
             TetMesh::from_raw(&shown, format, raw, opts)
         }
-        _ => Err(MeshError::file(
-            &shown,
-            MeshErrorKind::UnsupportedFormat(format!(
-                "extension '.{ext}' (expected .obj with t lines, TetGen .node/.ele, or Gmsh .msh)"
-            )),
-        )),
+        _ => {
+            let what = if ext.is_empty() {
+                "no file extension".to_string()
+            } else {
+                format!("extension '.{ext}'")
+            };
+            Err(MeshError::file(
+                &shown,
+                MeshErrorKind::UnsupportedFormat(format!(
+                    "{what} (expected .obj with t lines, TetGen .node/.ele, or Gmsh .msh)"
+                )),
+            ))
+        }
     }
 }
 

@@ -212,6 +212,24 @@ impl ModelBuilder {
                 self.gravity
             )));
         }
+        // Names address bodies in parameters, logs and outputs: each names one body.
+        let mut names = std::collections::HashSet::new();
+        for name in self
+            .bodies
+            .iter()
+            .map(|b| &b.name)
+            .chain(self.cloths.iter().map(|c| &c.name))
+        {
+            if !names.insert(name.as_str()) {
+                return Err(InputError::new(format!("body name '{name}' is used twice")));
+            }
+        }
+        let mut obstacle_names = std::collections::HashSet::new();
+        for o in &self.obstacles {
+            if !obstacle_names.insert(o.name.as_str()) {
+                return Err(InputError::new(format!("obstacle name '{}' is used twice", o.name)));
+            }
+        }
         let mut rest = Vec::new();
         let mut tets = Vec::new();
         let mut w_rot = Vec::new();

@@ -309,7 +309,7 @@ fn bones_from_file(
                 limits: l,
             } => {
                 let a = finite3(scene, "joint axis", axis)?;
-                if crate::skeleton::joint::unit_axis(a).is_none() {
+                if crate::base::unit_vector(a).is_none() {
                     return Err(invalid(format!("bone '{}': joint axis must be non-zero", b.name)));
                 }
                 let mut r = Rotational::new(finite3(scene, "joint position", position)?, a);
@@ -323,7 +323,7 @@ fn bones_from_file(
                 limits: l,
             } => {
                 let a = finite3(scene, "joint axis", axis)?;
-                if crate::skeleton::joint::unit_axis(a).is_none() {
+                if crate::base::unit_vector(a).is_none() {
                     return Err(invalid(format!("bone '{}': joint axis must be non-zero", b.name)));
                 }
                 let mut p = Prismatic::new(a);
@@ -550,12 +550,12 @@ fn from_diffsoft(path: &Path, file: SceneFile, solver_gives_dt: bool) -> Result<
         let shape = match (&o.plane, &o.mesh) {
             (Some(p), None) => {
                 let n = finite3(&scene, "plane normal", &p.normal)?;
-                if n.norm() == 0.0 {
+                let Some(normal) = crate::base::unit_vector(n) else {
                     return Err(invalid(format!("obstacle '{name}': plane normal must be non-zero")));
-                }
+                };
                 let plane = Plane {
                     point: finite3(&scene, "plane point", &p.point)?,
-                    normal: n.normalize(),
+                    normal,
                 };
                 Arc::new(plane) as Arc<dyn Shape>
             }

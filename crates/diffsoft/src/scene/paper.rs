@@ -561,14 +561,14 @@ fn paper_bones(
             "ALL" => Box::new(Free::default()),
             "ROTATIONAL" => {
                 let axis = vec3(b, "Joint Axis", k)?;
-                if crate::skeleton::joint::unit_axis(axis).is_none() {
+                if crate::base::unit_vector(axis).is_none() {
                     return Err(cx.invalid(format!("{w}: Bones[{k}]: rotational joint with a zero axis")));
                 }
                 Box::new(Rotational::new(vec3(b, "Joint Pos", k)?, axis))
             }
             "PRISMATIC" => {
                 let axis = vec3(b, "Joint Axis", k)?;
-                if crate::skeleton::joint::unit_axis(axis).is_none() {
+                if crate::base::unit_vector(axis).is_none() {
                     return Err(cx.invalid(format!("{w}: Bones[{k}]: prismatic joint with a zero axis")));
                 }
                 Box::new(Prismatic::new(axis))

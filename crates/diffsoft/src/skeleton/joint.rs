@@ -91,27 +91,3 @@ pub fn homogeneous_derivative<T: RealField + Copy>(m: &Matrix3<T>, t: &Vector3<T
 pub fn dual_matrix4(m: &Matrix4<f64>) -> Matrix4<num_dual::Dual64> {
     m.map(num_dual::Dual64::from)
 }
-
-/// The unit vector along `axis`, scaled by its largest component first so that no finite,
-/// non-zero axis over- or underflows (`[1e200, 1e200, 0]` or `[1e-320, 0, 0]` are fine); `None`
-/// for a zero or non-finite axis.
-///
-/// ```
-/// use diffsoft::skeleton::joint::unit_axis;
-/// use nalgebra::Vector3;
-///
-/// let u = unit_axis(Vector3::new(1e200, 1e200, 0.0)).ok_or("no axis")?;
-/// assert!((u - Vector3::new(1.0, 1.0, 0.0) / 2f64.sqrt()).norm() < 1e-15);
-/// assert_eq!(unit_axis(Vector3::new(5e-324, 0.0, 0.0)), Some(Vector3::x()));
-/// assert_eq!(unit_axis(Vector3::zeros()), None);
-/// assert_eq!(unit_axis(Vector3::new(f64::INFINITY, 0.0, 0.0)), None);
-/// # Ok::<(), Box<dyn std::error::Error>>(())
-/// ```
-pub fn unit_axis(axis: nalgebra::Vector3<f64>) -> Option<nalgebra::Vector3<f64>> {
-    let scale = axis.amax();
-    if !(scale.is_finite() && scale > 0.0) {
-        return None;
-    }
-    let a = axis / scale;
-    Some(a / a.norm())
-}

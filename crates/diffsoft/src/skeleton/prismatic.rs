@@ -37,7 +37,7 @@ impl Prismatic {
     /// ```
     pub fn new(axis: Vector3<f64>) -> Self {
         Self {
-            axis: super::joint::unit_axis(axis).unwrap_or(Vector3::zeros()),
+            axis: crate::base::unit_vector(axis).unwrap_or(Vector3::zeros()),
             extension: 0.0,
             limits: None,
         }

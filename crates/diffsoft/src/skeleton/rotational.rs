@@ -56,7 +56,7 @@ impl Rotational {
     pub fn new(position: Vector3<f64>, axis: Vector3<f64>) -> Self {
         Self {
             position,
-            axis: super::joint::unit_axis(axis).unwrap_or(Vector3::zeros()),
+            axis: crate::base::unit_vector(axis).unwrap_or(Vector3::zeros()),
             angle: 0.0,
             limits: None,
         }
