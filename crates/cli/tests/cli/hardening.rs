@@ -772,3 +772,45 @@ fn duplicates_are_errors_and_tiny_directions_are_directions() {
     );
     check(&scene, "no file extension (expected .obj");
 }
+
+/// Two bodies that start through each other, with collisions on, are refused before the first
+/// step, naming both and the depth; touching or within the collision thickness is fine.
+#[test]
+fn bodies_starting_through_each_other_are_refused() {
+    let dir = tmp_dir("hard-overlap");
+    write(&dir, "a.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nv 1 1 1\nt 0 1 2 3\nt 1 2 3 4\n");
+    let scene = |name: &str, dy: f64| {
+        let body = |n: &str, y: f64| {
+            format!(
+                r#"{{ "name": "{n}", "mesh": "a.obj", "translate": [0.2, {y}, 0.2], "material": {{ "youngs_modulus": 1e5, "poisson_ratio": 0.3 }}, "density": 1000 }}"#
+            )
+        };
+        write(
+            &dir,
+            name,
+            &format!(
+                r#"{{ "schema": "diffsoft.scene/1", "time_step": 0.01, "gravity": [0, 0, 0],
+                     "collisions": {{ "thickness": 1e-3, "friction": 0.2 }},
+                     "bodies": [{}, {}] }}"#,
+                body("lower", 0.0),
+                body("upper", dy)
+            ),
+        )
+    };
+    let through = scene("through.json", 0.5);
+    for cmd in ["simulate", "grad"] {
+        let mut args = vec![cmd, through.to_str().unwrap(), "--steps", "2"];
+        if cmd == "grad" {
+            args.extend(["--param", "density"]);
+        }
+        let o = diffsoft(&args);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(1), "{cmd}: {err}");
+        assert!(err.contains("starts") && err.contains("inside body"), "{err}");
+        assert!(err.contains("'lower'") && err.contains("'upper'"), "{err}");
+    }
+    // Apart (0.5 m above the lower body's top vertex): runs.
+    let apart = scene("apart.json", 1.5);
+    let o = diffsoft(&["simulate", apart.to_str().unwrap(), "--steps", "2"]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+}

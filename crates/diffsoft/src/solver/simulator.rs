@@ -552,6 +552,7 @@ impl Simulator {
 /// speed that takes (a body flattened and launched at hundreds of m/s) while the run reports
 /// no penetration. The error names the body, its vertex, the obstacle and the depth.
 fn check_initial_state(model: &Model) -> Result<(), SolverError> {
+    check_initial_overlap(model)?;
     let tolerance = 1e-6 * model.length_scale();
     let Some((depth, v, k)) = crate::contact::initial_penetration(&model.obstacles, model.rest(), tolerance) else {
         return Ok(());
@@ -570,5 +571,25 @@ fn check_initial_state(model: &Model) -> Result<(), SolverError> {
     Err(SolverError::input(format!(
         "{body}: vertex {local} starts {depth:.3e} m inside obstacle '{}' (the initial state must be outside every obstacle: move the body or the obstacle; the first step would otherwise push it out at whatever speed that takes)",
         model.obstacles[k].name
+    )))
+}
+
+/// With collisions between bodies on, no body may start through another deeper than the
+/// collision thickness: the first step would push them apart at whatever speed that takes, or
+/// lock the crossing surfaces together.
+fn check_initial_overlap(model: &Model) -> Result<(), SolverError> {
+    let Some(col) = model.collision() else {
+        return Ok(());
+    };
+    let Some(c) = crate::contact::pair::Detector::default().deepest_crossing(col, model.rest()) else {
+        return Ok(());
+    };
+    if c.depth <= col.settings.thickness {
+        return Ok(());
+    }
+    let (a, b) = (&col.names[c.edge_body], &col.names[c.triangle_body]);
+    Err(SolverError::input(format!(
+        "body '{a}' starts {:.3e} m inside body '{b}' (a surface edge, vertices {} and {} of the model, crosses its surface; the collision thickness is {:e} m): move the bodies apart before the first step",
+        c.depth, c.edge[0], c.edge[1], col.settings.thickness
     )))
 }

@@ -522,27 +522,10 @@ impl Detector {
                 }
             });
         }
-        for (ei, e) in col.edges.iter().enumerate() {
-            let eb = swept_box(e, q, q, 0.0);
-            let body = col.edge_body[ei];
-            self.grid.query(&eb.0, &eb.1, |t| {
-                let t = t as usize;
-                if col.triangle_body[t] == body {
-                    return;
-                }
-                let tri = col.triangles[t];
-                if tri.contains(&e[0]) || tri.contains(&e[1]) {
-                    return;
-                }
-                let (a, b, c) = (&q[tri[0]], &q[tri[1]], &q[tri[2]]);
-                if segment_crosses(&q[e[0]], &q[e[1]], [a, b, c]) {
-                    probe.intersections += 1;
-                    let n = (b - a).cross(&(c - a)).normalize();
-                    let depth = n.dot(&(q[e[0]] - a)).abs().min(n.dot(&(q[e[1]] - a)).abs());
-                    probe.penetration = probe.penetration.max(depth);
-                }
-            });
-        }
+        Self::crossings(&self.grid, col, q, |_, _, depth| {
+            probe.intersections += 1;
+            probe.penetration = probe.penetration.max(depth);
+        });
         // Edge-edge distances.
         self.edge_boxes.clear();
         for e in &col.edges {
@@ -567,6 +550,68 @@ impl Detector {
         probe.min_distance = (best <= reach).then_some(best);
         probe
     }
+
+    /// The deepest crossing of a surface edge of one body through a triangle of another at
+    /// `q` (`None`: the surfaces do not interpenetrate). A body wholly inside another, with no
+    /// surface crossing, is not found.
+    pub fn deepest_crossing(&mut self, col: &Colliders, q: &[Vector3<f64>]) -> Option<Crossing> {
+        self.tri_boxes.clear();
+        for t in &col.triangles {
+            self.tri_boxes.push(swept_box(t, q, q, 0.0));
+        }
+        self.grid.build(col.mean_edge.max(f64::MIN_POSITIVE), &self.tri_boxes);
+        let mut deepest: Option<Crossing> = None;
+        Self::crossings(&self.grid, col, q, |e, t, depth| {
+            if deepest.as_ref().is_none_or(|d| depth > d.depth) {
+                deepest = Some(Crossing {
+                    edge: col.edges[e],
+                    edge_body: col.edge_body[e] as usize,
+                    triangle_body: col.triangle_body[t] as usize,
+                    depth,
+                });
+            }
+        });
+        deepest
+    }
+
+    /// Every surface edge that crosses a triangle of another body at `q` (`grid` built on the
+    /// triangles' boxes): `f(edge, triangle, depth)`, the depth being the smaller distance of
+    /// the edge's two ends to the triangle's plane.
+    fn crossings(grid: &Grid, col: &Colliders, q: &[Vector3<f64>], mut f: impl FnMut(usize, usize, f64)) {
+        for (ei, e) in col.edges.iter().enumerate() {
+            let eb = swept_box(e, q, q, 0.0);
+            let body = col.edge_body[ei];
+            grid.query(&eb.0, &eb.1, |t| {
+                let t = t as usize;
+                if col.triangle_body[t] == body {
+                    return;
+                }
+                let tri = col.triangles[t];
+                if tri.contains(&e[0]) || tri.contains(&e[1]) {
+                    return;
+                }
+                let (a, b, c) = (&q[tri[0]], &q[tri[1]], &q[tri[2]]);
+                if segment_crosses(&q[e[0]], &q[e[1]], [a, b, c]) {
+                    let n = (b - a).cross(&(c - a)).normalize();
+                    let depth = n.dot(&(q[e[0]] - a)).abs().min(n.dot(&(q[e[1]] - a)).abs());
+                    f(ei, t, depth);
+                }
+            });
+        }
+    }
+}
+
+/// A surface edge of one body through a triangle of another ([`Detector::deepest_crossing`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Crossing {
+    /// The edge's two vertices (global numbering).
+    pub edge: [usize; 2],
+    /// Body of the edge (index into [`Colliders::names`]).
+    pub edge_body: usize,
+    /// Body of the triangle.
+    pub triangle_body: usize,
+    /// The smaller distance of the edge's ends to the triangle's plane (m).
+    pub depth: f64,
 }
 
 #[cfg(test)]
