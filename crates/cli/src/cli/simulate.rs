@@ -157,12 +157,17 @@ pub(crate) fn simulate(
         bar.inc(1);
         if let Some(f) = frames.as_mut() {
             if (k + 1) % out.every == 0 {
-                log.frames.push(frame_name(f.write_state(&sim)?));
+                match f.write_state(&sim) {
+                    Ok(p) => log.frames.push(frame_name(p)),
+                    Err(e) => return Err(fail_run(&mut run_dir, &mut log, e.into())),
+                }
             }
         }
         if let Some(d) = run_dir.as_mut().filter(|d| d.log_due()) {
             log.summary = RunSummary::of(&log.steps);
-            d.write_log(&log)?;
+            if let Err(e) = d.write_log(&log) {
+                return Err(fail_run(&mut run_dir, &mut log, e.into()));
+            }
         }
     }
     if log.status == RunStatus::Running {
@@ -196,7 +201,10 @@ pub(crate) fn simulate(
         );
     }
     if let Some(d) = run_dir.as_mut() {
-        d.write_log(&log)?;
+        if let Err(e) = d.write_log(&log) {
+            let e = anyhow::Error::from(e).context("writing the final run log");
+            return Err(fail_run(&mut run_dir, &mut log, e));
+        }
         say!(
             "wrote       {} ({:?}) and {} frames{}",
             d.log_path().display(),
@@ -213,4 +221,20 @@ pub(crate) fn simulate(
         (_, Some(e)) => bail!(e),
         _ => Ok(()),
     }
+}
+
+/// An error after the steps began: the run log says `failed` with the error (in place if the
+/// disk takes nothing new, see `RunDir::write_failure`), and the error says if even that failed.
+fn fail_run(
+    run_dir: &mut Option<diffsoft::output::RunDir>,
+    log: &mut diffsoft::output::RunLog,
+    e: anyhow::Error,
+) -> anyhow::Error {
+    log.summary = diffsoft::output::RunSummary::of(&log.steps);
+    if let Some(d) = run_dir.as_mut() {
+        if let Err(w) = d.write_failure(log, &format!("{e:#}")) {
+            return e.context(format!("and the run log could not record it: {w}"));
+        }
+    }
+    e
 }

@@ -778,7 +778,11 @@ fn duplicates_are_errors_and_tiny_directions_are_directions() {
 #[test]
 fn bodies_starting_through_each_other_are_refused() {
     let dir = tmp_dir("hard-overlap");
-    write(&dir, "a.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nv 1 1 1\nt 0 1 2 3\nt 1 2 3 4\n");
+    write(
+        &dir,
+        "a.obj",
+        "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nv 1 1 1\nt 0 1 2 3\nt 1 2 3 4\n",
+    );
     let scene = |name: &str, dy: f64| {
         let body = |n: &str, y: f64| {
             format!(

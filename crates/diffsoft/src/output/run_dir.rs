@@ -197,7 +197,41 @@ impl RunDir {
             return Ok(());
         }
         let v = serde_json::json!({ "schema": super::RUN_SCHEMA, "status": RunStatus::Failed, "error": error });
-        write_atomic(&self.log_path(), format!("{v:#}\n").as_bytes())
+        let text = format!("{v:#}\n");
+        write_atomic(&self.log_path(), text.as_bytes()).or_else(|_| self.rewrite_in_place(&text))
+    }
+
+    /// Finalise the log of a run that failed after its steps began (a frame or the log itself
+    /// could not be written: a full disk, a vanished directory): status `failed` with `error`.
+    /// When the full log cannot be written either, the existing `run.json` is rewritten in
+    /// place with a short record (status, error, steps taken): truncating it first frees its
+    /// blocks, so a full disk still takes it, and the log never says `running` for a run that
+    /// ended.
+    pub fn write_failure(&mut self, log: &mut RunLog, error: &str) -> std::io::Result<()> {
+        log.status = RunStatus::Failed;
+        log.error = Some(error.to_string());
+        if self.write_log(log).is_ok() {
+            return Ok(());
+        }
+        let v = serde_json::json!({
+            "schema": super::RUN_SCHEMA,
+            "scene": log.scene,
+            "status": RunStatus::Failed,
+            "error": error,
+            "steps_taken": log.steps.len(),
+            "frames": log.frames,
+        });
+        self.rewrite_in_place(&format!("{v:#}\n"))
+    }
+
+    /// Overwrite the existing run log in place (not atomically: the fallback when no new file
+    /// can be made).
+    fn rewrite_in_place(&self, text: &str) -> std::io::Result<()> {
+        use std::io::Write;
+        let path = self.log_path();
+        let mut f = std::fs::OpenOptions::new().write(true).truncate(true).open(&path)?;
+        f.write_all(text.as_bytes())?;
+        f.sync_all()
     }
 
     /// Write the run log (atomically).
@@ -253,6 +287,30 @@ mod tests {
         std::fs::write(dir.join(".mesh.obj.tmp.1"), "an input").unwrap();
         RunDir::prepare(&dir, &[], true).unwrap();
         assert!(dir.join(".mesh.obj.tmp.1").exists());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// When no new file can be made in the run's directory (here: made read-only; a full disk
+    /// in the field), the failure is still recorded, by rewriting run.json in place.
+    #[test]
+    fn a_failure_is_recorded_even_when_no_new_file_can_be_made() {
+        use std::os::unix::fs::PermissionsExt;
+        let dir = tmp("no-room");
+        let mut run = RunDir::prepare(&dir, &[], false).unwrap();
+        std::fs::set_permissions(&dir, std::fs::Permissions::from_mode(0o555)).unwrap();
+        // As root a read-only directory still takes new files: then the atomic write is used.
+        let atomic_blocked = std::fs::write(dir.join("probe"), "").is_err();
+        run.write_setup_failure("step 3: frame_00003.vtu: No space left on device")
+            .unwrap();
+        std::fs::set_permissions(&dir, std::fs::Permissions::from_mode(0o755)).unwrap();
+        let log: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(dir.join(RUN_LOG)).unwrap()).unwrap();
+        assert_eq!(
+            log["status"], "failed",
+            "{log} (atomic write blocked: {atomic_blocked})"
+        );
+        assert!(log["error"].as_str().unwrap().contains("No space left"), "{log}");
+        drop(run);
         std::fs::remove_dir_all(&dir).unwrap();
     }
 
