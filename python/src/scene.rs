@@ -364,16 +364,25 @@ impl Scene {
 
 /// A `UserWarning` when unrolled mode went through steps that met the tolerance in their first
 /// iteration (their derivative is that one iteration's, not the converged step's; see
-/// `DiffStats::one_iteration_steps`).
-fn warn_one_iteration(py: Python<'_>, mode: Mode, g: &diffsoft::Gradient, steps: usize) -> PyResult<()> {
-    if mode != Mode::Unrolled || g.stats.one_iteration_steps == 0 {
-        return Ok(());
+/// `DiffStats::one_iteration_steps`), and one when steps ended at a kink of the loss
+/// (`DiffStats::nonsmooth_steps`).
+pub(crate) fn warn_one_iteration(py: Python<'_>, mode: Mode, g: &diffsoft::Gradient, steps: usize) -> PyResult<()> {
+    let warn = |message: String| -> PyResult<()> {
+        let message = std::ffi::CString::new(message).map_err(|e| errors::value(e.to_string()))?;
+        let category = py.get_type::<pyo3::exceptions::PyUserWarning>();
+        PyErr::warn(py, category.as_any(), &message, 1)
+    };
+    if mode == Mode::Unrolled && g.stats.one_iteration_steps > 0 {
+        warn(format!(
+            "{} of {steps} forward steps met the tolerance in their first iteration; unrolled mode differentiates that one iteration, not the converged step (use mode='implicit', or a tolerance of 0 with a fixed iteration count)",
+            g.stats.one_iteration_steps
+        ))?;
     }
-    let message = format!(
-        "{} of {steps} forward steps met the tolerance in their first iteration; unrolled mode differentiates that one iteration, not the converged step (use mode='implicit', or a tolerance of 0 with a fixed iteration count)",
-        g.stats.one_iteration_steps
-    );
-    let message = std::ffi::CString::new(message).map_err(|e| errors::value(e.to_string()))?;
-    let category = py.get_type::<pyo3::exceptions::PyUserWarning>();
-    PyErr::warn(py, category.as_any(), &message, 1)
+    if g.stats.nonsmooth_steps > 0 {
+        warn(format!(
+            "{} of {steps} steps ended with a contact at a switch of regime (touching with near-zero gap and force, or sticking at the friction cone's boundary): the loss has a kink there, and this gradient is one of its one-sided derivatives or between them",
+            g.stats.nonsmooth_steps
+        ))?;
+    }
+    Ok(())
 }

@@ -818,3 +818,59 @@ fn bodies_starting_through_each_other_are_refused() {
     let o = diffsoft(&["simulate", apart.to_str().unwrap(), "--steps", "2"]);
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
 }
+
+/// A body resting exactly on the ground with no load: its contacts touch with zero gap and zero
+/// force, where the loss has a kink (the one-sided derivatives in the initial velocity differ,
+/// 0.1 and 0.04). The gradient is one of them or between them: both modes say so, in the
+/// output and in the stats; the same body pressed by gravity (a smooth point) does not.
+#[test]
+fn a_gradient_at_a_contact_kink_is_flagged() {
+    let dir = tmp_dir("hard-kink");
+    write(
+        &dir,
+        "cube.obj",
+        "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nv 1 1 1\nt 0 1 2 3\nt 1 2 3 4\n",
+    );
+    let scene = |gravity: &str| {
+        write(
+            &dir,
+            &format!("scene{gravity}.json"),
+            &format!(
+                r#"{{ "schema": "diffsoft.scene/1", "time_step": 0.01, "gravity": [0, {gravity}, 0],
+                     "bodies": [{{ "name": "c", "mesh": "cube.obj", "material": {{ "youngs_modulus": 1e4, "poisson_ratio": 0.3 }}, "density": 1000 }}],
+                     "obstacles": [{{ "name": "ground", "plane": {{ "point": [0, 0, 0], "normal": [0, 1, 0] }}, "friction": 0.3 }}],
+                     "solver": {{ "solver": "direct", "tolerance": 1e-10, "max_iterations": 200 }} }}"#
+            ),
+        )
+    };
+    let json_path = dir.join("g.json");
+    let grad = |scene: &Path, mode: &str| {
+        let o = diffsoft(&[
+            "grad",
+            scene.to_str().unwrap(),
+            "--steps",
+            "10",
+            "--param",
+            "initial_velocity.y",
+            "--mode",
+            mode,
+            "--json",
+            json_path.to_str().unwrap(),
+        ]);
+        assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+        (
+            stderr(&o),
+            json(&json_path)["stats"]["nonsmooth_steps"].as_u64().unwrap(),
+        )
+    };
+    let resting = scene("0");
+    for mode in ["implicit", "unrolled"] {
+        let (err, kinks) = grad(&resting, mode);
+        assert!(kinks > 0 && err.contains("switch of regime"), "{mode}: {kinks} {err}");
+    }
+    let pressed = scene("-9.81");
+    for mode in ["implicit", "unrolled"] {
+        let (err, kinks) = grad(&pressed, mode);
+        assert!(kinks == 0 && !err.contains("switch of regime"), "{mode}: {kinks} {err}");
+    }
+}

@@ -237,6 +237,7 @@ impl<'a> Backward<'a> {
             self.s_bar[i] = Vector3::zeros();
         }
         let step = inp.step;
+        self.contact.near_kinks = 0;
         let mut s_bar = std::mem::take(&mut self.s_bar);
         std::mem::swap(&mut self.act_grad, &mut g.activations[step]);
         let r = match (self.opts.mode, inp.replay) {
@@ -264,6 +265,9 @@ impl<'a> Backward<'a> {
         std::mem::swap(&mut self.act_grad, &mut g.activations[step]);
         self.s_bar = s_bar;
         r?;
+        if self.contact.near_kinks > 0 {
+            g.stats.nonsmooth_steps += 1;
+        }
         // The inertial target's adjoint to the states it was built from (Eq. 2 / T1).
         for (i, sb) in self.s_bar.iter().enumerate() {
             if model.fixed[i] {

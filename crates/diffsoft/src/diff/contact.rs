@@ -50,6 +50,36 @@ pub fn project_jacobian(x_hat: &Vector3<f64>, w: f64, c: &Contact) -> (Matrix3<f
     }
 }
 
+/// How close a contact may come to a switch of the projection's regime (separating, sticking,
+/// sliding), relative to the solve's scale, before its step counts as non-smooth: there the
+/// derivative jumps, and a gradient is one of two one-sided derivatives (or between them).
+pub const KINK_MARGIN: f64 = 1e-6;
+
+/// `(candidate normal impulse -w gap, relative distance to the stick/slip boundary)` of a
+/// contact at `x_hat` (the second `INFINITY` without friction or when separating).
+fn regime_distance(x_hat: &Vector3<f64>, w: f64, c: &Contact) -> (f64, f64) {
+    let n = c.normal;
+    let lambda_n = -w * n.dot(&(x_hat - c.point));
+    if lambda_n <= 0.0 || c.friction <= 0.0 {
+        return (lambda_n, f64::INFINITY);
+    }
+    let p = Matrix3::identity() - n * n.transpose();
+    let stick = w * (p * (x_hat - c.anchor)).norm();
+    let limit = c.friction * lambda_n;
+    (lambda_n, (stick - limit).abs() / limit)
+}
+
+/// Contacts of one solve within [`KINK_MARGIN`] of a regime switch: a candidate normal impulse
+/// near zero relative to the largest in the solve (touching with no force: near-zero gap and
+/// impulse), or a sticking force near the friction cone's boundary.
+fn near_kinks(distances: &[(f64, f64)]) -> usize {
+    let scale = distances.iter().map(|d| d.0.abs()).fold(0.0, f64::max);
+    distances
+        .iter()
+        .filter(|(lambda_n, friction)| lambda_n.abs() <= KINK_MARGIN * scale || *friction <= KINK_MARGIN)
+        .count()
+}
+
 /// The adjoint of one global solve with contacts (see the module docs).
 #[derive(Debug, Default)]
 pub struct ContactAdjoint {
@@ -64,6 +94,11 @@ pub struct ContactAdjoint {
     pub sweeps: usize,
     /// Largest final relative residual of the transposed contact system.
     pub worst_residual: f64,
+    /// Per contact of the last solve: [`regime_distance`].
+    distances: Vec<(f64, f64)>,
+    /// Contacts near a regime switch ([`KINK_MARGIN`]), summed over solves since the caller
+    /// last reset it.
+    pub near_kinks: usize,
 }
 
 /// `(dlambda/dn, dlambda/d point)` of the Coulomb cone projection at `x_hat` (the derivatives
@@ -156,6 +191,7 @@ impl ContactAdjoint {
         }
         self.d.clear();
         self.g.clear();
+        self.distances.clear();
         for (j, (c, l)) in contacts.iter().zip(impulses).enumerate() {
             let djj = self.delta[j * m + j];
             let w = 1.0 / djj;
@@ -163,7 +199,9 @@ impl ContactAdjoint {
             let (d, g) = project_jacobian(&x_hat, w, &c.contact);
             self.d.push(d);
             self.g.push(g);
+            self.distances.push(regime_distance(&x_hat, w, &c.contact));
         }
+        self.near_kinks += near_kinks(&self.distances);
         self.rhs.clear();
         self.rhs.extend(contacts.iter().map(|c| c.stencil.apply(z)));
         if let Some(lb) = impulse_bar {

@@ -255,6 +255,12 @@ pub struct DiffStats {
     /// iteration's derivative, not the converged step's (docs/gradients.md); implicit mode and
     /// fixed iteration counts (tolerance 0) are unaffected.
     pub one_iteration_steps: usize,
+    /// Steps whose contact solves ended near a switch of regime (`diff::contact::KINK_MARGIN`):
+    /// a contact touching with near-zero gap and impulse, or sticking at the friction cone's
+    /// boundary. The loss has a kink there: the gradient is one of its one-sided derivatives
+    /// (or between them) and central differences straddling the kink disagree with it. Not an
+    /// error; every gradient path warns when it is not 0.
+    pub nonsmooth_steps: usize,
     /// Implicit mode: largest final relative change of an adjoint fixed point (1).
     pub implicit_residual: f64,
     /// Gauss-Seidel sweeps of the linearized contact systems.
