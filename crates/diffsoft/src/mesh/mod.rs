@@ -422,8 +422,14 @@ pub fn load_with(path: impl AsRef<Path>, opts: LoadOptions) -> Result<LoadedMesh
             TetMesh::from_raw(&shown, MeshFormat::Obj, raw, opts)
         }
         "node" | "ele" => {
-            let node_path = path.with_extension("node");
-            let ele_path = path.with_extension("ele");
+            // The siblings in the case the file was named with (`T.NODE` goes with `T.ELE`).
+            let upper = path
+                .extension()
+                .and_then(|e| e.to_str())
+                .is_some_and(|e| e.chars().all(|c| c.is_ascii_uppercase()));
+            let (node_ext, ele_ext) = if upper { ("NODE", "ELE") } else { ("node", "ele") };
+            let node_path = path.with_extension(node_ext);
+            let ele_path = path.with_extension(ele_ext);
             let node_text = read_text(&node_path)?;
             let ele_text = read_text(&ele_path)?;
             let raw = tetgen::parse(

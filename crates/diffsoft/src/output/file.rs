@@ -85,15 +85,22 @@ pub fn refuse_input(out: &Path, inputs: &[&Path]) -> std::io::Result<()> {
 pub fn input_family(input: &Path) -> Vec<PathBuf> {
     let mut out = vec![input.to_path_buf()];
     let ext = input.extension().and_then(|e| e.to_str()).unwrap_or("");
-    match ext {
+    match ext.to_ascii_lowercase().as_str() {
         "node" | "ele" | "face" | "edge" => {
+            // Siblings as the reader looks for them (lower case), and in the input's own case.
             for e in ["node", "ele", "face", "edge"] {
-                if e != ext {
-                    out.push(input.with_extension(e));
+                for e in [e.to_string(), e.to_ascii_uppercase()] {
+                    if e != ext {
+                        out.push(input.with_extension(e));
+                    }
                 }
             }
         }
-        "json" => {
+        // Mesh and output formats name no other file.
+        "obj" | "msh" | "vtu" | "vtk" | "pvd" | "svg" | "html" | "csv" => {}
+        // Anything else may be a scene (a scene need not be named `.json`): the strings of
+        // whatever parses as JSON are looked up.
+        _ => {
             let dir = input.parent().unwrap_or(Path::new("."));
             // A scene is small; anything that does not parse brings nothing.
             if let Some(v) = std::fs::read_to_string(input)
@@ -116,7 +123,6 @@ pub fn input_family(input: &Path) -> Vec<PathBuf> {
                 }
             }
         }
-        _ => {}
     }
     out
 }
@@ -134,18 +140,9 @@ fn strings<'a>(v: &'a serde_json::Value, out: &mut Vec<&'a str>) {
 /// Refuse two outputs of one command that are the same file (`--json X --svg X`): the second
 /// would replace the first. Paths that do not exist yet are compared as given, made absolute.
 pub fn distinct_outputs(outputs: &[(&str, &Path)]) -> std::io::Result<()> {
-    let key = |p: &Path| {
-        p.canonicalize().unwrap_or_else(|_| {
-            std::env::current_dir()
-                .map(|d| d.join(p))
-                .unwrap_or_else(|_| p.to_path_buf())
-                .components()
-                .collect()
-        })
-    };
     for (i, (a, pa)) in outputs.iter().enumerate() {
         for (b, pb) in &outputs[..i] {
-            if *pa != Path::new("-") && key(pa) == key(pb) {
+            if *pa != Path::new("-") && resolved(pa) == resolved(pb) {
                 return Err(std::io::Error::new(
                     std::io::ErrorKind::AlreadyExists,
                     format!(
@@ -157,6 +154,44 @@ pub fn distinct_outputs(outputs: &[(&str, &Path)]) -> std::io::Result<()> {
         }
     }
     Ok(())
+}
+
+/// The file `p` names once written: its canonical path when it exists; else, following a
+/// dangling link to its target, the canonical directory joined with the file name; else the
+/// absolute path with `.` and `..` resolved lexically.
+fn resolved(p: &Path) -> PathBuf {
+    let mut p = p.to_path_buf();
+    for _ in 0..40 {
+        if let Ok(c) = p.canonicalize() {
+            return c;
+        }
+        match std::fs::read_link(&p) {
+            Ok(target) => p = p.parent().unwrap_or(Path::new(".")).join(target),
+            Err(_) => break,
+        }
+    }
+    if let (Some(dir), Some(name)) = (p.parent(), p.file_name()) {
+        let dir = if dir.as_os_str().is_empty() {
+            Path::new(".")
+        } else {
+            dir
+        };
+        if let Ok(d) = dir.canonicalize() {
+            return d.join(name);
+        }
+    }
+    let absolute = std::env::current_dir().map(|d| d.join(&p)).unwrap_or(p);
+    let mut out = PathBuf::new();
+    for c in absolute.components() {
+        match c {
+            std::path::Component::CurDir => {}
+            std::path::Component::ParentDir => {
+                out.pop();
+            }
+            c => out.push(c),
+        }
+    }
+    out
 }
 
 #[cfg(test)]
@@ -181,6 +216,28 @@ mod tests {
         assert!(e.to_string().contains("mesh.obj"), "{e}");
         refuse_input(&dir.join("other.json"), &[&input]).unwrap();
         refuse_input(&input, &[&dir.join("x.obj")]).unwrap();
+        // A scene not named .json still brings its mesh.
+        for name in ["scene.txt", "scene.JSON", "scene"] {
+            let scene = dir.join(name);
+            std::fs::write(&scene, r#"{"bodies": [{"mesh": "mesh.obj"}]}"#).unwrap();
+            let e = refuse_input(&input, &[&scene]).unwrap_err();
+            assert!(e.to_string().contains(name), "{e}");
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// Two outputs are the same file however they are spelled: through `..`, or a link (even
+    /// one whose target does not exist yet).
+    #[test]
+    fn outputs_spelled_differently_are_still_one_file() {
+        let dir = std::env::temp_dir().join(format!("diffsoft-distinct-{}", std::process::id()));
+        std::fs::create_dir_all(dir.join("d")).unwrap();
+        let (a, b) = (dir.join("d/../same.out"), dir.join("same.out"));
+        assert!(distinct_outputs(&[("--json", &a), ("--svg", &b)]).is_err());
+        std::os::unix::fs::symlink("same2.out", dir.join("link.svg")).unwrap();
+        let (a, b) = (dir.join("same2.out"), dir.join("link.svg"));
+        assert!(distinct_outputs(&[("--json", &a), ("--svg", &b)]).is_err());
+        distinct_outputs(&[("--json", &dir.join("x.json")), ("--svg", &dir.join("x.svg"))]).unwrap();
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }
