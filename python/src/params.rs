@@ -92,6 +92,10 @@ impl Value {
     pub fn read(model: &Model, name: &str, value: &Bound<'_, PyAny>) -> PyResult<Self> {
         Ok(match Name::parse(name)? {
             Name::Scalar(p) => {
+                // `True` is an int to Python, not a modulus.
+                if value.is_instance_of::<pyo3::types::PyBool>() {
+                    return Err(errors::value(format!("{name}: expected a number, got a bool")));
+                }
                 let v: f64 = value
                     .extract()
                     .map_err(|_| errors::value(format!("{name}: expected a number")))?;

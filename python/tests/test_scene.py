@@ -59,6 +59,26 @@ def test_array_parameters_round_trip(beam):
     assert beam.get("activations") is None
 
 
+def test_per_tet_moduli_stay_in_force_until_the_scalar_is_set(beam):
+    e = np.linspace(1e4, 5e4, beam.n_tets)
+    beam.set("youngs_modulus_per_tet", e)
+    # The Poisson ratio, even to its own value or to another, keeps every tet's modulus.
+    beam.set("poisson_ratio", beam.get("poisson_ratio"))
+    np.testing.assert_allclose(beam.get("youngs_modulus_per_tet"), e, rtol=1e-12)
+    beam.set("poisson_ratio", 0.25)
+    np.testing.assert_allclose(beam.get("youngs_modulus_per_tet"), e, rtol=1e-12)
+    # The scalar is not the one in force, and `get` says so rather than return it.
+    with pytest.raises(diffsoft.InputError, match="per-tet values are in force"):
+        beam.get("youngs_modulus")
+    # Setting the scalar gives every tet that value again.
+    beam.set("youngs_modulus", 3e4)
+    np.testing.assert_allclose(beam.get("youngs_modulus_per_tet"), 3e4, rtol=1e-12)
+    assert beam.get("youngs_modulus") == pytest.approx(3e4)
+    # A bool is not a modulus.
+    with pytest.raises(diffsoft.InputError, match="bool"):
+        beam.set("youngs_modulus", True)
+
+
 def test_initial_velocity_scalar_updates_array(beam):
     beam.set("initial_velocities", np.zeros((20, 3)))
     beam.set("initial_velocity.y", 2.0)

@@ -88,8 +88,8 @@ pub static PARAMETERS: &[ParamSpec] = &[
         units: "Pa",
         description: "Young's modulus of every body",
         kind: ParamKind::Scalar {
-            get: |m| uniform("youngs_modulus", m.bodies.iter().map(|b| b.material.youngs_modulus)),
-            set: |m, v| set_material(m, |mat| mat.youngs_modulus = v),
+            get: youngs_modulus,
+            set: |m, v| set_material(m, |mat| mat.youngs_modulus = v, Moduli::Scalar),
             derivative: |m, g| g.youngs_modulus(m).iter().sum(),
         },
     },
@@ -100,7 +100,7 @@ pub static PARAMETERS: &[ParamSpec] = &[
         description: "Poisson ratio of every body",
         kind: ParamKind::Scalar {
             get: |m| uniform("poisson_ratio", m.bodies.iter().map(|b| b.material.poisson_ratio)),
-            set: |m, v| set_material(m, |mat| mat.poisson_ratio = v),
+            set: |m, v| set_material(m, |mat| mat.poisson_ratio = v, Moduli::Kept),
             derivative: |m, g| g.poisson_ratio(m).iter().sum(),
         },
     },
@@ -447,7 +447,7 @@ fn uniform(name: &str, values: impl Iterator<Item = f64>) -> Result<f64, DiffErr
             None => first = Some(v),
             Some(f) if f != v => {
                 return Err(DiffError::Input(format!(
-                    "'{name}' differs between bodies or vertices ({f} and {v}); set one value with --set {name}=VALUE"
+                    "'{name}' differs between bodies or vertices ({f} and {v}); set one value for all (the CLI's --set {name}=VALUE, Python's Scene.set)"
                 )))
             }
             _ => {}
@@ -456,9 +456,44 @@ fn uniform(name: &str, values: impl Iterator<Item = f64>) -> Result<f64, DiffErr
     first.ok_or_else(|| DiffError::Input(format!("the model has nothing that '{name}' applies to")))
 }
 
+/// Which Young's moduli the tets have after a change of material.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Moduli {
+    /// The body's scalar (setting `youngs_modulus`: the scalar takes over from per-tet values).
+    Scalar,
+    /// Each tet keeps its own (setting `poisson_ratio`: per-tet moduli stay in force).
+    Kept,
+}
+
+/// The bodies' Young's modulus, when it is the one in force: an error naming the per-tet values
+/// when `youngs_modulus_per_tet` set others (until `youngs_modulus` is set again).
+fn youngs_modulus(model: &Model) -> Result<f64, DiffError> {
+    let e = uniform("youngs_modulus", model.bodies.iter().map(|b| b.material.youngs_modulus))?;
+    let per_tet = youngs_modulus_per_tet(model);
+    for b in &model.bodies {
+        if let Some(t) = b
+            .tets
+            .clone()
+            .find(|&t| (per_tet[t] - b.material.youngs_modulus).abs() > 1e-9 * b.material.youngs_modulus)
+        {
+            return Err(DiffError::Input(format!(
+                "youngs_modulus: per-tet values are in force (body '{}', tet {t}: {} Pa, the body's scalar {e} Pa); read youngs_modulus_per_tet, or set youngs_modulus to give every tet one value again",
+                b.name, per_tet[t]
+            )));
+        }
+    }
+    Ok(e)
+}
+
 /// Change every body's material, updating the tets' rotation and volume weights (or, for a
-/// hyperelastic body, its tets' Lame parameters); every body is checked before any changes.
-fn set_material(model: &mut Model, change: impl Fn(&mut crate::base::Material)) -> Result<(), DiffError> {
+/// hyperelastic body, its tets' Lame parameters) with the Young's moduli `moduli` says; every
+/// body is checked before any changes.
+fn set_material(
+    model: &mut Model,
+    change: impl Fn(&mut crate::base::Material),
+    moduli: Moduli,
+) -> Result<(), DiffError> {
+    let per_tet = (moduli == Moduli::Kept).then(|| youngs_modulus_per_tet(model));
     let mut next = Vec::with_capacity(model.bodies.len());
     for b in &model.bodies {
         let mut m = b.material;
@@ -471,6 +506,10 @@ fn set_material(model: &mut Model, change: impl Fn(&mut crate::base::Material)) 
         let (tets, volume_constraint) = (model.bodies[k].tets.clone(), model.bodies[k].volume_constraint);
         for t in tets {
             let vol = model.fem.geometry[t].volume;
+            let m = crate::base::Material {
+                youngs_modulus: per_tet.as_ref().map_or(m.youngs_modulus, |e| e[t]),
+                ..m
+            };
             if set_hyper(model, t, m.youngs_modulus, m.poisson_ratio) {
                 continue;
             }
