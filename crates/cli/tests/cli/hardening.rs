@@ -874,3 +874,67 @@ fn a_gradient_at_a_contact_kink_is_flagged() {
         assert!(kinks == 0 && !err.contains("switch of regime"), "{mode}: {kinks} {err}");
     }
 }
+
+/// More ways to start inside: two coincident bodies (every vertex on the other's surface, found
+/// by the tets' centres), a body inside a closed mesh obstacle, a body through an open mesh
+/// obstacle (a sheet). Resting on the sheet is fine.
+#[test]
+fn coincident_bodies_and_bodies_inside_or_through_mesh_obstacles_are_refused() {
+    let dir = tmp_dir("hard-inside-mesh");
+    write(
+        &dir,
+        "c.obj",
+        "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nv 1 1 1\nt 0 1 2 3\nt 1 2 3 4\n",
+    );
+    let box_obj = "v -1 -1 -1\nv 1 -1 -1\nv 1 1 -1\nv -1 1 -1\nv -1 -1 1\nv 1 -1 1\nv 1 1 1\nv -1 1 1\n\
+                   f 1 3 2\nf 1 4 3\nf 5 6 7\nf 5 7 8\nf 1 2 6\nf 1 6 5\nf 4 8 7\nf 4 7 3\nf 1 5 8\nf 1 8 4\nf 2 3 7\nf 2 7 6\n";
+    write(&dir, "block.obj", box_obj);
+    write(
+        &dir,
+        "sheet.obj",
+        "v -5 0 -5\nv 5 0 -5\nv 5 0 5\nv -5 0 5\nf 1 2 3\nf 1 3 4\n",
+    );
+    let body = |name: &str, y: f64| {
+        format!(
+            r#"{{ "name": "{name}", "mesh": "c.obj", "translate": [0.1, {y}, 0.1], "material": {{ "youngs_modulus": 1e5, "poisson_ratio": 0.3 }}, "density": 1000 }}"#
+        )
+    };
+    let scene = |file: &str, bodies: &str, extra: &str| {
+        write(
+            &dir,
+            file,
+            &format!(
+                r#"{{ "schema": "diffsoft.scene/1", "time_step": 0.01, "gravity": [0, 0, 0], "bodies": [{bodies}]{extra} }}"#
+            ),
+        )
+    };
+    let refused = |scene: &Path, wanted: &[&str]| {
+        let o = diffsoft(&["simulate", scene.to_str().unwrap(), "--steps", "1"]);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(1), "{err}");
+        for w in wanted {
+            assert!(err.contains(w), "{w}: {err}");
+        }
+    };
+    let coincident = scene(
+        "coincident.json",
+        &format!("{}, {}", body("a", 0.0), body("b", 0.0)),
+        r#", "collisions": { "thickness": 1e-3, "friction": 0.2 }"#,
+    );
+    refused(&coincident, &["starts inside body", "centre of tet"]);
+    let obstacle = |mesh: &str, scale: f64| {
+        format!(
+            r#", "obstacles": [{{ "name": "ob", "mesh": {{ "file": "{mesh}", "scale": {scale} }}, "friction": 0.3, "thickness": 1e-3 }}]"#
+        )
+    };
+    let inside = scene("inside.json", &body("a", -0.5), &obstacle("block.obj", 3.0));
+    refused(&inside, &["body 'a'", "inside obstacle 'ob'"]);
+    let through = scene("through.json", &body("a", -0.5), &obstacle("sheet.obj", 1.0));
+    refused(
+        &through,
+        &["body 'a' starts through obstacle 'ob'", "crosses its surface"],
+    );
+    let resting = scene("resting.json", &body("a", 0.0), &obstacle("sheet.obj", 1.0));
+    let o = diffsoft(&["simulate", resting.to_str().unwrap(), "--steps", "1"]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+}

@@ -143,18 +143,49 @@ pub fn max_penetration(obstacles: &[Obstacle], q_start: &[Vector3<f64>], q: &[Ve
     worst
 }
 
-/// The deepest vertex of `q` inside a one-sided obstacle (a half-space such as the ground),
-/// below the obstacle's surface itself (its contact thickness not counted): `(depth, vertex,
-/// obstacle)`, or `None` when no vertex is deeper than `tolerance`. Two-sided shapes (triangle
-/// meshes) have no inside and are not checked.
+/// The deepest vertex of `q` inside an obstacle: below a one-sided obstacle's surface (a
+/// half-space such as the ground) or inside a closed triangle mesh ([`Shape::inside_depth`]),
+/// the obstacle's contact thickness not counted: `(depth, vertex, obstacle)`, or `None` when no
+/// vertex is deeper than `tolerance`. An open surface has no inside; a body through one is
+/// found by [`initial_crossing`].
 pub fn initial_penetration(obstacles: &[Obstacle], q: &[Vector3<f64>], tolerance: f64) -> Option<(f64, usize, usize)> {
     let mut worst: Option<(f64, usize, usize)> = None;
-    for (k, o) in obstacles.iter().enumerate().filter(|(_, o)| !o.shape.two_sided()) {
+    for (k, o) in obstacles.iter().enumerate() {
         for (i, x) in q.iter().enumerate() {
-            if let Some((d, _, _)) = o.query(x, x, 0.0) {
-                let depth = -(d + o.thickness);
-                if depth > tolerance && worst.is_none_or(|w| depth > w.0) {
-                    worst = Some((depth, i, k));
+            let depth = if o.shape.two_sided() {
+                // Inside a closed surface (its thickness not counted either).
+                o.shape.inside_depth(x).unwrap_or(f64::NEG_INFINITY)
+            } else {
+                o.query(x, x, 0.0)
+                    .map_or(f64::NEG_INFINITY, |(d, _, _)| -(d + o.thickness))
+            };
+            if depth > tolerance && worst.is_none_or(|w| depth > w.0) {
+                worst = Some((depth, i, k));
+            }
+        }
+    }
+    worst
+}
+
+/// The tet edge that passes deepest through a two-sided obstacle (a surface: a triangle mesh)
+/// at positions `q`, beyond `tolerance` plus the obstacle's thickness: `(depth, edge, obstacle
+/// index)`, the depth being the smaller of the edge ends' distances to the surface.
+pub fn initial_crossing(
+    obstacles: &[Obstacle],
+    tets: &[[usize; 4]],
+    q: &[Vector3<f64>],
+    tolerance: f64,
+) -> Option<(f64, [usize; 2], usize)> {
+    const EDGES: [(usize, usize); 6] = [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)];
+    let mut worst: Option<(f64, [usize; 2], usize)> = None;
+    for (k, o) in obstacles.iter().enumerate().filter(|(_, o)| o.shape.two_sided()) {
+        for t in tets {
+            for (i, j) in EDGES {
+                let (a, b) = (t[i], t[j]);
+                if let Some(depth) = o.shape.passes_through(&q[a], &q[b]) {
+                    if depth > o.thickness + tolerance && worst.is_none_or(|w| depth > w.0) {
+                        worst = Some((depth, [a, b], k));
+                    }
                 }
             }
         }

@@ -27,6 +27,21 @@ pub trait Shape: Send + Sync + std::fmt::Debug {
         false
     }
 
+    /// For a two-sided shape: when the segment `a -> b` passes through the surface, the smaller
+    /// of its ends' distances to it (a body whose edge this is starts through the obstacle
+    /// when that exceeds the thickness). `None` when it does not cross, and for one-sided
+    /// shapes (their inside is found by [`Shape::query`]).
+    fn passes_through(&self, _a: &Vector3<f64>, _b: &Vector3<f64>) -> Option<f64> {
+        None
+    }
+
+    /// For a two-sided shape that encloses a volume (a closed triangle mesh): the distance of
+    /// `p` to the surface when `p` is inside. `None` outside, when it cannot tell (an open
+    /// surface; a closest point on an edge or corner), and for one-sided shapes.
+    fn inside_depth(&self, _p: &Vector3<f64>) -> Option<f64> {
+        None
+    }
+
     /// A short name of the kind (messages).
     fn kind(&self) -> &'static str;
 

@@ -58,6 +58,9 @@ pub struct TriMeshObstacle {
     triangles: Vec<[usize; 3]>,
     normals: Vec<Vector3<f64>>,
     order: Vec<usize>,
+    /// For a closed mesh (every edge in exactly two triangles): `1` when its triangles'
+    /// normals point outwards (positive enclosed volume), `-1` when inwards; `None` when open.
+    outward: Option<f64>,
     nodes: Vec<Node>,
 }
 
@@ -176,11 +179,13 @@ impl TriMeshObstacle {
             }
             normals.push(n.normalize());
         }
+        let outward = closed_orientation(&vertices, &triangles);
         let mut m = Self {
             vertices,
             triangles,
             normals,
             order: Vec::new(),
+            outward,
             nodes: Vec::new(),
         };
         m.order = (0..m.triangles.len()).collect();
@@ -362,9 +367,41 @@ impl Shape for TriMeshObstacle {
         true
     }
 
+    fn inside_depth(&self, p: &Vector3<f64>) -> Option<f64> {
+        let sign = self.outward?;
+        let (t, q, face) = self.closest(p, f64::INFINITY)?;
+        // Only a closest point inside a face says on which side `p` is without ambiguity.
+        (face && sign * self.normals[t].dot(&(p - q)) < 0.0).then(|| (p - q).norm())
+    }
+
+    fn passes_through(&self, a: &Vector3<f64>, b: &Vector3<f64>) -> Option<f64> {
+        self.first_crossing(a, b)?;
+        let distance = |p: &Vector3<f64>| self.closest(p, f64::INFINITY).map_or(0.0, |(_, q, _)| (p - q).norm());
+        Some(distance(a).min(distance(b)))
+    }
+
     fn kind(&self) -> &'static str {
         "triangle mesh"
     }
+}
+
+/// The orientation of a closed triangle mesh (see `TriMeshObstacle::outward`).
+fn closed_orientation(vertices: &[Vector3<f64>], triangles: &[[usize; 3]]) -> Option<f64> {
+    let mut edges = std::collections::HashMap::with_capacity(3 * triangles.len());
+    for t in triangles {
+        for k in 0..3 {
+            let (a, b) = (t[k], t[(k + 1) % 3]);
+            *edges.entry((a.min(b), a.max(b))).or_insert(0usize) += 1;
+        }
+    }
+    if edges.values().any(|&c| c != 2) {
+        return None;
+    }
+    let volume: f64 = triangles
+        .iter()
+        .map(|t| vertices[t[0]].dot(&vertices[t[1]].cross(&vertices[t[2]])))
+        .sum();
+    (volume != 0.0).then_some(volume.signum())
 }
 
 #[cfg(test)]

@@ -554,6 +554,19 @@ impl Simulator {
 fn check_initial_state(model: &Model) -> Result<(), SolverError> {
     check_initial_overlap(model)?;
     let tolerance = 1e-6 * model.length_scale();
+    if let Some((depth, [a, b], k)) =
+        crate::contact::initial_crossing(&model.obstacles, &model.tets, model.rest(), tolerance)
+    {
+        let body = model
+            .bodies
+            .iter()
+            .find(|bd| bd.vertices.contains(&a))
+            .map_or("a body".to_string(), |bd| format!("body '{}'", bd.name));
+        return Err(SolverError::input(format!(
+            "{body} starts through obstacle '{}': the edge from vertex {a} to {b} of the model crosses its surface with both ends at least {depth:.3e} m from it (thickness {:e} m); move the body or the obstacle",
+            model.obstacles[k].name, model.obstacles[k].thickness
+        )));
+    }
     let Some((depth, v, k)) = crate::contact::initial_penetration(&model.obstacles, model.rest(), tolerance) else {
         return Ok(());
     };
@@ -581,6 +594,20 @@ fn check_initial_overlap(model: &Model) -> Result<(), SolverError> {
     let Some(col) = model.collision() else {
         return Ok(());
     };
+    let ranges: Vec<_> = model.bodies.iter().map(|b| b.tets.clone()).collect();
+    if let Some(i) = crate::contact::pair::overlap::inside(col, &model.tets, &ranges, model.rest()) {
+        let (a, b) = (&col.names[i.body], &col.names[i.other]);
+        let point = match (i.vertex, i.tet) {
+            (Some(v), _) if i.triangle => format!("the centre of a surface triangle at vertex {v} of the model"),
+            (Some(v), _) => format!("vertex {v} of the model"),
+            (_, Some(t)) => format!("the centre of tet {t} of the model"),
+            _ => "a point".to_string(),
+        };
+        return Err(SolverError::input(format!(
+            "body '{a}' starts inside body '{b}': {point} is {:.3e} m inside its surface (the collision thickness is {:e} m); move the bodies apart before the first step",
+            i.depth, col.settings.thickness
+        )));
+    }
     let Some(c) = crate::contact::pair::Detector::default().deepest_crossing(col, model.rest()) else {
         return Ok(());
     };
@@ -589,7 +616,7 @@ fn check_initial_overlap(model: &Model) -> Result<(), SolverError> {
     }
     let (a, b) = (&col.names[c.edge_body], &col.names[c.triangle_body]);
     Err(SolverError::input(format!(
-        "body '{a}' starts {:.3e} m inside body '{b}' (a surface edge, vertices {} and {} of the model, crosses its surface; the collision thickness is {:e} m): move the bodies apart before the first step",
-        c.depth, c.edge[0], c.edge[1], col.settings.thickness
+        "body '{a}' starts through body '{b}': its surface edge from vertex {} to {} of the model crosses the other's surface, with both ends at least {:.3e} m from it (the collision thickness is {:e} m); move the bodies apart before the first step",
+        c.edge[0], c.edge[1], c.depth, col.settings.thickness
     )))
 }

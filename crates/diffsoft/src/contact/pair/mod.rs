@@ -28,6 +28,7 @@
 
 mod geometry;
 mod grid;
+pub mod overlap;
 
 use nalgebra::Vector3;
 use num_dual::Dual64;
