@@ -368,7 +368,7 @@ fn main() {
         }
     };
     if let Err(e) = pool.install(|| run(cli.command)) {
-        warn!("error: {e:#}");
+        warn!("error: {}", cli::message(&e));
         std::process::exit(1);
     }
 }

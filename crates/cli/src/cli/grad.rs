@@ -130,6 +130,13 @@ pub(crate) fn grad(a: GradArgs) -> Result<()> {
         | diff::DiffError::NotReplayable { .. } => {
             anyhow::anyhow!("{e} (--allow-unconverged)")
         }
+        diff::DiffError::Solver(s @ (diffsoft::SolverError::NonFinite(_) | diffsoft::SolverError::Diverged(_))) => {
+            anyhow::anyhow!(diff::params::name_extreme_inputs(
+                s.to_string(),
+                &sc.model,
+                sc.settings.dt
+            ))
+        }
         e => e.into(),
     })?;
     let mut gradient = std::collections::BTreeMap::new();

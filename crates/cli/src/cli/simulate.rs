@@ -81,7 +81,7 @@ pub(crate) fn simulate(
     // Set-up errors from here on are recorded in the run log before they are returned.
     let fail = |run_dir: &mut Option<RunDir>, e: anyhow::Error| -> anyhow::Error {
         if let Some(d) = run_dir.as_mut() {
-            if let Err(w) = d.write_setup_failure(&format!("{e:#}")) {
+            if let Err(w) = d.write_setup_failure(&super::message(&e)) {
                 return e.context(format!("and the run log could not record it: {w}"));
             }
         }
@@ -150,7 +150,19 @@ pub(crate) fn simulate(
             }
             Err(e) => {
                 log.status = RunStatus::Failed;
-                log.error = Some(format!("step {}: {e}", k + 1));
+                // Non-finite and divergence messages already name their step.
+                let text = e.to_string();
+                let text = if text.contains(&format!("step {}", k + 1)) {
+                    text
+                } else {
+                    format!("step {}: {text}", k + 1)
+                };
+                log.error = Some(match e {
+                    diffsoft::SolverError::NonFinite(_) | diffsoft::SolverError::Diverged(_) => {
+                        diffsoft::diff::params::name_extreme_inputs(text, sim.model(), sim.settings().dt)
+                    }
+                    _ => text,
+                });
                 break;
             }
         }
@@ -232,7 +244,7 @@ fn fail_run(
 ) -> anyhow::Error {
     log.summary = diffsoft::output::RunSummary::of(&log.steps);
     if let Some(d) = run_dir.as_mut() {
-        if let Err(w) = d.write_failure(log, &format!("{e:#}")) {
+        if let Err(w) = d.write_failure(log, &super::message(&e)) {
             return e.context(format!("and the run log could not record it: {w}"));
         }
     }

@@ -258,6 +258,45 @@ pub fn scalar_names() -> Vec<&'static str> {
     scalars().map(|p| p.name).collect()
 }
 
+/// The scalar parameters of `model` (and its time step `dt`) whose values sit at the edge of
+/// floating point (magnitude above 1e100 or below 1e-100 but not zero), as `name = value`: the
+/// likely cause when a run turns non-finite, for its error message.
+///
+/// ```
+/// use diffsoft::diff::params::extreme_inputs;
+/// use diffsoft::testing::ground_box;
+///
+/// let model = ground_box();
+/// assert!(extreme_inputs(&model, 0.01).is_empty());
+/// assert_eq!(extreme_inputs(&model, 1e-300), vec!["time_step = 1e-300".to_string()]);
+/// ```
+pub fn extreme_inputs(model: &Model, dt: f64) -> Vec<String> {
+    let extreme = |v: f64| v != 0.0 && !(1e-100..=1e100).contains(&v.abs());
+    let mut out: Vec<String> = scalars()
+        .filter_map(|p| Param::of(p))
+        .filter_map(|p| {
+            p.get(model)
+                .ok()
+                .filter(|v| extreme(*v))
+                .map(|v| format!("{p} = {v:e}"))
+        })
+        .collect();
+    if extreme(dt) {
+        out.push(format!("time_step = {dt:e}"));
+    }
+    out
+}
+
+/// `message`, followed by the inputs that [`extreme_inputs`] finds, if any.
+pub fn name_extreme_inputs(message: String, model: &Model, dt: f64) -> String {
+    let found = extreme_inputs(model, dt);
+    if found.is_empty() {
+        message
+    } else {
+        format!("{message} (inputs at the edge of floating point: {})", found.join(", "))
+    }
+}
+
 /// The names of the array parameters, in registry order.
 pub fn array_names() -> Vec<&'static str> {
     arrays().map(|p| p.name).collect()

@@ -410,6 +410,18 @@ pub fn load(path: impl AsRef<Path>) -> Result<LoadedMesh, MeshError> {
 pub fn load_with(path: impl AsRef<Path>, opts: LoadOptions) -> Result<LoadedMesh, MeshError> {
     let path = path.as_ref();
     let shown = path.display().to_string();
+    if path.as_os_str().is_empty() {
+        return Err(MeshError::file(
+            "<empty path>",
+            MeshErrorKind::UnsupportedFormat("the mesh path is empty".into()),
+        ));
+    }
+    if path.is_dir() {
+        return Err(MeshError::file(
+            &shown,
+            MeshErrorKind::UnsupportedFormat("is a directory, expected a mesh file".into()),
+        ));
+    }
     let ext = path
         .extension()
         .and_then(|e| e.to_str())

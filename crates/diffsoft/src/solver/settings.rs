@@ -91,8 +91,13 @@ impl Settings {
         if !(self.dt.is_finite() && self.dt > 0.0) {
             return bad(format!("time step must be finite and positive, got {}", self.dt));
         }
-        if self.max_iterations == 0 || self.inner_max_iterations == 0 {
-            return bad("iteration caps must be at least 1".into());
+        for (name, cap) in [
+            ("max_iterations", self.max_iterations),
+            ("inner_max_iterations", self.inner_max_iterations),
+        ] {
+            if cap == 0 {
+                return bad(format!("{name} (an iteration cap) must be at least 1, got 0"));
+            }
         }
         for (name, v) in [
             ("tolerance", self.tolerance),
