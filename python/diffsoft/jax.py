@@ -17,14 +17,18 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._diffsoft import Scene
+from ._diffsoft import Scene, scalar_parameters
+
+_SCALARS = frozenset(scalar_parameters())
 
 __all__ = ["simulate"]
 
 
 def _configured(scene: Scene, names, values) -> Scene:
     s = scene.copy()
-    for name, v in zip(names, values):
+    # Scalars first, so a per-tet array in the same dict overrides its scalar whatever the
+    # dict's order (the forward does not depend on it).
+    for name, v in sorted(zip(names, values), key=lambda p: p[0] not in _SCALARS):
         a = np.asarray(v, dtype=np.float64)
         s.set(name, float(a) if a.ndim == 0 else a)
     return s

@@ -16,7 +16,9 @@ from collections.abc import Mapping
 import numpy as np
 import torch
 
-from ._diffsoft import Scene
+from ._diffsoft import Scene, scalar_parameters
+
+_SCALARS = frozenset(scalar_parameters())
 
 __all__ = ["simulate"]
 
@@ -28,7 +30,9 @@ def _numpy(t: torch.Tensor) -> np.ndarray | float:
 
 def _configured(scene: Scene, names: tuple[str, ...], tensors: tuple[torch.Tensor, ...]) -> Scene:
     s = scene.copy()
-    for name, t in zip(names, tensors):
+    # Scalars first, so a per-tet array in the same dict overrides its scalar whatever the
+    # dict's order (the forward does not depend on it).
+    for name, t in sorted(zip(names, tensors), key=lambda p: p[0] not in _SCALARS):
         s.set(name, _numpy(t))
     return s
 

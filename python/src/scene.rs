@@ -53,7 +53,7 @@ pub fn grads<'py>(
 
 /// Read `{name: value}` pairs for `model`.
 pub fn values(model: &Model, values: &Bound<'_, PyDict>) -> PyResult<Vec<Value>> {
-    values
+    let mut out = values
         .iter()
         .map(|(k, v)| {
             let name: String = k
@@ -61,7 +61,11 @@ pub fn values(model: &Model, values: &Bound<'_, PyDict>) -> PyResult<Vec<Value>>
                 .map_err(|_| errors::value("parameter names must be strings"))?;
             Value::read(model, &name, &v)
         })
-        .collect()
+        .collect::<PyResult<Vec<_>>>()?;
+    // Scalars first, so a per-tet array in the same dict overrides its scalar whatever the
+    // dict's order.
+    out.sort_by_key(|v| !matches!(v, Value::Scalar(..)));
+    Ok(out)
 }
 
 impl Scene {
