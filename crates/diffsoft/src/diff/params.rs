@@ -266,9 +266,10 @@ pub fn scalar_names() -> Vec<&'static str> {
 /// use diffsoft::diff::params::extreme_inputs;
 /// use diffsoft::testing::ground_box;
 ///
-/// let model = ground_box();
+/// let model = ground_box(0.5)?;
 /// assert!(extreme_inputs(&model, 0.01).is_empty());
 /// assert_eq!(extreme_inputs(&model, 1e-300), vec!["time_step = 1e-300".to_string()]);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```
 pub fn extreme_inputs(model: &Model, dt: f64) -> Vec<String> {
     let extreme = |v: f64| v != 0.0 && !(1e-100..=1e100).contains(&v.abs());
