@@ -102,7 +102,7 @@ impl<'a> Backward<'a> {
             contact_ms: 0.0,
             integrator: scheme,
             local: Constraints::new(model),
-            contact: ContactAdjoint::default(),
+            contact: ContactAdjoint::with_length_scale(model.length_scale()),
             xbar: vec![Vector3::zeros(); nf],
             z: vec![Vector3::zeros(); nf],
             base_acc: vec![Vector3::zeros(); nf],

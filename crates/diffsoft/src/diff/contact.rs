@@ -55,28 +55,32 @@ pub fn project_jacobian(x_hat: &Vector3<f64>, w: f64, c: &Contact) -> (Matrix3<f
 /// derivative jumps, and a gradient is one of two one-sided derivatives (or between them).
 pub const KINK_MARGIN: f64 = 1e-6;
 
-/// `(candidate normal impulse -w gap, relative distance to the stick/slip boundary)` of a
-/// contact at `x_hat` (the second `INFINITY` without friction or when separating).
-fn regime_distance(x_hat: &Vector3<f64>, w: f64, c: &Contact) -> (f64, f64) {
+/// `(candidate normal impulse -w gap, relative distance to the stick/slip boundary, gap)` of
+/// a contact at `x_hat` (the second `INFINITY` without friction or when separating).
+fn regime_distance(x_hat: &Vector3<f64>, w: f64, c: &Contact) -> (f64, f64, f64) {
     let n = c.normal;
-    let lambda_n = -w * n.dot(&(x_hat - c.point));
+    let gap = n.dot(&(x_hat - c.point));
+    let lambda_n = -w * gap;
     if lambda_n <= 0.0 || c.friction <= 0.0 {
-        return (lambda_n, f64::INFINITY);
+        return (lambda_n, f64::INFINITY, gap);
     }
     let p = Matrix3::identity() - n * n.transpose();
     let stick = w * (p * (x_hat - c.anchor)).norm();
     let limit = c.friction * lambda_n;
-    (lambda_n, (stick - limit).abs() / limit)
+    (lambda_n, (stick - limit).abs() / limit, gap)
 }
 
-/// Contacts of one solve within [`KINK_MARGIN`] of a regime switch: a candidate normal impulse
-/// near zero relative to the largest in the solve (touching with no force: near-zero gap and
-/// impulse), or a sticking force near the friction cone's boundary.
-fn near_kinks(distances: &[(f64, f64)]) -> usize {
+/// Contacts of one solve within [`KINK_MARGIN`] of a regime switch: touching with no force
+/// (a predicted gap within 1e-9 of the model's length scale of zero, or a candidate normal
+/// impulse near zero relative to the largest in the solve), or a sticking force near the
+/// friction cone's boundary. `distances` holds `(-w gap, friction distance, gap)` per contact.
+fn near_kinks(distances: &[(f64, f64, f64)], length_scale: f64) -> usize {
     let scale = distances.iter().map(|d| d.0.abs()).fold(0.0, f64::max);
     distances
         .iter()
-        .filter(|(lambda_n, friction)| lambda_n.abs() <= KINK_MARGIN * scale || *friction <= KINK_MARGIN)
+        .filter(|(lambda_n, friction, gap)| {
+            gap.abs() <= 1e-9 * length_scale || lambda_n.abs() <= KINK_MARGIN * scale || *friction <= KINK_MARGIN
+        })
         .count()
 }
 
@@ -95,7 +99,9 @@ pub struct ContactAdjoint {
     /// Largest final relative residual of the transposed contact system.
     pub worst_residual: f64,
     /// Per contact of the last solve: [`regime_distance`].
-    distances: Vec<(f64, f64)>,
+    distances: Vec<(f64, f64, f64)>,
+    /// The model's length scale (m): a predicted gap below 1e-9 of it is zero.
+    pub length_scale: f64,
     /// Contacts near a regime switch ([`KINK_MARGIN`]), summed over solves since the caller
     /// last reset it.
     pub near_kinks: usize,
@@ -148,6 +154,14 @@ pub struct PairInputs<'a> {
 }
 
 impl ContactAdjoint {
+    /// Buffers for a model of this length scale (m), which sets what a zero gap is.
+    pub fn with_length_scale(length_scale: f64) -> Self {
+        Self {
+            length_scale,
+            ..Self::default()
+        }
+    }
+
     /// Given `z = A^-1 x_bar` (in place, free numbering), the contacts and the impulses they ended
     /// with and the solution `x` of the solve: turn `z` into `r_bar` and add the adjoints of the
     /// start positions (anchors; for contacts between bodies also their coefficients and
@@ -201,7 +215,7 @@ impl ContactAdjoint {
             self.g.push(g);
             self.distances.push(regime_distance(&x_hat, w, &c.contact));
         }
-        self.near_kinks += near_kinks(&self.distances);
+        self.near_kinks += near_kinks(&self.distances, self.length_scale);
         self.rhs.clear();
         self.rhs.extend(contacts.iter().map(|c| c.stencil.apply(z)));
         if let Some(lb) = impulse_bar {
