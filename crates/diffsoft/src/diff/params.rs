@@ -274,7 +274,7 @@ pub fn scalar_names() -> Vec<&'static str> {
 pub fn extreme_inputs(model: &Model, dt: f64) -> Vec<String> {
     let extreme = |v: f64| v != 0.0 && !(1e-100..=1e100).contains(&v.abs());
     let mut out: Vec<String> = scalars()
-        .filter_map(|p| Param::of(p))
+        .filter_map(Param::of)
         .filter_map(|p| {
             p.get(model)
                 .ok()
