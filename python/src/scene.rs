@@ -368,8 +368,8 @@ impl Scene {
 
 /// A `UserWarning` when unrolled mode went through steps that met the tolerance in their first
 /// iteration (their derivative is that one iteration's, not the converged step's; see
-/// `DiffStats::one_iteration_steps`), and one when steps ended at a kink of the loss
-/// (`DiffStats::nonsmooth_steps`).
+/// `DiffStats::one_iteration_steps`), and one for each of `DiffStats::warnings` (steps at a
+/// kink of the loss, adjoint solves that stopped unconverged).
 pub(crate) fn warn_one_iteration(py: Python<'_>, mode: Mode, g: &diffsoft::Gradient, steps: usize) -> PyResult<()> {
     let warn = |message: String| -> PyResult<()> {
         let message = std::ffi::CString::new(message).map_err(|e| errors::value(e.to_string()))?;
@@ -382,11 +382,8 @@ pub(crate) fn warn_one_iteration(py: Python<'_>, mode: Mode, g: &diffsoft::Gradi
             g.stats.one_iteration_steps
         ))?;
     }
-    if g.stats.nonsmooth_steps > 0 {
-        warn(format!(
-            "{} of {steps} steps ended with a contact at a switch of regime (touching with near-zero gap and force, or sticking at the friction cone's boundary): the loss has a kink there, and this gradient is one of its one-sided derivatives or between them",
-            g.stats.nonsmooth_steps
-        ))?;
+    for w in g.stats.warnings(steps) {
+        warn(w)?;
     }
     Ok(())
 }

@@ -188,11 +188,8 @@ pub(crate) fn grad(a: GradArgs) -> Result<()> {
             g.stats.one_iteration_steps, a.steps
         );
     }
-    if g.stats.nonsmooth_steps > 0 {
-        warn!(
-            "warning: {} of {} steps ended with a contact at a switch of regime (touching with near-zero gap and force, or sticking at the friction cone's boundary): the loss has a kink there, this gradient is one of its one-sided derivatives or between them, and central differences across the kink disagree with it (nonsmooth_steps in the stats)",
-            g.stats.nonsmooth_steps, a.steps
-        );
+    for w in g.stats.warnings(a.steps) {
+        warn!("warning: {w}");
     }
     if let Some(path) = &a.json {
         let out = diffsoft::output::GradReport {

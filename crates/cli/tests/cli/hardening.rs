@@ -938,3 +938,41 @@ fn coincident_bodies_and_bodies_inside_or_through_mesh_obstacles_are_refused() {
     let o = diffsoft(&["simulate", resting.to_str().unwrap(), "--steps", "1"]);
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
 }
+
+/// An implicit adjoint stopped at its iteration cap before converging is reported: its
+/// residual is in the stats and the gradient's warnings say what it means.
+#[test]
+fn an_adjoint_stopped_at_its_cap_is_reported() {
+    let model = crate::common::ground_box(0.5).unwrap();
+    let settings = diffsoft::Settings {
+        tolerance: 1e-10,
+        max_iterations: 200,
+        solver: diffsoft::SolverKind::Direct,
+        ..Default::default()
+    };
+    let loss = diff::loss::by_name("final_com.y").unwrap();
+    let run = |cap: usize| {
+        diff::gradient(
+            &model,
+            &settings,
+            30,
+            &Controls::default(),
+            loss.as_ref(),
+            Options {
+                implicit_max_iterations: cap,
+                implicit_anderson: 0,
+                ..Options::mode(Mode::Implicit)
+            },
+        )
+    };
+    let full = run(300).unwrap();
+    assert!(full.stats.warnings(30).is_empty(), "{:?}", full.stats.warnings(30));
+    // Six adjoint iterations leave a residual of about 4e-3 on this run.
+    let capped = run(6).unwrap();
+    let w = capped.stats.warnings(30);
+    assert!(capped.stats.implicit_residual > 1e-6, "{:?}", capped.stats);
+    assert!(w.iter().any(|w| w.contains("implicit adjoint stopped")), "{w:?}");
+    // Two iterations leave the iterates still changing by more than 10%: refused outright.
+    let e = run(2).unwrap_err();
+    assert!(e.to_string().contains("fixed point diverged"), "{e}");
+}

@@ -277,6 +277,48 @@ pub struct DiffStats {
     pub stored_steps: usize,
 }
 
+/// An adjoint solve whose final relative residual exceeds this has not converged to the
+/// accuracy a gradient check needs (converged runs end near 1e-12 and 1e-14).
+pub const ADJOINT_RESIDUAL_WARNING: f64 = 1e-6;
+
+impl DiffStats {
+    /// What makes a returned gradient less than trustworthy, one sentence each, for every
+    /// gradient path to show (the CLI on standard error, Python as `UserWarning`s): steps at a
+    /// kink of the loss, and adjoint solves that stopped unconverged.
+    ///
+    /// ```
+    /// use diffsoft::diff::DiffStats;
+    ///
+    /// let mut s = DiffStats::default();
+    /// assert!(s.warnings(10).is_empty());
+    /// s.nonsmooth_steps = 2;
+    /// s.implicit_residual = 1e-3;
+    /// assert_eq!(s.warnings(10).len(), 2);
+    /// ```
+    pub fn warnings(&self, steps: usize) -> Vec<String> {
+        let mut out = Vec::new();
+        if self.nonsmooth_steps > 0 {
+            out.push(format!(
+                "{} of {steps} steps ended with a contact at a switch of regime (touching with near-zero gap and force, or sticking at the friction cone's boundary): the loss has a kink there, this gradient is one of its one-sided derivatives or between them, and central differences across the kink disagree with it (nonsmooth_steps in the stats)",
+                self.nonsmooth_steps
+            ));
+        }
+        if self.implicit_residual > ADJOINT_RESIDUAL_WARNING {
+            out.push(format!(
+                "the implicit adjoint stopped at a relative residual of {:.1e} (its iteration cap): the gradient is accurate to about that; raise the implicit iteration cap, or use unrolled mode",
+                self.implicit_residual
+            ));
+        }
+        if self.contact_residual > ADJOINT_RESIDUAL_WARNING {
+            out.push(format!(
+                "the linearized contact systems of the backward pass stopped at a relative residual of {:.1e}: the gradient is accurate to about that",
+                self.contact_residual
+            ));
+        }
+        out
+    }
+}
+
 /// The loss and its gradient with respect to everything differentiable.
 #[derive(Debug, Clone)]
 pub struct Gradient {
