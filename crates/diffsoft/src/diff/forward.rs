@@ -175,6 +175,8 @@ pub(crate) struct Forward {
     pub flagged: usize,
     /// Steps that met the tolerance in their first iteration.
     pub one_iteration: usize,
+    /// Steps that ended with a joint at one of its limits (a kink of the loss).
+    pub at_limit: usize,
 }
 
 impl Forward {
@@ -343,6 +345,7 @@ pub(crate) fn forward(
         capped: 0,
         flagged: 0,
         one_iteration: 0,
+        at_limit: 0,
     };
     f.q.push(&sim.state().q);
     f.v.push(&sim.state().v);
@@ -371,6 +374,7 @@ pub(crate) fn forward(
         if let Some(sk) = sim.skeleton() {
             joints.iter_mut().for_each(|j| *j = 0.0);
             sk.scalars(&mut joints);
+            f.at_limit += usize::from(sk.joints_at_limit() > 0);
         }
         f.loss += scratch.term(model, loss, k + 1, steps, sim, &joints);
         if let Some(a) = sim.activations() {

@@ -359,6 +359,7 @@ pub fn gradient_on(
             forward_iterations: fwd.iterations,
             unconverged_steps: fwd.flagged,
             one_iteration_steps: fwd.one_iteration,
+            joint_limit_steps: fwd.at_limit,
             solver: resolved,
             ..Default::default()
         },

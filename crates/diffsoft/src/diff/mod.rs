@@ -261,6 +261,10 @@ pub struct DiffStats {
     /// (or between them) and central differences straddling the kink disagree with it. Not an
     /// error; every gradient path warns when it is not 0.
     pub nonsmooth_steps: usize,
+    /// Forward steps that ended with a skeleton joint at one of its limits (within 1e-9): the
+    /// limit switches there between active and inactive, another kink of the loss. Not an
+    /// error; every gradient path warns when it is not 0.
+    pub joint_limit_steps: usize,
     /// Implicit mode: largest final relative change of an adjoint fixed point (1).
     pub implicit_residual: f64,
     /// Gauss-Seidel sweeps of the linearized contact systems.
@@ -301,6 +305,12 @@ impl DiffStats {
             out.push(format!(
                 "{} of {steps} steps ended with a contact at a switch of regime (touching with near-zero gap and force, or sticking at the friction cone's boundary): the loss has a kink there, this gradient is one of its one-sided derivatives or between them, and central differences across the kink disagree with it (nonsmooth_steps in the stats)",
                 self.nonsmooth_steps
+            ));
+        }
+        if self.joint_limit_steps > 0 {
+            out.push(format!(
+                "{} of {steps} steps ended with a joint at one of its limits: the loss has a kink there (the limit switches between holding and not), and this gradient is one of its one-sided derivatives (joint_limit_steps in the stats)",
+                self.joint_limit_steps
             ));
         }
         if self.implicit_residual > ADJOINT_RESIDUAL_WARNING {

@@ -436,6 +436,16 @@ impl Skeleton {
         Ok(())
     }
 
+    /// Joints whose coordinate is at one of its limits (within 1e-9 rad or m): there the reduced
+    /// step's limit switches between active and inactive, a kink of the loss.
+    pub fn joints_at_limit(&self) -> usize {
+        self.bones
+            .iter()
+            .filter_map(|b| b.joint.increment_bounds())
+            .filter(|(lo, hi)| lo.abs() <= 1e-9 || hi.abs() <= 1e-9)
+            .count()
+    }
+
     /// The one-DoF joints' coordinates per coordinate index (0 for other coordinates).
     pub fn scalars(&self, out: &mut [f64]) {
         out.fill(0.0);

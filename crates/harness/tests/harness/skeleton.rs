@@ -444,3 +444,44 @@ fn shoulder_torques_lift_the_arms() {
         "limits exceeded: {extreme:?}"
     );
 }
+
+/// A hinge held at its upper limit (a sideways pull turns it that way) sits where the loss has
+/// a kink (the limit switches between holding and not): the gradient counts those steps and
+/// warns. With room to swing the same hinge counts none.
+#[test]
+fn a_joint_resting_at_its_limit_is_a_counted_kink() {
+    use diffsoft::diff::{self, Controls, Mode, Options};
+    let settings = Settings {
+        dt: 1e-3,
+        solver: SolverKind::Direct,
+        tolerance: 1e-8,
+        max_iterations: 200,
+        ..Settings::default()
+    };
+    let loss = diff::loss::by_name("final_com.x").unwrap();
+    let stats = |limits| {
+        // Gravity with a sideways part turns the hanging block towards positive angles.
+        let mut model = hinged_block(Some(limits));
+        let gx: diff::Param = "gravity.x".parse().unwrap();
+        gx.set(&mut model, 3.0).unwrap();
+        let g = diff::gradient(
+            &model,
+            &settings,
+            20,
+            &Controls::default(),
+            loss.as_ref(),
+            Options::mode(Mode::Unrolled),
+        )
+        .unwrap();
+        g.stats
+    };
+    let at_limit = stats((-0.2, 0.0));
+    assert_eq!(at_limit.joint_limit_steps, 20, "{at_limit:?}");
+    assert!(at_limit
+        .warnings(20)
+        .iter()
+        .any(|w| w.contains("joint at one of its limits")));
+    let free = stats((-0.2, 0.35));
+    assert_eq!(free.joint_limit_steps, 0, "{free:?}");
+    assert!(free.warnings(20).is_empty(), "{:?}", free.warnings(20));
+}
