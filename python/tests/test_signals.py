@@ -16,8 +16,15 @@ BRIDGESUS = REPO / "verification/paper/bridgesus/bridgesus.json"
 
 def run_python(code: str, timeout: float = 120.0) -> str:
     """Run `code` in a fresh interpreter; it must exit 0. Its stdout."""
-    # Unbuffered, and a hang dumps every thread's stack (to stderr, shown on failure).
-    code = "import faulthandler; faulthandler.dump_traceback_later(90, exit=True)\n" + textwrap.dedent(code)
+    # Unbuffered, and a hang dumps every thread's stack (to stderr, shown on failure). Python's
+    # own Ctrl-C handler is installed: a process started in the background by a non-interactive
+    # shell (a CI job) inherits SIGINT ignored, and Python then leaves it ignored.
+    prelude = (
+        "import faulthandler, signal\n"
+        "faulthandler.dump_traceback_later(90, exit=True)\n"
+        "signal.signal(signal.SIGINT, signal.default_int_handler)\n"
+    )
+    code = prelude + textwrap.dedent(code)
     p = subprocess.run(
         [sys.executable, "-u", "-c", code],
         capture_output=True,
