@@ -331,7 +331,7 @@ pub(crate) fn output_target(path: &Path) -> std::io::Result<Target> {
 
 /// `path` with every symbolic link along its final component followed (a dangling link gives
 /// the path it points to); at most 40 links, as the kernel allows.
-fn resolve_links(path: &Path) -> std::io::Result<PathBuf> {
+pub(crate) fn resolve_links(path: &Path) -> std::io::Result<PathBuf> {
     let mut p = path.to_path_buf();
     for _ in 0..40 {
         match std::fs::symlink_metadata(&p) {

@@ -160,15 +160,13 @@ pub fn distinct_outputs(outputs: &[(&str, &Path)]) -> std::io::Result<()> {
 /// dangling link to its target, the canonical directory joined with the file name; else the
 /// absolute path with `.` and `..` resolved lexically.
 fn resolved(p: &Path) -> PathBuf {
-    let mut p = p.to_path_buf();
-    for _ in 0..40 {
-        if let Ok(c) = p.canonicalize() {
-            return c;
-        }
-        match std::fs::read_link(&p) {
-            Ok(target) => p = p.parent().unwrap_or(Path::new(".")).join(target),
-            Err(_) => break,
-        }
+    if let Ok(c) = p.canonicalize() {
+        return c;
+    }
+    // The writer's own link resolution: a dangling link names its target.
+    let p = crate::report::resolve_links(p).unwrap_or_else(|_| p.to_path_buf());
+    if let Ok(c) = p.canonicalize() {
+        return c;
     }
     if let (Some(dir), Some(name)) = (p.parent(), p.file_name()) {
         let dir = if dir.as_os_str().is_empty() {
