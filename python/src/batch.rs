@@ -1,10 +1,10 @@
-//! Independent parameter sets run in parallel on all cores (rayon), without the GIL; Ctrl-C
-//! stops every one of them ([`crate::interrupt`]).
+//! Independent parameter sets run in parallel on all cores, one item per core and each
+//! single-threaded ([`diffsoft::base::tasks`]: a batch scales like independent processes),
+//! without the GIL; Ctrl-C stops every one of them ([`crate::interrupt`]).
 
-use diffsoft::base::cancel::{self, Cancel};
+use diffsoft::base::tasks;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
-use rayon::prelude::*;
 
 use crate::interrupt;
 use crate::run::Run;
@@ -41,9 +41,9 @@ pub fn grad_batch<'py>(
     let m = scene::mode(mode)?;
     let runs = scenes(scene, &values)?;
     let results: Vec<PyResult<diffsoft::Gradient>> = interrupt::run(py, || {
-        let token = Cancel::current();
-        runs.par_iter()
-            .map(|s| cancel::within(token.as_ref(), || s.gradient(steps, loss, m, allow_unconverged)))
+        tasks::map_each(&runs, |s| s.gradient(steps, loss, m, allow_unconverged))
+            .into_iter()
+            .map(|r| r.unwrap_or_else(|panic| Err(crate::errors::panicked(panic))))
             .collect()
     })?;
     runs.iter()
@@ -67,9 +67,9 @@ pub fn simulate_batch<'py>(
 ) -> PyResult<Vec<Run>> {
     let runs = scenes(scene, &values)?;
     let results: Vec<PyResult<diffsoft::diff::Rollout>> = interrupt::run(py, || {
-        let token = Cancel::current();
-        runs.par_iter()
-            .map(|s| cancel::within(token.as_ref(), || s.rollout(steps)))
+        tasks::map_each(&runs, |s| s.rollout(steps))
+            .into_iter()
+            .map(|r| r.unwrap_or_else(|panic| Err(crate::errors::panicked(panic))))
             .collect()
     })?;
     runs.iter()

@@ -211,6 +211,11 @@ pub fn other(e: impl std::fmt::Display) -> PyErr {
     Class::Simulation.err(e.to_string())
 }
 
+/// A panic inside the library (a bug): a `RuntimeError` naming it as internal, with its text.
+pub fn panicked(message: impl std::fmt::Display) -> PyErr {
+    pyo3::exceptions::PyRuntimeError::new_err(format!("internal error in diffsoft: {message}"))
+}
+
 /// Bad input found by the bindings themselves: an `InputError`.
 pub fn value(msg: impl Into<String>) -> PyErr {
     Class::Input.err(msg)

@@ -9,7 +9,6 @@ use std::sync::mpsc;
 use std::time::Duration;
 
 use diffsoft::base::cancel::Cancel;
-use pyo3::exceptions::PyRuntimeError;
 use pyo3::prelude::*;
 
 /// How often signal handlers run during a call.
@@ -30,14 +29,9 @@ pub fn run<T: Send>(py: Python<'_>, work: impl FnOnce() -> T + Send) -> PyResult
             })
         };
         let finish = |worker: std::thread::ScopedJoinHandle<'_, ()>| {
-            worker.join().map_err(|p| {
-                let what = p
-                    .downcast_ref::<&str>()
-                    .map(|s| (*s).to_string())
-                    .or_else(|| p.downcast_ref::<String>().cloned())
-                    .unwrap_or_else(|| "a panic without a message".into());
-                PyRuntimeError::new_err(format!("internal error in diffsoft: {what}"))
-            })
+            worker
+                .join()
+                .map_err(|p| crate::errors::panicked(diffsoft::base::tasks::panic_message(p.as_ref())))
         };
         // A receiver is not `Sync`: it moves into each wait and back.
         let mut rx = rx;
@@ -55,9 +49,7 @@ pub fn run<T: Send>(py: Python<'_>, work: impl FnOnce() -> T + Send) -> PyResult
                 Err(mpsc::RecvTimeoutError::Disconnected) => {
                     // The worker ended without a result: it panicked.
                     finish(worker)?;
-                    return Err(PyRuntimeError::new_err(
-                        "internal error in diffsoft: the call ended without a result",
-                    ));
+                    return Err(crate::errors::panicked("the call ended without a result"));
                 }
                 Err(mpsc::RecvTimeoutError::Timeout) => {
                     if let Err(signal) = py.check_signals() {

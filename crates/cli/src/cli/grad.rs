@@ -42,9 +42,11 @@ pub(crate) struct GradArgs {
     /// deviates from the forward pass (otherwise an error; the counts are printed).
     #[arg(long)]
     allow_unconverged: bool,
-    /// Implicit mode: relative residual at which the adjoint solve of each step stops
-    #[arg(long, default_value_t = diffsoft::diff::Options::default().implicit_tolerance)]
-    implicit_tolerance: f64,
+    /// Implicit mode: relative residual at which the adjoint solve of each step stops (default:
+    /// matched to the forward's tolerance, within [1e-12, 1e-5]; 1e-12 for a fixed iteration
+    /// count)
+    #[arg(long)]
+    implicit_tolerance: Option<f64>,
 }
 
 /// The help of `--param`: the scalar parameters of the registry, `initial_velocity.x|y|z` for
@@ -90,11 +92,8 @@ pub(crate) fn grad(a: GradArgs) -> Result<()> {
         bail!("give the scene file: diffsoft grad SCENE --param P");
     };
     preflight(a.json.as_deref(), &[&scene])?;
-    if !(a.implicit_tolerance.is_finite() && a.implicit_tolerance >= 0.0) {
-        bail!(
-            "--implicit-tolerance must be finite and >= 0, got {}",
-            a.implicit_tolerance
-        );
+    if let Some(t) = a.implicit_tolerance.filter(|t| !(t.is_finite() && *t >= 0.0)) {
+        bail!("--implicit-tolerance must be finite and >= 0, got {t}");
     }
     let mut sc = diffsoft::scene::load(&scene, diffsoft::scene::LoadOptions::default())?;
     a.overrides.apply(&mut sc.settings)?;

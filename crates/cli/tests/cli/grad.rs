@@ -75,6 +75,48 @@ fn grad_cli_implicit_tolerance_takes_effect() {
     assert!(String::from_utf8_lossy(&bad.stderr).contains("--implicit-tolerance"));
 }
 
+/// The implicit adjoint's default tolerance is matched to the forward's (docs/method.md Eq. G5):
+/// at the scene's own stopping rule it takes fewer backward iterations than 1e-12 and moves the
+/// gradient by at most a tenth of what the forward's stopping error already moves it (the gap
+/// between the implicit gradient and the unrolled one, which differentiates the iterations
+/// actually run).
+#[test]
+fn grad_cli_matched_implicit_tolerance_costs_less_than_the_forward_error() {
+    let dir = crate::common::tmp_dir("grad-matched-tolerance");
+    let scene = crate::common::root().join("verification/paper/bridgesus/bridgesus.json");
+    let run = |name: &str, extra: &[&str]| {
+        let json = dir.join(format!("{name}.json"));
+        let out = Command::new(env!("CARGO_BIN_EXE_diffsoft"))
+            .args(["--threads", "1", "grad"])
+            .arg(&scene)
+            .args(["--steps", "20", "--param", "youngs_modulus", "--loss", "mean_com.y"])
+            .args(extra)
+            .arg("--json")
+            .arg(&json)
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(json).unwrap()).unwrap();
+        (
+            v["gradient"]["youngs_modulus"].as_f64().unwrap(),
+            v["stats"]["backward_iterations"].as_u64().unwrap(),
+        )
+    };
+    let (matched, im) = run("matched", &["--mode", "implicit"]);
+    let (tight, it) = run("tight", &["--mode", "implicit", "--implicit-tolerance", "1e-12"]);
+    let (unrolled, _) = run("unrolled", &["--mode", "unrolled"]);
+    let forward_gap = (tight - unrolled).abs();
+    assert!(
+        forward_gap > 0.0,
+        "the forward stops short of convergence: its gap is measurable"
+    );
+    assert!(
+        (matched - tight).abs() <= 0.1 * forward_gap,
+        "matched {matched:e}, tight {tight:e}, unrolled {unrolled:e}"
+    );
+    assert!(im < it, "backward iterations: {im} matched, {it} at 1e-12");
+}
+
 /// `diffsoft grad` against central differences of its own loss taken through `--set`.
 #[test]
 fn grad_cli_agrees_with_outside_finite_differences() {

@@ -10,6 +10,7 @@
 //! * [`Choice`]: settings chosen from a fixed list of names, one spelling each.
 //! * [`cancel`]: cooperative cancellation of long calls (a token polled before every step).
 //! * [`unit_vector`]: directions from input (axes, normals, fibres) normalised without overflow.
+//! * [`tasks`]: independent tasks on all cores, each single-threaded (the batches).
 //! * [`memory`]: sizes from files and flags checked against overflow and the machine's memory
 //!   before anything is allocated for them.
 
@@ -20,6 +21,7 @@ mod error;
 mod material;
 pub mod memory;
 mod schedule;
+pub mod tasks;
 mod vector;
 
 pub use body::Body;

@@ -15,7 +15,7 @@ use super::{
     VectorPair,
 };
 use crate::kernel::linearization::TetLinearization;
-use crate::kernel::svd::{self, svd3_warm, svd3_warm_batch, LANES};
+use crate::kernel::svd::{self, svd3_warm_batch, LANES};
 use crate::kernel::{volume, ProjectionError};
 use crate::model::Model;
 
@@ -155,27 +155,20 @@ impl ConstraintSet for Elasticity {
     }
 
     fn linearize(&mut self, model: &Model, q: &[Vector3<f64>]) -> Result<(), NotDifferentiable> {
-        let (w_rot, w_vol) = (&model.w_rot, &model.w_vol);
         let n = model.tets.len();
         if self.cache.len() != n {
             // Sized once, on the first linearization.
             self.cache.resize(n, TetLinearization::zero());
         }
+        let any_vol = model.w_vol.iter().any(|&w| w > 0.0);
+        // LANES tets at a time through the batched kernels, as the forward's local step.
         self.v_warm_adjoint
-            .par_iter_mut()
-            .zip(self.cache.par_iter_mut())
+            .par_chunks_mut(LANES)
+            .zip(self.cache.par_chunks_mut(LANES))
             .enumerate()
-            .with_min_len(64)
-            .try_for_each(|(t, (vw, lin))| {
-                if absent(w_rot[t], w_vol[t]) {
-                    *lin = TetLinearization::zero();
-                    return Ok(());
-                }
-                let s = svd3_warm(&model.tet_deformation(t, q), vw);
-                *vw = s.v;
-                *lin = TetLinearization::new(&s, w_rot[t], w_vol[t])
-                    .map_err(|m| NotDifferentiable(format!("tet {t}: {m}")))?;
-                Ok(())
+            .with_min_len(8)
+            .try_for_each(|(chunk, (vw, lins))| {
+                linearize_chunk(model, q, chunk * LANES, vw, any_vol, |k, lin| lins[k] = *lin)
             })
     }
 
@@ -232,41 +225,7 @@ impl ConstraintSet for Elasticity {
                         process(k, &lin);
                     }
                 } else {
-                    let f: [Matrix3<f64>; LANES] = std::array::from_fn(|k| {
-                        if k < len {
-                            model.tet_deformation(t0 + k, q)
-                        } else {
-                            Matrix3::identity()
-                        }
-                    });
-                    let v0: [Matrix3<f64>; LANES] =
-                        std::array::from_fn(|k| if k < len { vw[k] } else { Matrix3::identity() });
-                    if !f.iter().all(|m| m.iter().all(|x| x.is_finite())) {
-                        return Err(fail(t0, "non-finite deformation gradient in this chunk"));
-                    }
-                    let svds = svd3_warm_batch(&f, &v0);
-                    let xs = if any_vol {
-                        let sig: [Vector3<f64>; LANES] = std::array::from_fn(|k| svds[k].sigma);
-                        let mut tw = [0.0; LANES];
-                        Some(
-                            volume::nearest_product_batch_warm(&sig, 1.0, &mut tw)
-                                .map_err(|e| fail(t0, &e.to_string()))?,
-                        )
-                    } else {
-                        None
-                    };
-                    for k in 0..len {
-                        vw[k] = svds[k].v;
-                        let t = t0 + k;
-                        if absent(w_rot[t], w_vol[t]) {
-                            process(k, &TetLinearization::zero());
-                            continue;
-                        }
-                        let x = xs.as_ref().filter(|_| w_vol[t] > 0.0).map(|x| x[k]);
-                        let lin =
-                            TetLinearization::with_target(&svds[k], x, w_rot[t], w_vol[t]).map_err(|m| fail(t, m))?;
-                        process(k, &lin);
-                    }
+                    linearize_chunk(model, q, t0, vw, any_vol, process)?;
                 }
                 Ok(())
             })
@@ -291,6 +250,52 @@ impl ConstraintSet for Elasticity {
                 *gv -= s;
             });
     }
+}
+
+/// The linearizations of the tets `t0..t0 + vw.len()` at `q` (batched SVD warm-started from
+/// `vw`, updated, and batched volume projection), handed to `emit(k, lin)` for tet `t0 + k`.
+fn linearize_chunk(
+    model: &Model,
+    q: &[Vector3<f64>],
+    t0: usize,
+    vw: &mut [Matrix3<f64>],
+    any_vol: bool,
+    mut emit: impl FnMut(usize, &TetLinearization),
+) -> Result<(), NotDifferentiable> {
+    let (w_rot, w_vol) = (&model.w_rot, &model.w_vol);
+    let fail = |t: usize, m: &str| NotDifferentiable(format!("tet {t}: {m}"));
+    let len = vw.len();
+    let f: [Matrix3<f64>; LANES] = std::array::from_fn(|k| {
+        if k < len {
+            model.tet_deformation(t0 + k, q)
+        } else {
+            Matrix3::identity()
+        }
+    });
+    let v0: [Matrix3<f64>; LANES] = std::array::from_fn(|k| if k < len { vw[k] } else { Matrix3::identity() });
+    if !f.iter().all(|m| m.iter().all(|x| x.is_finite())) {
+        return Err(fail(t0, "non-finite deformation gradient in this chunk"));
+    }
+    let svds = svd3_warm_batch(&f, &v0);
+    let xs = if any_vol {
+        let sig: [Vector3<f64>; LANES] = std::array::from_fn(|k| svds[k].sigma);
+        let mut tw = [0.0; LANES];
+        Some(volume::nearest_product_batch_warm(&sig, 1.0, &mut tw).map_err(|e| fail(t0, &e.to_string()))?)
+    } else {
+        None
+    };
+    for k in 0..len {
+        vw[k] = svds[k].v;
+        let t = t0 + k;
+        if absent(w_rot[t], w_vol[t]) {
+            emit(k, &TetLinearization::zero());
+            continue;
+        }
+        let x = xs.as_ref().filter(|_| w_vol[t] > 0.0).map(|x| x[k]);
+        let lin = TetLinearization::with_target(&svds[k], x, w_rot[t], w_vol[t]).map_err(|m| fail(t, m))?;
+        emit(k, &lin);
+    }
+    Ok(())
 }
 
 /// Whether a tet has no projective elasticity (both weights zero: a tet of a hyperelastic

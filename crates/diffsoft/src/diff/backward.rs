@@ -31,6 +31,8 @@ pub(crate) struct Backward<'a> {
     pub(super) local: Constraints,
     pub(super) contact: ContactAdjoint,
     pub(super) opts: Options,
+    /// The implicit adjoint's tolerance ([`Options::implicit_tolerance_for`]).
+    pub(super) implicit_tol: f64,
     pub(super) n: usize,
     pub(super) nf: usize,
     // adjoints in the free numbering
@@ -90,7 +92,13 @@ impl<'a> Backward<'a> {
     /// The backward pass of steps of `scheme` (the time step and integrator of the steps it
     /// will differentiate) on `sys`, the forward pass's system of that scheme (its factor is
     /// shared, not recomputed); every buffer is allocated here.
-    pub(crate) fn new(model: &'a Model, scheme: Scheme, sys: Arc<System>, opts: Options) -> Result<Self, DiffError> {
+    pub(crate) fn new(
+        model: &'a Model,
+        scheme: Scheme,
+        sys: Arc<System>,
+        opts: Options,
+        implicit_tol: f64,
+    ) -> Result<Self, DiffError> {
         let direct = sys.direct(InnerControl {
             tolerance: 0.0,
             max_iterations: 1,
@@ -130,6 +138,7 @@ impl<'a> Backward<'a> {
             sys,
             direct,
             opts,
+            implicit_tol,
             n,
             nf,
         };
@@ -164,6 +173,7 @@ impl<'a> Backward<'a> {
         impulse_bar: Option<&[Vector3<f64>]>,
         anchor_bar: &mut [Vector3<f64>],
         q_start: &[Vector3<f64>],
+        reuse: bool,
     ) -> Result<(), DiffError> {
         self.direct.solve_free(&self.xbar, &mut self.z)?;
         if contacts.is_empty() {
@@ -186,6 +196,7 @@ impl<'a> Backward<'a> {
             pairs,
             self.opts.contact_tolerance,
             self.opts.contact_max_sweeps,
+            reuse,
         );
         self.contact_ms += t.elapsed().as_secs_f64() * 1e3;
         r
@@ -308,7 +319,7 @@ impl<'a> Backward<'a> {
         for k in (0..iters).rev() {
             let (contacts, impulses) = rec.solve(k);
             let x_next = &rec.iterates[k + 1];
-            self.solve_adjoint(contacts, impulses, x_next, None, qbar, q_n)?;
+            self.solve_adjoint(contacts, impulses, x_next, None, qbar, q_n, false)?;
             self.accumulate_solve(x_next, g);
             Self::scatter(&self.sys, model, &rec.iterates[k], &mut self.q_full, false);
             Self::scatter(&self.sys, model, x_next, &mut self.xn_full, false);

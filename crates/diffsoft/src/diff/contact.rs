@@ -168,6 +168,11 @@ impl ContactAdjoint {
     /// normals, through `pairs`) to `anchor_bar` (global vertex numbering). `impulse_bar`, when
     /// given, is a direct adjoint of the impulses themselves (one per contact; the skeleton's
     /// step reuses them in its next iteration).
+    ///
+    /// `reuse`: the contacts, impulses and `x` are those of the previous call (an implicit
+    /// adjoint's fixed point solves the same linearized contact system with a new right-hand
+    /// side each iteration), so its Delassus block and cone Jacobians are kept and the
+    /// Gauss-Seidel solve starts from the previous solution.
     #[allow(clippy::too_many_arguments)]
     pub fn apply(
         &mut self,
@@ -181,11 +186,47 @@ impl ContactAdjoint {
         pairs: Option<PairInputs<'_>>,
         tolerance: f64,
         max_sweeps: usize,
+        reuse: bool,
     ) -> Result<(), DiffError> {
         let m = contacts.len();
         if m == 0 {
             return Ok(());
         }
+        let reuse = reuse && self.d.len() == m && self.mu.len() == m;
+        if !reuse {
+            self.prepare(direct, contacts, impulses, x)?;
+        }
+        self.rhs.clear();
+        self.rhs.extend(contacts.iter().map(|c| c.stencil.apply(z)));
+        if let Some(lb) = impulse_bar {
+            if lb.len() != m {
+                return Err(DiffError::Input(format!(
+                    "{} impulse adjoints for {m} contacts",
+                    lb.len()
+                )));
+            }
+            for (r, l) in self.rhs.iter_mut().zip(lb) {
+                *r += l;
+            }
+        }
+        if !reuse {
+            self.mu.clear();
+            self.mu.extend_from_slice(&self.rhs);
+        }
+        self.solve_transposed(tolerance, max_sweeps)?;
+        self.finish(direct, contacts, impulses, x, z, anchor_bar, pairs)
+    }
+
+    /// The step's linearized contact system: the Delassus block `Delta = C A^-1 C^T` between
+    /// the contacts' stencils and each cone projection's Jacobians at the impulse it ended with.
+    fn prepare(
+        &mut self,
+        direct: &mut Direct,
+        contacts: &[FreeContact],
+        impulses: &[Vector3<f64>],
+        x: &[Vector3<f64>],
+    ) -> Result<(), DiffError> {
+        let m = contacts.len();
         if impulses.len() != m {
             return Err(DiffError::Unsupported(
                 "contacts were solved by an iterative global solver: gradients with contact need `solver: direct`"
@@ -216,21 +257,13 @@ impl ContactAdjoint {
             self.distances.push(regime_distance(&x_hat, w, &c.contact));
         }
         self.near_kinks += near_kinks(&self.distances, self.length_scale);
-        self.rhs.clear();
-        self.rhs.extend(contacts.iter().map(|c| c.stencil.apply(z)));
-        if let Some(lb) = impulse_bar {
-            if lb.len() != m {
-                return Err(DiffError::Input(format!(
-                    "{} impulse adjoints for {m} contacts",
-                    lb.len()
-                )));
-            }
-            for (r, l) in self.rhs.iter_mut().zip(lb) {
-                *r += l;
-            }
-        }
-        self.mu.clear();
-        self.mu.extend_from_slice(&self.rhs);
+        Ok(())
+    }
+
+    /// `mu = rhs + Delta' D^T mu` (off-diagonal `Delta`) by Gauss-Seidel from the current `mu`,
+    /// to `tolerance` relative change or `max_sweeps`.
+    fn solve_transposed(&mut self, tolerance: f64, max_sweeps: usize) -> Result<(), DiffError> {
+        let m = self.d.len();
         // v_j = D_j^T mu_j; mu_i = rhs_i + sum_{j != i} Delta_ij v_j (Gauss-Seidel).
         let scale = self
             .rhs
@@ -265,12 +298,29 @@ impl ContactAdjoint {
         }
         self.sweeps += sweeps;
         self.worst_residual = self.worst_residual.max(residual);
+        self.v = v;
         if !residual.is_finite() {
-            self.v = v;
             return Err(DiffError::NotDifferentiable(
                 "the linearized contact system diverged".into(),
             ));
         }
+        Ok(())
+    }
+
+    /// From the solved `mu`: `z += A^-1 C^T v` and the adjoints of the start positions.
+    #[allow(clippy::too_many_arguments)]
+    fn finish(
+        &mut self,
+        direct: &mut Direct,
+        contacts: &[FreeContact],
+        impulses: &[Vector3<f64>],
+        x: &[Vector3<f64>],
+        z: &mut [Vector3<f64>],
+        anchor_bar: &mut [Vector3<f64>],
+        pairs: Option<PairInputs<'_>>,
+    ) -> Result<(), DiffError> {
+        let m = contacts.len();
+        let v = std::mem::take(&mut self.v);
         for (j, c) in contacts.iter().enumerate() {
             if c.pair.is_none() {
                 anchor_bar[c.contact.vertex] += self.g[j].transpose() * self.mu[j];

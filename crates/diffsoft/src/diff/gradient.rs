@@ -306,6 +306,7 @@ pub fn gradient_on(
     let settings = &differentiable(model, settings);
     check_supported(model, settings, opts.mode)?;
     let implicit = opts.mode == Mode::Implicit;
+    let implicit_tol = opts.implicit_tolerance_for(settings);
     let t0 = Instant::now();
     let mut sim = Simulator::with_systems(model.clone(), settings.clone(), systems)?;
     let fwd = forward(
@@ -385,6 +386,7 @@ pub fn gradient_on(
             bdf2,
         ))?,
         opts,
+        implicit_tol,
     )?;
     let mut bw_first: Option<Backward> = None;
     // Implicit mode with a skeleton replays too: it linearizes the step's last iteration.
@@ -467,7 +469,7 @@ pub fn gradient_on(
                 Some(b) => b,
                 None => {
                     let system = ie_system.take().expect("a BDF2 run keeps its first step's system");
-                    let mut b = Backward::new(model, ie, system, opts)?;
+                    let mut b = Backward::new(model, ie, system, opts, implicit_tol)?;
                     // The skeleton's adjoint of z_1 carries over from the later steps.
                     if let (Some(dst), Some(src)) = (b.skel.as_mut(), bw.skel.as_ref()) {
                         dst.z_bar.copy_from_slice(&src.z_bar);

@@ -155,7 +155,8 @@ impl Backward<'_> {
         let result = loop {
             self.anchor_scratch.iter_mut().for_each(|a| *a = Vector3::zeros());
             let mut anchors = std::mem::take(&mut self.anchor_scratch);
-            let r = self.solve_adjoint(contacts, impulses, &w[X_STAR], None, &mut anchors, inp.q_n);
+            // The step's contact system is the same every iteration: built on the first.
+            let r = self.solve_adjoint(contacts, impulses, &w[X_STAR], None, &mut anchors, inp.q_n, it > 0);
             self.anchor_scratch = anchors;
             if let Err(e) = r {
                 break Err(e);
@@ -167,7 +168,7 @@ impl Backward<'_> {
                 s = s.max(a.amax());
             }
             let residual = if s > 0.0 { d / s } else { 0.0 };
-            if residual <= self.opts.implicit_tolerance || it >= self.opts.implicit_max_iterations {
+            if residual <= self.implicit_tol || it >= self.opts.implicit_max_iterations {
                 g.stats.backward_iterations += it;
                 g.stats.implicit_residual = g.stats.implicit_residual.max(residual);
                 break fixed_point_converged(residual, it, step);
@@ -213,11 +214,12 @@ impl Backward<'_> {
     ) -> Result<(), DiffError> {
         Self::scatter(&self.sys, model, y, &mut self.y_full, true);
         self.scratch_act.iter_mut().for_each(|a| *a = 0.0);
+        // No x_next: the parameter adjoints are discarded here, and its term costs a gather.
         self.local.adjoint(
             model,
             q_next,
             &self.y_full,
-            Some(&self.xn_full),
+            None,
             activations,
             Linearize::Cached,
             &mut self.out_full,
@@ -266,7 +268,7 @@ impl Backward<'_> {
             r.copy_from_slice(b);
         }
         let mut res = dot(r, r).sqrt() / bnorm;
-        if res <= self.opts.implicit_tolerance {
+        if res <= self.implicit_tol {
             return Ok(Some((0, res)));
         }
         self.direct.solve_free(r, z)?;
@@ -291,7 +293,7 @@ impl Backward<'_> {
                 r[k] -= hp[k] * alpha;
             }
             res = dot(r, r).sqrt() / bnorm;
-            if res <= self.opts.implicit_tolerance {
+            if res <= self.implicit_tol {
                 break;
             }
             self.direct.solve_free(r, z)?;

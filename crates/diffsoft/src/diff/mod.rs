@@ -146,8 +146,11 @@ pub enum Mode {
 pub struct Options {
     /// Mode.
     pub mode: Mode,
-    /// Implicit mode: stop the adjoint fixed-point iteration at this relative change.
-    pub implicit_tolerance: f64,
+    /// Implicit mode: stop the adjoint solve (conjugate gradients' relative residual, the fixed
+    /// point's relative change) at this tolerance. `None` (the default): matched to the
+    /// forward's own accuracy, [`Options::matched_implicit_tolerance`] (docs/method.md section
+    /// 7, Eq. G5).
+    pub implicit_tolerance: Option<f64>,
     /// Implicit mode: iteration cap of the adjoint fixed point.
     pub implicit_max_iterations: usize,
     /// Implicit mode with contacts: memory of the Anderson mixing that accelerates the adjoint
@@ -174,7 +177,7 @@ impl Default for Options {
     fn default() -> Self {
         Self {
             mode: Mode::Unrolled,
-            implicit_tolerance: 1e-12,
+            implicit_tolerance: None,
             implicit_max_iterations: 300,
             implicit_anderson: 8,
             contact_tolerance: 1e-14,
@@ -201,7 +204,40 @@ impl Options {
             ..Self::default()
         }
     }
+
+    /// The implicit adjoint's tolerance under `settings`: `implicit_tolerance` where set,
+    /// otherwise [`Options::matched_implicit_tolerance`].
+    pub fn implicit_tolerance_for(&self, settings: &crate::solver::Settings) -> f64 {
+        self.implicit_tolerance
+            .unwrap_or_else(|| Self::matched_implicit_tolerance(settings.tolerance))
+    }
+
+    /// The implicit adjoint's tolerance matched to a forward solved to the relative tolerance
+    /// `forward` (docs/method.md Eq. G5): the forward's own, within `[1e-12, 1e-5]`; `1e-12`
+    /// for a fixed iteration count (`forward = 0`). The forward's stopping error already moves
+    /// the implicit gradient by more than an adjoint solved to that tolerance does, so a tighter
+    /// adjoint buys nothing; the upper clamp keeps to the range where that was measured.
+    ///
+    /// ```
+    /// use diffsoft::Options;
+    ///
+    /// assert_eq!(Options::matched_implicit_tolerance(8e-6), 8e-6);
+    /// assert_eq!(Options::matched_implicit_tolerance(0.0), 1e-12);
+    /// assert_eq!(Options::matched_implicit_tolerance(1e-2), 1e-5);
+    /// ```
+    pub fn matched_implicit_tolerance(forward: f64) -> f64 {
+        if forward > 0.0 {
+            forward.clamp(MATCHED_FLOOR, MATCHED_CEILING)
+        } else {
+            MATCHED_FLOOR
+        }
+    }
 }
+
+/// The tightest matched implicit tolerance (a forward with a fixed iteration count gets it).
+const MATCHED_FLOOR: f64 = 1e-12;
+/// The loosest matched implicit tolerance.
+const MATCHED_CEILING: f64 = 1e-5;
 
 /// Initial positions and velocities of every vertex.
 pub type InitialState = (Vec<Vector3<f64>>, Vec<Vector3<f64>>);

@@ -201,7 +201,7 @@ impl Backward<'_> {
             copy_into(&mut sc.prev_x, &self.xbar);
             copy_into(&mut sc.prev_z, &sa.z_bar);
             has_prev = true;
-            if residual <= self.opts.implicit_tolerance {
+            if residual <= self.implicit_tol {
                 break;
             }
         }
@@ -326,7 +326,7 @@ impl Backward<'_> {
         // contact solve at x_pre = y0 - W q_R': y~ = A_FF^-1 x_pre_bar (contact-corrected).
         let ib = (!contacts.is_empty() && impulse_bar.len() == contacts.len()).then_some(&impulse_bar[..]);
         // A skeleton has no contacts between bodies (refused by the simulator): no start positions needed.
-        self.solve_adjoint(contacts, impulses, x_next, ib, qbar, &[])?;
+        self.solve_adjoint(contacts, impulses, x_next, ib, qbar, &[], false)?;
         SkeletalAdjoint::load(
             &mut sa.work,
             &rec.skeleton_states[k + 1],
