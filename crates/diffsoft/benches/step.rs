@@ -5,6 +5,8 @@
 //! * Baymax falling freely (775 v / 3078 t, dt 1/100, one iteration): paper 7.2 ms/step;
 //! * Baymax resting on the ground (contacts): paper 253 ms/step;
 //! * a 50k-tet beam with pinned end under gravity;
+//! * the trade-off study's 52 728-tet clamped cantilever at exactly 10 iterations per step
+//!   (`beam_52k_10_iterations`, the 2-thread scaling target);
 //! * Baymax with its skeleton (root + 4 rotational joints, shoulder torques) dropped on the
 //!   ground: paper 14.5 ms/step (5 bones, 3-6 local-global iterations per step);
 //! * the skeleton's overhead: the same scene with and without bones, both held to exactly 5
@@ -13,9 +15,9 @@
 use std::path::PathBuf;
 
 use criterion::{criterion_group, criterion_main, BatchSize, BenchmarkId, Criterion};
-use diffsoft::mesh::generate::box_with_about;
+use diffsoft::mesh::generate::{box_with_about, BoxSpec};
 use diffsoft::scene::{self, LoadOptions};
-use diffsoft::{BodySpec, MassSpec, Material, ModelBuilder, Settings, Simulator};
+use diffsoft::{BodySpec, MassSpec, Material, ModelBuilder, Settings, Simulator, SolverKind};
 use nalgebra::Vector3;
 
 fn root() -> PathBuf {
@@ -39,6 +41,44 @@ fn scene_sim_with(path: &str, warmup: usize, edit: impl Fn(&mut scene::Scene)) -
     for _ in 0..warmup {
         sim.step().expect("warm-up step");
     }
+    sim
+}
+
+/// The clamped cantilever of the trade-off study (52 x 13 x 13 cells, 52 728 tets, its `x = 0`
+/// face fixed) at exactly 10 local-global iterations per step: the many-core case.
+fn beam_52k_10_iterations() -> Simulator {
+    let mesh = BoxSpec::new([52, 13, 13], [1.0, 0.25, 0.25]).build().expect("box");
+    let fixed: Vec<usize> = (0..mesh.num_vertices())
+        .filter(|&i| mesh.vertices[i].x < 1e-9)
+        .collect();
+    let mut body = BodySpec::new(
+        "cantilever",
+        mesh,
+        Material {
+            youngs_modulus: 1e6,
+            poisson_ratio: 0.3,
+        },
+        MassSpec::Density(1000.0),
+    );
+    body.fixed = fixed;
+    let model = ModelBuilder::new()
+        .gravity(Vector3::new(0.0, -9.81, 0.0))
+        .body(body)
+        .build()
+        .expect("model");
+    let mut sim = Simulator::new(
+        model,
+        Settings {
+            dt: 0.01,
+            solver: SolverKind::Direct,
+            tolerance: 0.0,
+            max_iterations: 10,
+            anderson: 0,
+            ..Settings::default()
+        },
+    )
+    .expect("simulator");
+    sim.step().expect("warm-up");
     sim
 }
 
@@ -106,6 +146,7 @@ fn steps(c: &mut Criterion) {
             Box::new(|| scene_sim("scenes/baymax_ground.json", 150, false)),
         ),
         ("beam_50k", Box::new(beam_50k)),
+        ("beam_52k_10_iterations", Box::new(beam_52k_10_iterations)),
         (
             "baymax_skeleton",
             Box::new(|| scene_sim("scenes/baymax_skeleton.json", 30, false)),

@@ -22,6 +22,10 @@ use crate::solver::global::InnerControl;
 use crate::solver::integrator::{Previous, Scheme};
 use crate::solver::system::System;
 
+/// The implicit adjoint's inner solves (its linearized contact systems) stop at this fraction of
+/// its tolerance.
+const INNER_FRACTION: f64 = 1e-2;
+
 /// Buffers of the backward pass, sized once.
 pub(crate) struct Backward<'a> {
     pub(super) model: &'a Model,
@@ -194,7 +198,13 @@ impl<'a> Backward<'a> {
             &mut self.z,
             anchor_bar,
             pairs,
-            self.opts.contact_tolerance,
+            // Inside an implicit adjoint's fixed point the contact system needs only to be
+            // solved well below the fixed point's own tolerance.
+            if self.opts.mode == Mode::Implicit {
+                self.opts.contact_tolerance.max(INNER_FRACTION * self.implicit_tol)
+            } else {
+                self.opts.contact_tolerance
+            },
             self.opts.contact_max_sweeps,
             reuse,
         );
