@@ -133,10 +133,12 @@ def grad_batch(
     mode: str = "unrolled",
     allow_unconverged: bool = False,
 ) -> list[tuple[float, dict[str, float | _FloatArray]]]:
-    """``scene.grad`` for every parameter set of ``values``, in parallel on all cores."""
+    """``scene.grad`` for every parameter set of ``values``, in parallel on all cores (one set
+    per core, each single-threaded when the sets are at least as many as the cores)."""
 
 def simulate_batch(scene: Scene, steps: int, values: list[dict[str, _ParamValue]]) -> list[Run]:
-    """``scene.simulate`` for every parameter set of ``values``, in parallel on all cores."""
+    """``scene.simulate`` for every parameter set of ``values``, in parallel on all cores (one
+    set per core, each single-threaded when the sets are at least as many as the cores)."""
 
 def bounds(
     mesh: str | PathLike[str],
