@@ -58,10 +58,13 @@ pub(crate) struct Backward<'a> {
     pub(super) scratch_act: Vec<f64>,
     /// Implicit mode: free-numbered work vectors (the converged positions, the right-hand
     /// side, the previous fixed-point iterate, and conjugate gradients' `x, r, z, p, Hp, Ap`).
-    pub(super) implicit: [Vec<Vector3<f64>>; 9],
+    pub(super) implicit: [Vec<Vector3<f64>>; 10],
     /// Whether `implicit`'s conjugate-gradient slot holds the adjoint of the previous
     /// (later) step, the next solve's warm start.
     pub(super) implicit_warm: bool,
+    /// Whether the implicit work vectors' last slot holds the adjoint of the step two after
+    /// this one (conjugate gradients then start from the linear extrapolation of the two).
+    pub(super) implicit_older: bool,
     /// Implicit mode: Anderson mixing of the adjoint fixed point (empty in unrolled mode).
     pub(super) accel: Anderson,
     /// The step's activation adjoints (swapped with the gradient's row).
@@ -136,6 +139,7 @@ impl<'a> Backward<'a> {
                 }
             }),
             implicit_warm: false,
+            implicit_older: false,
             accel: Anderson::new(opts.implicit_anderson, if opts.mode == Mode::Implicit { nf } else { 0 }),
             act_grad: vec![0.0; groups],
             model,

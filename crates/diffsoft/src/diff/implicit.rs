@@ -33,7 +33,7 @@ pub(crate) fn fixed_point_converged(residual: f64, iterations: usize, step: usiz
 }
 
 /// The work vectors' slots in [`Backward::implicit`] (conjugate gradients' `r, z, p, Hp, Ap`
-/// follow `CG_X`).
+/// follow `CG_X`, then the adjoint of the step two after this one).
 const X_STAR: usize = 0;
 const XBAR0: usize = 1;
 const PREV: usize = 2;
@@ -128,7 +128,7 @@ impl Backward<'_> {
         inp: &StepInputs<'_>,
         contacts: &[crate::solver::free_contact::FreeContact],
         impulses: &[Vector3<f64>],
-        w: &mut [Vec<Vector3<f64>>; 9],
+        w: &mut [Vec<Vector3<f64>>; 10],
         g: &mut Gradient,
         step: usize,
     ) -> Result<(), DiffError> {
@@ -195,8 +195,9 @@ impl Backward<'_> {
             }
         };
         self.accel = accel;
-        // The next (earlier) step's solve, either kind, starts from this adjoint.
+        // The next (earlier) step's solve, either kind, starts from this adjoint alone.
         self.implicit_warm = result.is_ok();
+        self.implicit_older = false;
         if self.implicit_warm {
             w[CG_X].copy_from_slice(&self.z);
         }
@@ -241,18 +242,30 @@ impl Backward<'_> {
         model: &Model,
         q_next: &[Vector3<f64>],
         activations: &[f64],
-        w: &mut [Vec<Vector3<f64>>; 9],
+        w: &mut [Vec<Vector3<f64>>; 10],
     ) -> Result<Option<(usize, f64)>, DiffError> {
         let nf = self.nf;
         let bnorm = dot(&w[XBAR0], &w[XBAR0]).sqrt();
         if bnorm == 0.0 {
             w[CG_X].iter_mut().for_each(|x| *x = Vector3::zeros());
+            self.implicit_older = false;
             return Ok(Some((0, 0.0)));
         }
-        let [_, b, _, x, r, z, p, hp, ap] = w;
-        // Warm start from the adjoint of the step after this one (the backward pass runs
-        // backwards in time, and adjoints change smoothly from step to step): r = b - H x0.
+        let [_, b, _, x, r, z, p, hp, ap, older] = w;
+        // Warm start from the adjoints of the steps after this one (the backward pass runs
+        // backwards in time, and adjoints change smoothly from step to step): their linear
+        // extrapolation where there are two, r = b - H x0.
         if self.implicit_warm {
+            if self.implicit_older {
+                for (xk, ok) in x.iter_mut().zip(older.iter_mut()) {
+                    let last = *xk;
+                    *xk = last * 2.0 - *ok;
+                    *ok = last;
+                }
+            } else {
+                older.copy_from_slice(x);
+            }
+            self.implicit_older = true;
             self.sys.apply(x, ap);
             self.apply_k(model, q_next, activations, x)?;
             for (k, &v) in self.sys.free.iter().enumerate() {
@@ -264,6 +277,7 @@ impl Backward<'_> {
                 r.copy_from_slice(b);
             }
         } else {
+            self.implicit_older = false;
             x.iter_mut().for_each(|v| *v = Vector3::zeros());
             r.copy_from_slice(b);
         }
