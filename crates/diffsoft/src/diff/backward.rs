@@ -172,7 +172,9 @@ impl<'a> Backward<'a> {
     }
 
     /// `z = A^-T x_bar` with the contact correction (`impulse_bar`: a direct adjoint of the
-    /// impulses); anchors' adjoints into `anchor_bar`.
+    /// impulses); anchors' adjoints into `anchor_bar`. `reuse`: the contacts are the previous
+    /// call's (see [`ContactAdjoint::apply`]).
+    #[allow(clippy::too_many_arguments)]
     pub(super) fn solve_adjoint(
         &mut self,
         contacts: &[FreeContact],

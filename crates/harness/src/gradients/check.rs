@@ -84,7 +84,8 @@ pub fn check_group(case: &Case, group: &Group, g: &Gradient, seed: u64) -> Resul
     let d = case.direction(group, seed);
     let a = case.analytic(group, g, &d);
     // The sweep's forward runs are independent: they run on every core, each on one thread
-    // (their results do not depend on how many run at once).
+    // (their results do not depend on how many run at once; inside a task of `check_all` they
+    // run one after another).
     let sweep = steps_sweep();
     let tasks: Vec<pool::Task<'_, Result<f64, DiffError>>> = sweep
         .iter()
@@ -360,9 +361,30 @@ pub fn check_case(case: &Case, seed: u64) -> CaseCheck {
     out
 }
 
-/// Run the checks only (what `diffsoft gradcheck` does without the studies).
+/// Run the checks only (what `diffsoft gradcheck` does without the studies): the cases at once
+/// on every core, one thread each ([`pool::run`]; a case's sweep then runs on its own thread),
+/// the costliest first. Results are in case order.
 pub fn check_all(cases: &[Case], seed: u64) -> Vec<CaseCheck> {
-    cases.iter().map(|c| check_case(c, seed)).collect()
+    let mut order: Vec<usize> = (0..cases.len()).collect();
+    order.sort_by_key(|&k| (std::cmp::Reverse(case_cost(&cases[k])), k));
+    let tasks: Vec<pool::Task<'_, CaseCheck>> = order
+        .iter()
+        .map(|&k| -> pool::Task<'_, CaseCheck> { Box::new(move || check_case(&cases[k], seed)) })
+        .collect();
+    let mut checks: Vec<Option<CaseCheck>> = cases.iter().map(|_| None).collect();
+    for (&k, r) in order
+        .iter()
+        .zip(pool::run(tasks, rayon::current_num_threads(), &ProgressBar::hidden()))
+    {
+        checks[k] = Some(r.unwrap_or_else(|panic| panic!("the gradient check of {} panicked: {panic}", cases[k].name)));
+    }
+    checks.into_iter().flatten().collect()
+}
+
+/// A case's cost for ordering the checks: the vertex-steps of its forward runs (a sweep per
+/// group).
+fn case_cost(case: &Case) -> usize {
+    case.steps * case.model.n() * case.groups.len().max(1)
 }
 
 /// One line per case and mode (`diffsoft gradcheck`'s output): pass or fail, the worst entry

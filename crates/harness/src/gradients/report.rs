@@ -107,8 +107,27 @@ pub fn study(inp: &Inputs<'_>, out: &Path) -> Result<GradientsReport> {
         },
         inp.steps,
     )?;
-    let mut lap = Instant::now();
-    let checks = check_all(&cases, 2021);
+    let mut sys_case = bridgesus(inp.bridgesus, inp.sysid_steps)?;
+    sys_case.settings.max_iterations = 30;
+    sys_case.settings.damping = 0.9;
+    let sys_case = &sys_case;
+    // The checks and the two identifications are independent: they share the cores, each run
+    // on one thread ([`pool::both`]).
+    let lap = Instant::now();
+    let ((checks, checks_s), (identified, sysid_s)) = pool::both(
+        || (check_all(&cases, 2021), lap.elapsed().as_secs_f64()),
+        || {
+            let tasks: Vec<pool::Task<'_, Result<SysId, diffsoft::diff::DiffError>>> = [0.1, 10.0]
+                .into_iter()
+                .map(|factor| -> pool::Task<'_, Result<SysId, diffsoft::diff::DiffError>> {
+                    Box::new(move || sysid(sys_case, factor))
+                })
+                .collect();
+            let ids = pool::run(tasks, rayon::current_num_threads(), &indicatif::ProgressBar::hidden());
+            (ids, lap.elapsed().as_secs_f64())
+        },
+        rayon::current_num_threads(),
+    );
     for c in &checks {
         crate::say!(
             "  {:<16} {}",
@@ -127,24 +146,9 @@ pub fn study(inp: &Inputs<'_>, out: &Path) -> Result<GradientsReport> {
             }
         );
     }
-    let took = |what: &str, lap: &mut Instant| {
-        crate::say!("  ({what}: {:.1} s)", lap.elapsed().as_secs_f64());
-        *lap = Instant::now();
-    };
-    took("checks", &mut lap);
-    let mut sys_case = bridgesus(inp.bridgesus, inp.sysid_steps)?;
-    sys_case.settings.max_iterations = 30;
-    sys_case.settings.damping = 0.9;
+    crate::say!("  (checks: {checks_s:.1} s)");
     let mut ids = Vec::new();
-    // The two identifications are independent: one thread each, at once.
-    let sys_case = &sys_case;
-    let tasks: Vec<pool::Task<'_, Result<SysId, diffsoft::diff::DiffError>>> = [0.1, 10.0]
-        .into_iter()
-        .map(|factor| -> pool::Task<'_, Result<SysId, diffsoft::diff::DiffError>> {
-            Box::new(move || sysid(sys_case, factor))
-        })
-        .collect();
-    for r in pool::run(tasks, rayon::current_num_threads(), &indicatif::ProgressBar::hidden()) {
+    for r in identified {
         let s = r.map_err(|panic| anyhow::anyhow!("system identification panicked: {panic}"))??;
         crate::say!(
             "  sys-id bridgesus: E {:.4e} -> {:.6e} (true {:.4e}), {} L-BFGS iterations, {} evaluations, relative error {:.1e}, {:.1} s",
@@ -158,7 +162,12 @@ pub fn study(inp: &Inputs<'_>, out: &Path) -> Result<GradientsReport> {
         );
         ids.push(s);
     }
-    took("system identification", &mut lap);
+    crate::say!("  (system identification, alongside the checks: {sysid_s:.1} s)");
+    let took = |what: &str, lap: &mut Instant| {
+        crate::say!("  ({what}: {:.1} s)", lap.elapsed().as_secs_f64());
+        *lap = Instant::now();
+    };
+    let mut lap = Instant::now();
     let caps = [1, 2, 3, 5, 10, 20, 30, 50, 100];
     let mut costs = Vec::new();
     for c in [&cases[1], &cases[2]] {

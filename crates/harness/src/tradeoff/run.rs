@@ -4,9 +4,10 @@
 
 use std::collections::HashMap;
 use std::path::Path;
+use std::sync::LazyLock;
 use std::time::Instant;
 
-use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use indicatif::{MultiProgress, ProgressBar, ProgressDrawTarget, ProgressStyle};
 use nalgebra::Vector3;
 
 use super::report::{
@@ -14,7 +15,7 @@ use super::report::{
 };
 use super::trajectory::{self, advance, ErrorAcc};
 use super::{
-    reference_settings, scene, Family, SceneSummary, Setting, TradeoffError, TradeoffPartial, TradeoffSpec,
+    reference_settings, scene, Family, Knob, SceneSummary, Setting, TradeoffError, TradeoffPartial, TradeoffSpec,
     PARTIAL_SCHEMA,
 };
 use crate::pool::{self, Task};
@@ -51,11 +52,17 @@ struct Ctx<'a> {
     systems: Systems,
 }
 
+/// The progress bars of the sweeps running at once (one line each on a terminal).
+static BARS: LazyLock<MultiProgress> = LazyLock::new(MultiProgress::new);
+
 fn progress(len: usize, label: &str, show: bool) -> ProgressBar {
     let bar = ProgressBar::new(len as u64);
-    if !show || !std::io::IsTerminal::is_terminal(&std::io::stderr()) {
+    let bar = if !show || !std::io::IsTerminal::is_terminal(&std::io::stderr()) {
         bar.set_draw_target(ProgressDrawTarget::hidden());
-    }
+        bar
+    } else {
+        BARS.add(bar)
+    };
     bar.set_style(
         ProgressStyle::with_template("{prefix} {bar:40} {pos}/{len} runs {elapsed_precise} eta {eta}")
             .unwrap_or_else(|_| ProgressStyle::default_bar()),
@@ -347,6 +354,14 @@ fn run_row(ctx: &Ctx<'_>, refs: &HashMap<RefKey, RefStates>, index: usize, setti
     row
 }
 
+/// A setting's iteration cap (a tolerance's: the sweep's largest cap), for ordering the tasks.
+fn cap(spec: &TradeoffSpec, s: &Setting) -> usize {
+    match s.knob {
+        Knob::Cap(k) => k,
+        Knob::Tolerance(_) => spec.caps.iter().copied().max().unwrap_or(1),
+    }
+}
+
 /// Run shard `shard` of a sweep; scene files resolve against `base`; `workers` settings run at
 /// once; `show_progress` draws a progress bar on a terminal.
 pub fn run_shard(
@@ -410,7 +425,10 @@ pub fn run_shard(
         show_progress,
     );
     // Phase 1: reference trajectories and, alongside (they need no trajectory), the reference
-    // gradients; the longest tasks first.
+    // gradients; the longest tasks first (gradients, then the finest steps).
+    for keys in [&mut grad_divisors, &mut divisors] {
+        keys.sort_by_key(|&(_, d)| std::cmp::Reverse(d));
+    }
     enum First {
         Ref(Result<(Reference, RefStates), String>),
         Grad(GradientReference),
@@ -471,9 +489,10 @@ pub fn run_shard(
         divisor: spec.reference_divisor,
         message: "missing".into(),
     })?;
-    // Phase 2: the settings, larger step counts first so the last tasks are short.
+    // Phase 2: the settings, larger step counts and then larger iteration caps first so the
+    // last tasks are short (a step size's settings together: they share its system).
     let mut order: Vec<(usize, Setting)> = owned.clone();
-    order.sort_by_key(|(i, s)| (std::cmp::Reverse(s.dt_divisor), *i));
+    order.sort_by_key(|(i, s)| (std::cmp::Reverse((s.dt_divisor, cap(spec, s))), *i));
     let mut tasks: Vec<Task<'_, Row>> = Vec::new();
     for &(i, s) in &order {
         let (ctx, refs) = (&ctx, &refs);
@@ -508,6 +527,7 @@ pub fn run_shard(
         None
     };
     bar.finish_and_clear();
+    BARS.remove(&bar);
     rows.sort_by_key(|r| r.index);
     gradient_references.sort_by_key(|g| (g.integrator, g.dt_divisor));
     Ok(TradeoffPartial {
@@ -558,17 +578,27 @@ pub fn write_plots(s: &mut super::SceneTradeoff, dir: &Path) -> Result<(), Trade
     Ok(())
 }
 
-/// The main job's section: every sweep of the suite, `out/tradeoff.json` and the plots.
+/// The main job's section: every sweep of the suite, `out/tradeoff.json` and the plots. The
+/// sweeps run at once on shared cores ([`pool::concurrently`]: one sweep's phase tails overlap
+/// another's work, still one setting per core); their summaries print in suite order.
 pub fn suite_section(base: &Path, out: &Path, specs: &[TradeoffSpec]) -> Result<super::TradeoffReport, TradeoffError> {
     let workers = rayon::current_num_threads();
+    let jobs: Vec<Task<'_, _>> = specs
+        .iter()
+        .map(|spec| -> Task<'_, _> {
+            Box::new(move || {
+                let mut s = run_scene(spec, base, workers, true)?;
+                let plots = write_plots(&mut s, out);
+                Ok((s, plots))
+            })
+        })
+        .collect();
     let mut scenes = Vec::new();
     // Data before plots: a plot that cannot be drawn is reported after the report is written.
     let mut plots = Ok(());
-    for spec in specs {
-        let mut s = run_scene(spec, base, workers, true)?;
-        if let Err(e) = write_plots(&mut s, out) {
-            plots = plots.and(Err(e));
-        }
+    for r in pool::concurrently(jobs, workers) {
+        let (s, p): (super::SceneTradeoff, Result<(), TradeoffError>) = r?;
+        plots = plots.and(p);
         crate::say_raw!("{}", super::summary(&s));
         scenes.push(s);
     }
