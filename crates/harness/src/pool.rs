@@ -19,16 +19,7 @@ use indicatif::ProgressBar;
 /// A task.
 pub type Task<'a, T> = Box<dyn FnOnce() -> T + Send + 'a>;
 
-/// The text of a panic payload.
-pub fn panic_message(payload: &(dyn std::any::Any + Send)) -> String {
-    if let Some(s) = payload.downcast_ref::<&str>() {
-        (*s).to_string()
-    } else if let Some(s) = payload.downcast_ref::<String>() {
-        s.clone()
-    } else {
-        "panic with a non-text payload".into()
-    }
-}
+pub use diffsoft::base::tasks::panic_message;
 
 /// A budget of cores, handed out first come, first served (a ticket queue: a worker that
 /// finishes a task and asks again waits behind the ones already waiting).
