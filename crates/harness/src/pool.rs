@@ -1,7 +1,8 @@
-//! Running independent tasks on all cores, each single-threaded: `workers` OS threads each own a
-//! one-thread rayon pool (so the solver's parallel loops run serially inside a task) and take
-//! tasks from a shared queue. Exactly `workers` tasks run at a time, so a task's thread CPU time
-//! measures its own work, and its result does not depend on the number of workers.
+//! Running independent tasks on all cores, each single-threaded ([`diffsoft::base::tasks`]:
+//! `workers` OS threads each own a one-thread rayon pool, so the solver's parallel loops run
+//! serially inside a task, and take tasks from a shared queue). Exactly `workers` tasks run at a
+//! time, so a task's thread CPU time measures its own work, and its result does not depend on
+//! the number of workers.
 //!
 //! Several [`run`]s can share the cores: [`concurrently`] runs jobs (each a sequence of
 //! [`run`]s with a little work of its own in between) on threads of their own, which take the
@@ -9,17 +10,13 @@
 //! workers left idle) overlaps another job's work and still at most that many tasks run at once.
 
 use std::cell::RefCell;
-use std::panic::{catch_unwind, AssertUnwindSafe};
-use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Condvar, Mutex, MutexGuard, PoisonError};
 
 use diffsoft::base::cancel::{self, Cancel};
+use diffsoft::base::tasks;
 use indicatif::ProgressBar;
 
-/// A task.
-pub type Task<'a, T> = Box<dyn FnOnce() -> T + Send + 'a>;
-
-pub use diffsoft::base::tasks::panic_message;
+pub use diffsoft::base::tasks::{panic_message, Task};
 
 /// A budget of cores, handed out first come, first served (a ticket queue: a worker that
 /// finishes a task and asks again waits behind the ones already waiting).
@@ -124,52 +121,10 @@ fn budget(own: usize) -> (Arc<Cores>, bool) {
 /// `rayon::current_num_threads()` is 1, so `run(tasks, rayon::current_num_threads(), ..)` there
 /// runs its tasks one after another).
 pub fn run<'a, T: Send>(tasks: Vec<Task<'a, T>>, workers: usize, bar: &ProgressBar) -> Vec<Result<T, String>> {
-    let n = tasks.len();
-    let queue: Vec<Mutex<Option<Task<'a, T>>>> = tasks.into_iter().map(|t| Mutex::new(Some(t))).collect();
-    let results: Vec<Mutex<Option<Result<T, String>>>> = (0..n).map(|_| Mutex::new(None)).collect();
-    let next = AtomicUsize::new(0);
-    let workers = workers.clamp(1, n.max(1));
+    let workers = workers.clamp(1, tasks.len().max(1));
     let (cores, shared) = budget(workers);
     let _lent = shared.then(|| cores.lend());
-    // The caller's cancellation token reaches every task (they run on other threads).
-    let token = Cancel::current();
-    std::thread::scope(|scope| {
-        for _ in 0..workers {
-            scope.spawn(|| {
-                let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build();
-                loop {
-                    let _core = cores.hold();
-                    let i = next.fetch_add(1, Ordering::Relaxed);
-                    if i >= n {
-                        break;
-                    }
-                    let task = queue[i].lock().map(|mut g| g.take()).ok().flatten();
-                    let Some(task) = task else {
-                        continue;
-                    };
-                    let task = || cancel::within(token.as_ref(), task);
-                    let r = match &pool {
-                        Ok(p) => p.install(|| catch_unwind(AssertUnwindSafe(task))),
-                        Err(_) => catch_unwind(AssertUnwindSafe(task)),
-                    };
-                    let r = r.map_err(|p| panic_message(p.as_ref()));
-                    if let Ok(mut slot) = results[i].lock() {
-                        *slot = Some(r);
-                    }
-                    bar.inc(1);
-                }
-            });
-        }
-    });
-    results
-        .into_iter()
-        .map(|m| {
-            m.into_inner()
-                .ok()
-                .flatten()
-                .unwrap_or_else(|| Err("task did not run".into()))
-        })
-        .collect()
+    tasks::run_gated(tasks, workers, 1, &|| bar.inc(1), &|| cores.hold())
 }
 
 /// Run `jobs` at once, each on a thread of its own, sharing `cores` cores (at least 1): a job
@@ -224,6 +179,7 @@ pub fn both<'a, A: Send + 'a, B: Send + 'a>(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::sync::atomic::{AtomicUsize, Ordering};
 
     #[test]
     fn results_in_order_panics_reported_one_thread_each() {

@@ -51,6 +51,33 @@ fn run_pools<'a, T: Send>(
     threads_each: usize,
     done: &(dyn Fn() + Sync),
 ) -> Vec<Result<T, String>> {
+    run_gated(tasks, workers, threads_each, done, &|| ())
+}
+
+/// [`run`] with `threads_each` threads in each worker's pool, where a worker calls `gate()`
+/// before it takes each task and holds what it returns (a guard) until the task is done: a
+/// caller that shares a budget of cores among several runs makes the gate wait for a core.
+///
+/// ```
+/// use std::sync::atomic::{AtomicUsize, Ordering};
+/// use diffsoft::base::tasks::{run_gated, Task};
+///
+/// let gates = AtomicUsize::new(0);
+/// let tasks: Vec<Task<'_, usize>> = (0..3).map(|i| -> Task<'_, usize> { Box::new(move || i) }).collect();
+/// let out = run_gated(tasks, 2, 1, &|| {}, &|| {
+///     gates.fetch_add(1, Ordering::Relaxed);
+/// });
+/// assert_eq!(out, [Ok(0), Ok(1), Ok(2)]);
+/// // Once per task, and once more per worker that found the queue empty.
+/// assert!(gates.into_inner() >= 3);
+/// ```
+pub fn run_gated<'a, T: Send, G>(
+    tasks: Vec<Task<'a, T>>,
+    workers: usize,
+    threads_each: usize,
+    done: &(dyn Fn() + Sync),
+    gate: &(dyn Fn() -> G + Sync),
+) -> Vec<Result<T, String>> {
     let n = tasks.len();
     let queue: Vec<Mutex<Option<Task<'a, T>>>> = tasks.into_iter().map(|t| Mutex::new(Some(t))).collect();
     let results: Vec<Mutex<Option<Result<T, String>>>> = (0..n).map(|_| Mutex::new(None)).collect();
@@ -63,6 +90,7 @@ fn run_pools<'a, T: Send>(
             scope.spawn(|| {
                 let pool = rayon::ThreadPoolBuilder::new().num_threads(threads_each).build();
                 loop {
+                    let _gate = gate();
                     let i = next.fetch_add(1, Ordering::Relaxed);
                     if i >= n {
                         break;
