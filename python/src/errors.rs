@@ -181,9 +181,13 @@ pub fn diff(e: DiffError) -> PyErr {
         DiffError::Solver(s) => return solver(s),
         DiffError::Input(_) => Class::Input,
         DiffError::Unsupported(_) => Class::Unsupported,
-        DiffError::Unconverged { .. } | DiffError::CappedSolves { .. } | DiffError::NotReplayable { .. } => {
-            Class::Convergence
+        DiffError::Unconverged { .. } | DiffError::CappedSolves { .. } => {
+            // The library's advice ("allow unconverged steps explicitly"), as Python spells it.
+            return Class::Convergence.err(format!(
+                "{e} (allow_unconverged=True: Scene.grad/vjp, the batches, diffsoft.torch/jax.simulate)"
+            ));
         }
+        DiffError::NotReplayable { .. } => Class::Convergence,
         _ => Class::Simulation,
     };
     class.err(e.to_string())
