@@ -164,7 +164,7 @@ def test_jax_per_item_gradients_and_jacrev_equal_loops(beam):
     # And PyTorch's jacrev agrees.
     jt = torch.func.jacrev(
         lambda e: diffsoft.torch.simulate(beam, STEPS, {"youngs_modulus_per_tet": e})[-1, :2].reshape(-1)
-    )(torch.from_numpy(np.asarray(e_t)))
+    )(torch.from_numpy(np.array(e_t)))
     np.testing.assert_allclose(np.asarray(jac), jt.numpy(), rtol=1e-12, atol=1e-300)
 
 
