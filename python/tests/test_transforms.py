@@ -192,6 +192,10 @@ def test_jax_errors_carry_the_library_message(beam):
     with pytest.raises(diffsoft.InputError, match="mode 'fast'"):
         diffsoft.jax.simulate(beam, STEPS, {"youngs_modulus": jnp.asarray(2e4)}, mode="fast")
 
+    # A failure inside the callback (a divergence) is re-raised as diffsoft's own exception.
+    huge = np.random.default_rng(0).normal(size=(beam.n_vertices, 3)) * 1e200
+    with pytest.raises(diffsoft.DivergenceError, match="non-finite"):
+        diffsoft.jax.simulate(beam, STEPS, {"initial_velocities": jnp.asarray(huge)})
     # Under jit the values are known only inside the callback: the error still names them.
     @jax.jit
     def bad(e):
