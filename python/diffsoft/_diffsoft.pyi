@@ -64,7 +64,8 @@ class Scene:
     def configure(self, **settings: Any) -> None:
         """Change solver settings by their scene-file names (``solver``, ``tolerance``,
         ``max_iterations``, ``dt``, ``anderson``, ...), each checked as it is set; a call that
-        fails (``ValueError`` naming the setting) changes nothing."""
+        fails (``ValueError`` naming the setting, or ``SceneBusyError`` while a batch or
+        ``gradcheck`` on another thread reads the scene) changes nothing."""
     @property
     def settings(self) -> dict[str, Any]:
         """The solver settings."""

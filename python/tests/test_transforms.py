@@ -96,6 +96,23 @@ def test_torch_gradients_through_vmap_and_of_vmap(beam):
         assert float(per_item[k]) == pytest.approx(float(x.grad), rel=1e-12)
 
 
+def test_torch_gradient_of_an_unbatched_parameter_sums_over_the_vmap(beam):
+    v0 = torch.tensor(beam.get("initial_velocities"))
+    v0s = torch.stack([v0, 2 * v0, -v0])
+    e = torch.tensor(2e4, dtype=torch.float64, requires_grad=True)
+
+    def f(v, x):
+        return _loss(diffsoft.torch.simulate(beam, STEPS, {"initial_velocities": v, "youngs_modulus": x}))
+
+    torch.func.vmap(f, in_dims=(0, None))(v0s, e).sum().backward()
+    total = 0.0
+    for v in v0s:
+        x = torch.tensor(2e4, dtype=torch.float64, requires_grad=True)
+        f(v, x).backward()
+        total += float(x.grad)
+    assert float(e.grad) == pytest.approx(total, rel=1e-12)
+
+
 def test_torch_jacrev_equals_a_loop_of_backwards(beam):
     e_t = torch.linspace(1e4, 4e4, beam.n_tets, dtype=torch.float64)
 
@@ -196,6 +213,7 @@ def test_jax_errors_carry_the_library_message(beam):
     huge = np.random.default_rng(0).normal(size=(beam.n_vertices, 3)) * 1e200
     with pytest.raises(diffsoft.DivergenceError, match="non-finite"):
         diffsoft.jax.simulate(beam, STEPS, {"initial_velocities": jnp.asarray(huge)})
+
     # Under jit the values are known only inside the callback: the error still names them.
     @jax.jit
     def bad(e):
