@@ -62,9 +62,15 @@ def test_the_wrappers_warn_at_the_callers_line(loose, ground):
         warnings.simplefilter("always")
         line = _line() + 1
         diffsoft.torch.simulate(loose, 3, {"youngs_modulus": e})
+        jline = _line() + 1
         diffsoft.jax.simulate(loose, 3, {"youngs_modulus": jnp.asarray(1e20)})
-    assert [(w.category, w.filename, w.lineno) for w in caught][0] == (diffsoft.ConvergenceWarning, __file__, line)
-    assert len(caught) == 2 and caught[1].category is diffsoft.ConvergenceWarning
+        vline = _line() + 1
+        jax.jit(jax.vmap(lambda x: diffsoft.jax.simulate(loose, 3, {"youngs_modulus": x})))(jnp.asarray([1e20, 2e20]))
+    assert [(w.category, w.filename, w.lineno) for w in caught] == [
+        (diffsoft.ConvergenceWarning, __file__, line),
+        (diffsoft.ConvergenceWarning, __file__, jline),
+        (diffsoft.ConvergenceWarning, __file__, vline),
+    ]
 
     # Unrolled mode through steps that converged in one iteration: the backward's warning points
     # at the user's backward() and is shown once for a loop under the default filter.
