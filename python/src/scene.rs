@@ -362,10 +362,11 @@ fn busy<'py>(slf: &Bound<'py, Scene>, method: &str) -> PyResult<PyRefMut<'py, Sc
     })
 }
 
-/// A `UserWarning` at the caller's line ([`crate::warn`]) when unrolled mode went through steps that met the tolerance in their first
-/// iteration (their derivative is that one iteration's, not the converged step's; see
-/// `DiffStats::one_iteration_steps`), and one for each of `DiffStats::warnings` (steps at a
-/// kink of the loss, adjoint solves that stopped unconverged).
+/// A `UserWarning` at the caller's line ([`crate::warn`]) when unrolled mode went through
+/// steps that met the tolerance in their first iteration (their derivative is that one
+/// iteration's, not the converged step's; see `DiffStats::one_iteration_steps`), and one for
+/// each of `DiffStats::warnings` (steps at a kink of the loss, adjoint solves that stopped
+/// unconverged).
 pub(crate) fn warn_one_iteration(py: Python<'_>, mode: Mode, g: &diffsoft::Gradient, steps: usize) -> PyResult<()> {
     let warn = |message: String| crate::warn::user(py, &message);
     if mode == Mode::Unrolled && g.stats.one_iteration_steps > 0 {

@@ -1,8 +1,9 @@
 //! Python warnings raised at the caller's own line: frames of diffsoft's Python package and of
 //! the frameworks it wraps (PyTorch, JAX) are skipped, so a warning of
 //! `diffsoft.torch.simulate` or of a `backward()` points at the user's line, and Python's
-//! default filter shows it once per call site (the messages carry no counts, which would make
-//! every call's text new).
+//! default filter shows it once per call site (the bindings' own messages carry no counts,
+//! which would make every call's text new; the library's accuracy notes, `DiffStats::warnings`,
+//! do, and show again when their figures change).
 
 use pyo3::prelude::*;
 
