@@ -32,7 +32,13 @@ built-in it stands for, so ``except ValueError`` / ``OSError`` / ``RuntimeError`
 * ``FileError`` (``OSError``): a scene or mesh file that cannot be read;
 * ``SimulationError`` (``RuntimeError``): a run that failed (factorization, projections); its
   subclasses ``DivergenceError`` (divergence, a non-finite state) and ``ConvergenceError`` (a
-  gradient refused because the forward pass did not converge or its replay deviates).
+  gradient refused because the forward pass did not converge or its replay deviates);
+* ``SceneBusyError`` (``RuntimeError``): ``set``/``configure`` of a scene that a batch or
+  ``gradcheck`` on another thread is reading (``simulate``, ``grad`` and ``vjp`` run on a copy,
+  so a scene shared by threads is otherwise safe).
+
+Warnings: ``ConvergenceWarning`` (a ``UserWarning``) when a simulation's steps missed a positive
+tolerance, and ``UserWarning``s for gradients of limited accuracy; both at the caller's line.
 """
 
 from __future__ import annotations
@@ -50,14 +56,17 @@ from ._diffsoft import (
     gradcheck,
     jacobians,
     simulate_batch,
+    vjp_batch,
 )
 from ._errors import (
     ConvergenceError,
+    ConvergenceWarning,
     DiffsoftError,
     DivergenceError,
     FileError,
     InputError,
     OutOfMemoryError,
+    SceneBusyError,
     SimulationError,
     UncertifiedError,
     UnsupportedError,
@@ -73,6 +82,7 @@ __all__ = [
     "ARRAY_PARAMETERS",
     "SCALAR_PARAMETERS",
     "ConvergenceError",
+    "ConvergenceWarning",
     "DiffsoftError",
     "DivergenceError",
     "FileError",
@@ -80,6 +90,7 @@ __all__ = [
     "OutOfMemoryError",
     "Run",
     "Scene",
+    "SceneBusyError",
     "SimulationError",
     "UncertifiedError",
     "UnsupportedError",
@@ -89,6 +100,7 @@ __all__ = [
     "gradcheck",
     "jacobians",
     "simulate_batch",
+    "vjp_batch",
 ]
 
 

@@ -20,6 +20,7 @@ __all__ = [
     "jacobians",
     "scalar_parameters",
     "simulate_batch",
+    "vjp_batch",
 ]
 
 __version__: str
@@ -56,13 +57,15 @@ class Scene:
     def set(self, name: str, value: _ParamValue) -> None:
         """Set a scalar (``youngs_modulus``, ``gravity.y``, ...) or array parameter
         (``initial_positions``, ``youngs_modulus_per_tet``, ``activations``, ...): a name of
-        ``scalar_parameters()`` or ``array_parameters()``."""
+        ``scalar_parameters()`` or ``array_parameters()``. Raises ``SceneBusyError`` while a
+        batch or ``gradcheck`` on another thread reads the scene."""
     def get(self, name: str) -> float | _FloatArray | None:
         """A parameter's value (``None``: per-step controls that follow the schedules)."""
     def configure(self, **settings: Any) -> None:
         """Change solver settings by their scene-file names (``solver``, ``tolerance``,
         ``max_iterations``, ``dt``, ``anderson``, ...), each checked as it is set; a call that
-        fails (``ValueError`` naming the setting) changes nothing."""
+        fails (``ValueError`` naming the setting, or ``SceneBusyError`` while a batch or
+        ``gradcheck`` on another thread reads the scene) changes nothing."""
     @property
     def settings(self) -> dict[str, Any]:
         """The solver settings."""
@@ -98,7 +101,8 @@ class Scene:
     def copy(self) -> Scene: ...
     def simulate(self, steps: int) -> Run:
         """Simulate ``steps`` steps (raises ``DivergenceError``, a ``RuntimeError``, on
-        divergence or a non-finite state)."""
+        divergence or a non-finite state). Steps that stop at ``max_iterations`` before meeting
+        a positive tolerance raise a ``ConvergenceWarning`` at the caller's line."""
     def grad(
         self,
         steps: int,
@@ -138,7 +142,22 @@ def grad_batch(
 
 def simulate_batch(scene: Scene, steps: int, values: list[dict[str, _ParamValue]]) -> list[Run]:
     """``scene.simulate`` for every parameter set of ``values``, in parallel on all cores (one
-    set per core, each single-threaded when the sets are at least as many as the cores)."""
+    set per core, each single-threaded when the sets are at least as many as the cores); one
+    ``ConvergenceWarning`` if any run missed a positive tolerance."""
+
+def vjp_batch(
+    scene: Scene,
+    steps: int,
+    params: list[str],
+    values: list[dict[str, _ParamValue]],
+    cotangents: list[npt.ArrayLike],
+    velocity_cotangents: list[npt.ArrayLike | None] | None = None,
+    mode: str = "unrolled",
+    allow_unconverged: bool = False,
+) -> list[dict[str, float | _FloatArray]]:
+    """``scene.vjp`` for every item, in parallel like ``grad_batch``: ``values[k]`` sets
+    parameters on a copy of ``scene`` and ``cotangents[k]`` (``(steps + 1, n, 3)``, with
+    ``velocity_cotangents[k]`` if given) pairs with its trajectory."""
 
 def bounds(
     mesh: str | PathLike[str],

@@ -10,9 +10,12 @@ still catch them::
     |   |-- UncertifiedError
     |   `-- OutOfMemoryError(InputError, MemoryError)
     |-- FileError(DiffsoftError, OSError)
-    `-- SimulationError(DiffsoftError, RuntimeError)
-        |-- DivergenceError
-        `-- ConvergenceError
+    |-- SimulationError(DiffsoftError, RuntimeError)
+    |   |-- DivergenceError
+    |   `-- ConvergenceError
+    `-- SceneBusyError(DiffsoftError, RuntimeError)
+
+and one warning, ``ConvergenceWarning(UserWarning)``.
 
 The native module raises them (``python/src/errors.rs`` maps each of the library's error
 variants to the most specific class); the message is the library's, naming the file, line,
@@ -23,11 +26,13 @@ from __future__ import annotations
 
 __all__ = [
     "ConvergenceError",
+    "ConvergenceWarning",
     "DiffsoftError",
     "DivergenceError",
     "FileError",
     "InputError",
     "OutOfMemoryError",
+    "SceneBusyError",
     "SimulationError",
     "UncertifiedError",
     "UnsupportedError",
@@ -83,6 +88,19 @@ class ConvergenceError(SimulationError):
     deviates from the forward pass."""
 
 
+class SceneBusyError(DiffsoftError, RuntimeError):
+    """``Scene.set`` or ``Scene.configure`` on a scene that a call running on another thread is
+    reading (a batch, ``gradcheck``). ``simulate``, ``grad`` and ``vjp`` run on a copy and never
+    cause it; change a copy (``Scene.copy()``) or wait for the call to return."""
+
+
+class ConvergenceWarning(UserWarning):
+    """A simulation whose steps stopped at ``max_iterations`` before meeting the solver's
+    tolerance (``Run.stats["unconverged_steps"]`` counts them). Raised at the caller's line,
+    once per call site under Python's default filter; a gradient through such a run raises
+    ``ConvergenceError`` unless ``allow_unconverged=True``."""
+
+
 # Shown (tracebacks, reprs) and pickled as `diffsoft.X`, where the package exports them.
 for _cls in (
     DiffsoftError,
@@ -94,6 +112,8 @@ for _cls in (
     SimulationError,
     DivergenceError,
     ConvergenceError,
+    SceneBusyError,
+    ConvergenceWarning,
 ):
     _cls.__module__ = "diffsoft"
 del _cls

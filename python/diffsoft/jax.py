@@ -1,30 +1,47 @@
 """JAX autodiff through diffsoft simulations (``jax.custom_vjp``).
 
 ``simulate(scene, steps, params)`` returns the positions of every state, shape
-``(steps + 1, n, 3)``, as a JAX array that ``jax.grad``/``jax.vjp`` differentiate with respect
-to every entry of ``params`` (any parameter of ``diffsoft.SCALAR_PARAMETERS`` or
-``diffsoft.ARRAY_PARAMETERS``). The simulation runs on the host through
-``jax.pure_callback``, so it also works under ``jax.jit``. Enable 64-bit floats
-(``jax.config.update("jax_enable_x64", True)``) to keep diffsoft's double precision; without
-them results are rounded to float32.
+``(steps + 1, n, 3)``, as a JAX array that ``jax.grad``/``jax.vjp``/``jax.jacrev`` differentiate
+with respect to every entry of ``params`` (any parameter of ``diffsoft.SCALAR_PARAMETERS`` or
+``diffsoft.ARRAY_PARAMETERS``). The simulation runs on the host (CPU, float64) through
+``jax.pure_callback``, so it also works under ``jax.jit``; under ``jax.vmap`` the callbacks
+receive the whole batch and run ``diffsoft.simulate_batch`` / ``diffsoft.vjp_batch`` (the items
+in parallel). Enable 64-bit floats (``jax.config.update("jax_enable_x64", True)``) to keep
+diffsoft's double precision; without them results are rounded to float32.
+
+Errors: parameters, shapes, values and the mode are checked before the callback where their
+values are known (outside ``jit``), raising diffsoft's own exceptions; an error inside a
+callback is re-raised as diffsoft's exception where JAX runs it at once (outside ``jit``), and
+under ``jit`` JAX's ``JaxRuntimeError`` carries its message. Second derivatives and forward mode
+(``jax.hessian``, ``jacfwd``, ``grad`` of ``grad``) raise ``NotImplementedError``.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
+from typing import Any, Callable
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._diffsoft import Scene, scalar_parameters
+from ._diffsoft import Scene, scalar_parameters, simulate_batch, vjp_batch
+from ._errors import InputError
 
 _SCALARS = frozenset(scalar_parameters())
 
 __all__ = ["simulate"]
 
+_SECOND = (
+    "second derivatives and forward mode through diffsoft are not implemented (jax.hessian, jacfwd, "
+    "jvp, grad of grad: its backward pass is diffsoft's own reverse mode, not JAX operations): use "
+    "jax.grad/jacrev, and for second derivatives take finite differences of first derivatives "
+    "(check those with diffsoft.gradcheck)"
+)
 
-def _configured(scene: Scene, names, values) -> Scene:
+
+def _configured(scene: Scene, names: tuple[str, ...], values: Any) -> Scene:
     s = scene.copy()
     # Scalars first, so a per-tet array in the same dict overrides its scalar whatever the
     # dict's order (the forward does not depend on it).
@@ -34,41 +51,161 @@ def _configured(scene: Scene, names, values) -> Scene:
     return s
 
 
+def _validate(scene: Scene, steps: int, names: tuple[str, ...], values: tuple[Any, ...], mode: str) -> None:
+    """Diffsoft's own errors before any callback: the mode and steps, and every parameter set
+    on a copy of the scene (its value where known, else the shape of its current value)."""
+    if mode not in ("unrolled", "implicit"):
+        raise InputError(f"mode '{mode}': expected 'unrolled' or 'implicit'")
+    if steps < 1:
+        raise InputError("steps must be at least 1")
+    known = [not isinstance(v, jax.core.Tracer) for v in values]
+    s = scene.copy()
+    for name, v, k in sorted(zip(names, values, known), key=lambda p: p[0] not in _SCALARS):
+        if k:
+            a = np.asarray(v, dtype=np.float64)
+            s.set(name, float(a) if a.ndim == 0 else a)
+            continue
+        current = s.get(name)  # an unknown name raises here
+        if current is not None and np.shape(current) != jnp.shape(v):
+            raise InputError(f"{name}: shape {jnp.shape(v)}, expected {np.shape(current)}")
+
+
+def _leading(arrays: tuple[Any, ...], shapes: tuple[tuple[int, ...], ...]) -> tuple[int, ...]:
+    """The batch dims a vmapped callback's arrays have in front of one item's shape."""
+    for a, s in zip(arrays, shapes):
+        return tuple(np.shape(a)[: np.ndim(a) - len(s)])
+    return ()
+
+
+def _flat(a: Any, shape: tuple[int, ...], count: int) -> np.ndarray:
+    return np.asarray(a, dtype=np.float64).reshape(count, *shape)
+
+
+def _item(a: np.ndarray) -> Any:
+    return float(a) if a.ndim == 0 else a
+
+
 def simulate(
     scene: Scene,
     steps: int,
-    params: Mapping[str, jax.Array] | None = None,
+    params: Mapping[str, Any] | None = None,
     mode: str = "unrolled",
-) -> jax.Array:
+    with_velocities: bool = False,
+    allow_unconverged: bool = False,
+) -> Any:
     """Positions of every state, ``(steps + 1, n, 3)``, differentiable in ``params``.
 
     ``params`` maps parameter names to arrays (scalars for scalar parameters); ``scene`` itself
-    is not modified. ``mode`` is ``"unrolled"`` or ``"implicit"``.
+    is not modified. ``mode`` is ``"unrolled"`` or ``"implicit"``. With ``with_velocities``,
+    returns ``(positions, velocities)``. A forward whose steps miss a positive tolerance warns
+    (``ConvergenceWarning``) and its gradient raises ``ConvergenceError`` unless
+    ``allow_unconverged``.
     """
     params = dict(params or {})
     names = tuple(params)
     dtype = jnp.result_type(float)
-    out = jax.ShapeDtypeStruct((steps + 1, scene.n_vertices, 3), dtype)
+    values = tuple(jnp.asarray(params[n], dtype=dtype) for n in names)
+    _validate(scene, steps, names, values, mode)
+    shapes = tuple(tuple(jnp.shape(v)) for v in values)
+    traj = (steps + 1, scene.n_vertices, 3)
+    spec = jax.ShapeDtypeStruct(traj, dtype)
+    out = (spec, spec) if with_velocities else spec
+    failures: list[BaseException] = []
 
-    def forward_host(*values):
-        return np.asarray(_configured(scene, names, values).simulate(steps).positions, dtype=dtype)
+    def kept(host: Callable[..., Any]) -> Callable[..., Any]:
+        # JAX wraps a callback's exception in an INTERNAL JaxRuntimeError; keep the original
+        # to re-raise where the call returns to this module.
+        def run_host(*args: Any) -> Any:
+            try:
+                return host(*args)
+            except Exception as e:
+                failures.append(e)
+                raise
 
-    def backward_host(cotangent, *values):
-        g = _configured(scene, names, values).vjp(
-            steps, params=list(names), cotangent=np.asarray(cotangent, dtype=np.float64), mode=mode
+        return run_host
+
+    def items(args: tuple[Any, ...], lead: tuple[int, ...]) -> list[dict[str, Any]]:
+        count = math.prod(lead)
+        flat = [_flat(a, s, count) for a, s in zip(args, shapes)]
+        return [{n: _item(f[k]) for n, f in zip(names, flat)} for k in range(count)]
+
+    def forward_host(*args: Any) -> Any:
+        lead = _leading(args, shapes)
+        if lead == ():
+            run = _configured(scene, names, args).simulate(steps)
+            q, v = run.positions, run.velocities
+        else:
+            runs = simulate_batch(scene, steps, items(args, lead))
+            q = np.stack([r.positions for r in runs]).reshape(*lead, *traj)
+            v = np.stack([r.velocities for r in runs]).reshape(*lead, *traj)
+        if with_velocities:
+            return np.asarray(q, dtype=dtype), np.asarray(v, dtype=dtype)
+        return np.asarray(q, dtype=dtype)
+
+    def backward_host(cq: Any, cv: Any, *args: Any) -> Any:
+        lead = _leading((cq,), (traj,))
+        if lead == ():
+            g = _configured(scene, names, [_flat(a, s, 1)[0] for a, s in zip(args, shapes)]).vjp(
+                steps,
+                params=list(names),
+                cotangent=np.asarray(cq, dtype=np.float64),
+                velocity_cotangent=None if cv is None else np.asarray(cv, dtype=np.float64),
+                mode=mode,
+                allow_unconverged=allow_unconverged,
+            )
+            return tuple(np.asarray(g[n], dtype=dtype).reshape(s) for n, s in zip(names, shapes))
+        count = math.prod(lead)
+        # Parameters the vmap did not batch come with the batch broadcast in front.
+        wide = tuple(np.broadcast_to(np.asarray(a), (*lead, *s)) for a, s in zip(args, shapes))
+        gs = vjp_batch(
+            scene,
+            steps,
+            list(names),
+            items(wide, lead),
+            list(_flat(cq, traj, count)),
+            None if cv is None else list(_flat(cv, traj, count)),
+            mode=mode,
+            allow_unconverged=allow_unconverged,
         )
-        return tuple(np.asarray(g[n], dtype=dtype).reshape(np.shape(v)) for n, v in zip(names, values))
+        return tuple(
+            np.stack([np.asarray(g[n], dtype=dtype) for g in gs]).reshape(*lead, *s) for n, s in zip(names, shapes)
+        )
+
+    def call(host: Callable[..., Any], result: Any, *args: Any) -> Any:
+        try:
+            return jax.pure_callback(kept(host), result, *args, vmap_method="broadcast_all")
+        except jax.errors.JaxRuntimeError:
+            if failures:
+                raise failures[-1] from None
+            raise
+
+    @jax.custom_jvp
+    def gradients(cq: Any, cv: Any, *vals: Any) -> Any:
+        specs = tuple(jax.ShapeDtypeStruct(s, dtype) for s in shapes)
+        if cv is None:
+            return call(lambda q, *a: backward_host(q, None, *a), specs, cq, *vals)
+        return call(backward_host, specs, cq, cv, *vals)
+
+    @gradients.defjvp
+    def gradients_jvp(primals: Any, tangents: Any) -> Any:
+        raise NotImplementedError(_SECOND)
 
     @jax.custom_vjp
-    def run(*values):
-        return jax.pure_callback(forward_host, out, *values)
+    def run(*vals: Any) -> Any:
+        return call(forward_host, out, *vals)
 
-    def run_fwd(*values):
-        return run(*values), values
+    def run_fwd(*vals: Any) -> Any:
+        return run(*vals), vals
 
-    def run_bwd(values, cotangent):
-        specs = tuple(jax.ShapeDtypeStruct(jnp.shape(v), dtype) for v in values)
-        return tuple(jax.pure_callback(backward_host, specs, cotangent, *values))
+    def run_bwd(vals: Any, cot: Any) -> Any:
+        cq, cv = cot if with_velocities else (cot, None)
+        return tuple(gradients(cq, cv, *vals))
 
     run.defvjp(run_fwd, run_bwd)
-    return run(*(jnp.asarray(params[n], dtype=dtype) for n in names))
+    try:
+        return run(*values)
+    except TypeError as e:
+        # jax.jvp/jacfwd/hessian of a custom_vjp function.
+        if "custom_vjp" in str(e):
+            raise NotImplementedError(_SECOND) from e
+        raise

@@ -1,26 +1,65 @@
 """PyTorch autograd through diffsoft simulations.
 
-``simulate(scene, steps, params)`` returns the positions of every state as a float64 tensor of
-shape ``(steps + 1, n, 3)``; it is differentiable with respect to every tensor in ``params``
-(any parameter of ``diffsoft.SCALAR_PARAMETERS`` or ``diffsoft.ARRAY_PARAMETERS``). The
-backward pass is diffsoft's own reverse mode (``Scene.vjp``) with the incoming gradient as a
-cotangent on the trajectory, so any loss written in PyTorch differentiates through the
-simulation. It reruns the forward pass from the parameters (checkpointing: memory is one state
-per step).
+``simulate(scene, steps, params)`` returns the positions of every state as a tensor of shape
+``(steps + 1, n, 3)``; it is differentiable with respect to every tensor in ``params`` (any
+parameter of ``diffsoft.SCALAR_PARAMETERS`` or ``diffsoft.ARRAY_PARAMETERS``). The backward pass
+is diffsoft's own reverse mode (``Scene.vjp``) with the incoming gradient as a cotangent on the
+trajectory, so any loss written in PyTorch differentiates through the simulation. It reruns the
+forward pass from the parameters (checkpointing: memory is one state per step).
+
+Devices and dtypes: the simulation runs on the CPU in float64 whatever the inputs; the output
+comes back on the device of the parameter tensors (all must share one) and in their promoted
+floating dtype (float64 when a parameter is float64 or none is a tensor), and the gradients in
+each parameter's own device and dtype.
+
+Transforms: ``torch.func.vmap`` maps to ``diffsoft.simulate_batch`` (and the backward to
+``diffsoft.vjp_batch``), so ``vmap``, ``jacrev`` and ``vmap(grad(...))`` run their items in
+parallel. Second derivatives and forward mode (``jvp``, ``jacfwd``, ``hessian``, double
+backward) raise ``NotImplementedError``.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import torch
 
-from ._diffsoft import Scene, scalar_parameters
+from ._diffsoft import Scene, scalar_parameters, simulate_batch, vjp_batch
+from ._errors import InputError
 
 _SCALARS = frozenset(scalar_parameters())
 
 __all__ = ["simulate"]
+
+_SECOND = (
+    "second derivatives through diffsoft are not implemented (its backward pass is diffsoft's own "
+    "reverse mode, not PyTorch operations): take finite differences of first derivatives, and "
+    "check those with torch.autograd.gradcheck or diffsoft.gradcheck"
+)
+_FORWARD_MODE = (
+    "forward-mode differentiation (torch.func.jvp, jacfwd, hessian) through diffsoft is not "
+    "implemented: use reverse mode (backward, torch.func.vjp, jacrev)"
+)
+
+
+@dataclass(frozen=True)
+class _Call:
+    """Everything of a call but its tensors (the non-tensor argument of the functions)."""
+
+    scene: Scene
+    steps: int
+    names: tuple[str, ...]
+    mode: str
+    with_velocities: bool
+    allow_unconverged: bool
+    device: torch.device
+    dtype: torch.dtype
+
+    def output(self, a: np.ndarray) -> torch.Tensor:
+        return torch.from_numpy(np.ascontiguousarray(a)).to(device=self.device, dtype=self.dtype)
 
 
 def _numpy(t: torch.Tensor) -> np.ndarray | float:
@@ -37,57 +76,180 @@ def _configured(scene: Scene, names: tuple[str, ...], tensors: tuple[torch.Tenso
     return s
 
 
-class _Simulate(torch.autograd.Function):
-    @staticmethod
-    def forward(ctx, scene, steps, names, mode, with_velocities, *tensors):
-        s = _configured(scene, names, tensors)
-        run = s.simulate(steps)
-        ctx.scene, ctx.steps, ctx.names, ctx.mode = s, steps, names, mode
-        ctx.with_velocities = with_velocities
-        ctx.inputs = [(t.dtype, t.device, t.shape) for t in tensors]
-        q = torch.from_numpy(run.positions)
-        if with_velocities:
-            return q, torch.from_numpy(run.velocities)
-        return q
+def _items(names: tuple[str, ...], tensors: tuple[torch.Tensor, ...], batch: int) -> list[dict[str, Any]]:
+    """One parameter dict per item of a batch (every tensor has the batch as its first dim)."""
+    return [{n: _numpy(t[k]) for n, t in zip(names, tensors)} for k in range(batch)]
+
+
+def _rebatched(info: Any, in_dims: tuple[int | None, ...], batch: int | None, tensors: tuple[Any, ...]):
+    """The tensors of a vmap level folded into one batch: each gets the level's dim first
+    (broadcast where it has none), and an inner batch folds into it. Returns the tensors and
+    the new batch size (``None`` entries stay ``None``)."""
+    size = info.batch_size
+    out: list[Any] = []
+    for t, d in zip(tensors, in_dims):
+        if t is None:
+            out.append(None)
+            continue
+        t = t.unsqueeze(0).expand(size, *t.shape) if d is None else t.movedim(d, 0)
+        if batch is not None:
+            t = t.reshape(size * batch, *t.shape[2:])
+        out.append(t)
+    return tuple(out), size * (batch or 1)
+
+
+def _unfolded(info: Any, batch: int | None, t: torch.Tensor) -> torch.Tensor:
+    return t if batch is None else t.reshape(info.batch_size, batch, *t.shape[1:])
+
+
+class _Forward(torch.autograd.Function):
+    """The trajectory of one parameter set (``batch`` None) or of a batch of them (every tensor
+    with the batch as its first dim)."""
 
     @staticmethod
-    def backward(ctx, *outs):
+    def forward(call: _Call, batch: int | None, *tensors: torch.Tensor) -> Any:
+        if batch is None:
+            run = _configured(call.scene, call.names, tensors).simulate(call.steps)
+            q, v = run.positions, run.velocities
+        else:
+            runs = simulate_batch(call.scene, call.steps, _items(call.names, tensors, batch))
+            q = np.stack([r.positions for r in runs])
+            v = np.stack([r.velocities for r in runs])
+        if call.with_velocities:
+            return call.output(q), call.output(v)
+        return call.output(q)
+
+    @staticmethod
+    def setup_context(ctx: Any, inputs: tuple[Any, ...], output: Any) -> None:
+        call, batch, *tensors = inputs
+        ctx.call, ctx.batch = call, batch
+        ctx.save_for_backward(*tensors)
+
+    @staticmethod
+    def backward(ctx: Any, *outs: torch.Tensor) -> Any:
+        call: _Call = ctx.call
+        tensors = ctx.saved_tensors
+        needed = ctx.needs_input_grad[2:]
+        if not any(needed):
+            return (None, None) + (None,) * len(tensors)
         cq = outs[0]
-        cv = outs[1] if ctx.with_velocities else None
-        zeros = (None,) * 5
-        if not any(ctx.needs_input_grad[5:]):
-            return zeros + (None,) * len(ctx.inputs)
-        g = ctx.scene.vjp(
-            ctx.steps,
-            params=list(ctx.names),
-            cotangent=cq.detach().to("cpu", torch.float64).numpy(),
-            velocity_cotangent=None if cv is None else cv.detach().to("cpu", torch.float64).numpy(),
-            mode=ctx.mode,
+        cv = outs[1] if call.with_velocities else None
+        grads = _Backward.apply(call, ctx.batch, cq, cv, *tensors)
+        return (None, None) + tuple(g if n else None for g, n in zip(grads, needed))
+
+    @staticmethod
+    def vmap(info: Any, in_dims: tuple[int | None, ...], call: _Call, batch: int | None, *tensors: torch.Tensor):
+        folded, size = _rebatched(info, in_dims[2:], batch, tensors)
+        out = _Forward.apply(call, size, *folded)
+        if call.with_velocities:
+            return (_unfolded(info, batch, out[0]), _unfolded(info, batch, out[1])), (0, 0)
+        return _unfolded(info, batch, out), 0
+
+    @staticmethod
+    def jvp(ctx: Any, *tangents: Any) -> Any:
+        raise NotImplementedError(_FORWARD_MODE)
+
+
+class _Backward(torch.autograd.Function):
+    """The gradients of the pairing of cotangents ``cq`` (positions) and ``cv`` (velocities,
+    or None) with the trajectory, one per tensor: ``Scene.vjp`` or ``vjp_batch``."""
+
+    @staticmethod
+    def forward(
+        call: _Call, batch: int | None, cq: torch.Tensor, cv: torch.Tensor | None, *tensors: torch.Tensor
+    ) -> Any:
+        if batch is None:
+            g = _configured(call.scene, call.names, tensors).vjp(
+                call.steps,
+                params=list(call.names),
+                cotangent=_numpy(cq),
+                velocity_cotangent=None if cv is None else _numpy(cv),
+                mode=call.mode,
+                allow_unconverged=call.allow_unconverged,
+            )
+            values = [np.asarray(g[n]) for n in call.names]
+        else:
+            gs = vjp_batch(
+                call.scene,
+                call.steps,
+                list(call.names),
+                _items(call.names, tensors, batch),
+                [_numpy(cq[k]) for k in range(batch)],
+                None if cv is None else [_numpy(cv[k]) for k in range(batch)],
+                mode=call.mode,
+                allow_unconverged=call.allow_unconverged,
+            )
+            values = [np.stack([np.asarray(g[n]) for g in gs]) for n in call.names]
+        return tuple(
+            torch.as_tensor(a, dtype=t.dtype, device=t.device).reshape(t.shape) for a, t in zip(values, tensors)
         )
-        grads: list[torch.Tensor | None] = []
-        for name, (dtype, device, shape), needed in zip(ctx.names, ctx.inputs, ctx.needs_input_grad[5:]):
-            if not needed:
-                grads.append(None)
-                continue
-            grads.append(torch.as_tensor(np.asarray(g[name]), dtype=dtype, device=device).reshape(shape))
-        return zeros + tuple(grads)
+
+    @staticmethod
+    def setup_context(ctx: Any, inputs: tuple[Any, ...], output: Any) -> None:
+        pass
+
+    @staticmethod
+    def backward(ctx: Any, *grads: Any) -> Any:
+        raise NotImplementedError(_SECOND)
+
+    @staticmethod
+    def vmap(
+        info: Any,
+        in_dims: tuple[int | None, ...],
+        call: _Call,
+        batch: int | None,
+        cq: torch.Tensor,
+        cv: torch.Tensor | None,
+        *tensors: torch.Tensor,
+    ):
+        folded, size = _rebatched(info, in_dims[2:], batch, (cq, cv, *tensors))
+        grads = _Backward.apply(call, size, *folded)
+        return tuple(_unfolded(info, batch, g) for g in grads), (0,) * len(grads)
+
+    @staticmethod
+    def jvp(ctx: Any, *tangents: Any) -> Any:
+        raise NotImplementedError(_SECOND)
+
+
+def _placement(names: tuple[str, ...], tensors: tuple[torch.Tensor, ...]) -> tuple[torch.device, torch.dtype]:
+    """The device and dtype of the output (see the module docs)."""
+    devices = {t.device for t in tensors}
+    if len(devices) > 1:
+        where = ", ".join(f"{n} on {t.device}" for n, t in zip(names, tensors))
+        raise InputError(f"diffsoft.torch.simulate: parameters on different devices ({where}); put them on one")
+    device = devices.pop() if devices else torch.device("cpu")
+    dtype = torch.float64
+    floats = [t.dtype for t in tensors if t.is_floating_point()]
+    if floats and len(floats) == len(tensors):
+        dtype = floats[0]
+        for d in floats[1:]:
+            dtype = torch.promote_types(dtype, d)
+    return device, dtype
 
 
 def simulate(
     scene: Scene,
     steps: int,
-    params: Mapping[str, torch.Tensor] | None = None,
+    params: Mapping[str, torch.Tensor | float] | None = None,
     mode: str = "unrolled",
     with_velocities: bool = False,
+    allow_unconverged: bool = False,
 ) -> torch.Tensor | tuple[torch.Tensor, torch.Tensor]:
-    """Positions of every state, ``(steps + 1, n, 3)`` float64, differentiable in ``params``.
+    """Positions of every state, ``(steps + 1, n, 3)``, differentiable in ``params``.
 
     ``params`` maps parameter names to tensors (0-d for scalars, the documented shapes for
-    arrays); ``scene`` itself is not modified. ``mode`` is ``"unrolled"`` (exact for the
-    solver's iterations) or ``"implicit"`` (exact at convergence). With ``with_velocities``,
-    returns ``(positions, velocities)``.
+    arrays; numbers are float64 tensors); ``scene`` itself is not modified. ``mode`` is
+    ``"unrolled"`` (exact for the solver's iterations) or ``"implicit"`` (exact at
+    convergence). With ``with_velocities``, returns ``(positions, velocities)``. The output is
+    on the parameters' device in their promoted floating dtype (module docs). A forward whose
+    steps miss a positive tolerance warns (``ConvergenceWarning``) and its backward raises
+    ``ConvergenceError`` unless ``allow_unconverged``.
     """
     params = dict(params or {})
     names = tuple(params)
-    tensors = tuple(torch.as_tensor(params[n]) for n in names)
-    return _Simulate.apply(scene, steps, names, mode, with_velocities, *tensors)
+    tensors = tuple(
+        v if isinstance(v, torch.Tensor) else torch.as_tensor(v, dtype=torch.float64) for v in params.values()
+    )
+    device, dtype = _placement(names, tensors)
+    call = _Call(scene, steps, names, mode, with_velocities, allow_unconverged, device, dtype)
+    return _Forward.apply(call, None, *tensors)

@@ -10,7 +10,8 @@ use crate::interrupt;
 use crate::run::Run;
 use crate::scene::{self, Scene};
 
-fn scenes(base: &Scene, values: &[Bound<'_, PyDict>]) -> PyResult<Vec<Scene>> {
+/// A copy of `base` for every parameter set of `values` (errors name the set's index).
+pub(crate) fn scenes(base: &Scene, values: &[Bound<'_, PyDict>]) -> PyResult<Vec<Scene>> {
     values
         .iter()
         .enumerate()
@@ -57,7 +58,8 @@ pub fn grad_batch<'py>(
         .collect()
 }
 
-/// `[Run]`, one per dict of `values` (each sets parameters on a copy of `scene`).
+/// `[Run]`, one per dict of `values` (each sets parameters on a copy of `scene`); one
+/// `ConvergenceWarning` if any run has steps that missed a positive tolerance.
 #[pyfunction]
 pub fn simulate_batch<'py>(
     py: Python<'py>,
@@ -66,14 +68,24 @@ pub fn simulate_batch<'py>(
     values: Vec<Bound<'py, PyDict>>,
 ) -> PyResult<Vec<Run>> {
     let runs = scenes(scene, &values)?;
+    let mut unconverged = false;
     let results: Vec<PyResult<diffsoft::diff::Rollout>> = interrupt::run(py, || {
         tasks::map_each(&runs, |s| s.rollout(steps))
             .into_iter()
             .map(|r| r.unwrap_or_else(|panic| Err(crate::errors::panicked(panic))))
             .collect()
     })?;
-    runs.iter()
+    let runs: Vec<Run> = runs
+        .iter()
         .zip(results)
-        .map(|(s, r)| Run::new(py, r?, &s.inner.settings))
-        .collect()
+        .map(|(s, r)| {
+            let r = r?;
+            unconverged |= s.inner.settings.tolerance > 0.0 && r.unconverged_steps() > 0;
+            Run::new(py, r, &s.inner.settings)
+        })
+        .collect::<PyResult<_>>()?;
+    if unconverged {
+        crate::warn::unconverged(py)?;
+    }
+    Ok(runs)
 }

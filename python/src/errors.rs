@@ -9,7 +9,9 @@
 //! * a file that cannot be read is a `FileError` (`OSError`);
 //! * a run that fails is a `SimulationError` (`RuntimeError`): a `DivergenceError` for
 //!   divergence and non-finite states, a `ConvergenceError` for a gradient refused because the
-//!   forward pass did not converge or its replay deviates.
+//!   forward pass did not converge or its replay deviates;
+//! * a `set`/`configure` of a scene that a call on another thread is reading is a
+//!   `SceneBusyError` (`RuntimeError`).
 //!
 //! Each message is the library's, which names the file, line, element or parameter.
 //!
@@ -53,6 +55,8 @@ pub enum Class {
     Divergence,
     /// `ConvergenceError` (a `SimulationError`).
     Convergence,
+    /// `SceneBusyError` (`RuntimeError`).
+    Busy,
 }
 
 /// The built-in exception a class derives from (the type of the lazy `PyErr`).
@@ -64,7 +68,7 @@ enum Builtin {
 
 impl Class {
     /// Every class, in declaration order (`self as usize` indexes the cache of classes).
-    const ALL: [Class; 8] = [
+    const ALL: [Class; 9] = [
         Class::Input,
         Class::Unsupported,
         Class::Uncertified,
@@ -73,6 +77,7 @@ impl Class {
         Class::Simulation,
         Class::Divergence,
         Class::Convergence,
+        Class::Busy,
     ];
 
     /// The class's name in `diffsoft._errors`.
@@ -86,6 +91,7 @@ impl Class {
             Class::Simulation => "SimulationError",
             Class::Divergence => "DivergenceError",
             Class::Convergence => "ConvergenceError",
+            Class::Busy => "SceneBusyError",
         }
     }
 
@@ -94,7 +100,7 @@ impl Class {
             // An `OutOfMemoryError` is also a `ValueError` (its first base), so it is raised as is.
             Class::Input | Class::Unsupported | Class::Uncertified | Class::Memory => Builtin::Value,
             Class::File => Builtin::OS,
-            Class::Simulation | Class::Divergence | Class::Convergence => Builtin::Runtime,
+            Class::Simulation | Class::Divergence | Class::Convergence | Class::Busy => Builtin::Runtime,
         }
     }
 
@@ -175,9 +181,13 @@ pub fn diff(e: DiffError) -> PyErr {
         DiffError::Solver(s) => return solver(s),
         DiffError::Input(_) => Class::Input,
         DiffError::Unsupported(_) => Class::Unsupported,
-        DiffError::Unconverged { .. } | DiffError::CappedSolves { .. } | DiffError::NotReplayable { .. } => {
-            Class::Convergence
+        DiffError::Unconverged { .. } | DiffError::CappedSolves { .. } => {
+            // The library's advice ("allow unconverged steps explicitly"), as Python spells it.
+            return Class::Convergence.err(format!(
+                "{e} (allow_unconverged=True: Scene.grad/vjp, the batches, diffsoft.torch/jax.simulate)"
+            ));
         }
+        DiffError::NotReplayable { .. } => Class::Convergence,
         _ => Class::Simulation,
     };
     class.err(e.to_string())

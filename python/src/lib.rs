@@ -10,6 +10,8 @@ mod interrupt;
 mod params;
 mod run;
 mod scene;
+mod vjp;
+mod warn;
 
 use pyo3::prelude::*;
 
@@ -39,6 +41,7 @@ fn _diffsoft(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<run::Run>()?;
     m.add_function(wrap_pyfunction!(batch::grad_batch, m)?)?;
     m.add_function(wrap_pyfunction!(batch::simulate_batch, m)?)?;
+    m.add_function(wrap_pyfunction!(vjp::vjp_batch, m)?)?;
     m.add_function(wrap_pyfunction!(harness::bounds, m)?)?;
     m.add_function(wrap_pyfunction!(harness::gradcheck, m)?)?;
     m.add_function(wrap_pyfunction!(harness::jacobians, m)?)?;

@@ -2,7 +2,7 @@
 //! simulation, gradient and vector-Jacobian product. The GIL is released while the library
 //! runs.
 
-use diffsoft::diff::{self, Cotangent, Options};
+use diffsoft::diff::{self, Options};
 use diffsoft::{scene as lib_scene, Mode, Model};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyFloat, PyTuple};
@@ -136,13 +136,15 @@ impl Scene {
 
     /// Set a parameter: a scalar of the CLI (`youngs_modulus`, `gravity.y`, ...) or an array
     /// (`initial_positions`, `youngs_modulus_per_tet`, `activations`, ...).
-    fn set(&mut self, name: &str, value: &Bound<'_, PyAny>) -> PyResult<()> {
-        let v = Value::read(&self.inner.model, name, value)?;
-        let mut model = self.inner.model.clone();
-        let mut inputs = self.inputs.clone();
+    fn set(slf: &Bound<'_, Self>, name: &str, value: &Bound<'_, PyAny>) -> PyResult<()> {
+        let mut this = busy(slf, "set")?;
+        let this = &mut *this;
+        let v = Value::read(&this.inner.model, name, value)?;
+        let mut model = this.inner.model.clone();
+        let mut inputs = this.inputs.clone();
         v.apply(&mut model, &mut inputs)?;
-        self.inner.model = model;
-        self.inputs = inputs;
+        this.inner.model = model;
+        this.inputs = inputs;
         Ok(())
     }
 
@@ -157,9 +159,10 @@ impl Scene {
     /// section and the CLI's overrides), each checked as it is set; on an error the settings
     /// are unchanged.
     #[pyo3(signature = (**settings))]
-    fn configure(&mut self, py: Python<'_>, settings: Option<&Bound<'_, PyDict>>) -> PyResult<()> {
+    fn configure(slf: &Bound<'_, Self>, py: Python<'_>, settings: Option<&Bound<'_, PyDict>>) -> PyResult<()> {
+        let mut this = busy(slf, "configure")?;
         let Some(settings) = settings else { return Ok(()) };
-        let mut next = self.inner.settings.clone();
+        let mut next = this.inner.settings.clone();
         let json = py.import("json")?;
         for (k, v) in settings.iter() {
             let key: String = k.extract()?;
@@ -173,7 +176,7 @@ impl Scene {
             };
             next.set(&key, value).map_err(errors::solver)?;
         }
-        self.inner.settings = next;
+        this.inner.settings = next;
         Ok(())
     }
 
@@ -274,30 +277,37 @@ impl Scene {
         self.clone()
     }
 
-    /// Simulate `steps` steps: positions and velocities of every state and the run log.
-    fn simulate(&self, py: Python<'_>, steps: usize) -> PyResult<Run> {
-        let r = interrupt::run(py, || self.rollout(steps))??;
-        Run::new(py, r, &self.inner.settings)
+    /// Simulate `steps` steps: positions and velocities of every state and the run log. Steps
+    /// that stopped at `max_iterations` before meeting a positive tolerance raise a
+    /// `ConvergenceWarning` at the caller's line.
+    fn simulate(slf: PyRef<'_, Self>, steps: usize) -> PyResult<Run> {
+        let (py, s) = snapshot(slf);
+        let r = interrupt::run(py, || s.rollout(steps))??;
+        // A tolerance of 0 asks for a fixed iteration count: no step is meant to converge.
+        if s.inner.settings.tolerance > 0.0 && r.unconverged_steps() > 0 {
+            crate::warn::unconverged(py)?;
+        }
+        Run::new(py, r, &s.inner.settings)
     }
 
     /// The loss and its derivatives with respect to `params` (name -> float or ndarray). A
     /// forward that misses its tolerance raises `ConvergenceError` unless `allow_unconverged`.
     #[pyo3(signature = (steps, loss = "final_com.y", params = None, mode = "unrolled", allow_unconverged = false))]
     fn grad<'py>(
-        &self,
-        py: Python<'py>,
+        slf: PyRef<'py, Self>,
         steps: usize,
         loss: &str,
         params: Option<Vec<String>>,
         mode: &str,
         allow_unconverged: bool,
     ) -> PyResult<Bound<'py, PyTuple>> {
+        let (py, s) = snapshot(slf);
         let params = params.unwrap_or_default();
         names(&params)?;
         let m = self::mode(mode)?;
-        let g = interrupt::run(py, || self.gradient(steps, loss, m, allow_unconverged))??;
+        let g = interrupt::run(py, || s.gradient(steps, loss, m, allow_unconverged))??;
         warn_one_iteration(py, m, &g, steps)?;
-        let d = grads(py, &self.inner.model, &g, &params)?;
+        let d = grads(py, &s.inner.model, &g, &params)?;
         PyTuple::new(py, [g.loss.into_pyobject(py)?.into_any(), d.into_any()])
     }
 
@@ -307,8 +317,7 @@ impl Scene {
     #[pyo3(signature = (steps, params, cotangent, velocity_cotangent = None, mode = "unrolled", allow_unconverged = false))]
     #[allow(clippy::too_many_arguments)]
     fn vjp<'py>(
-        &self,
-        py: Python<'py>,
+        slf: PyRef<'py, Self>,
         steps: usize,
         params: Vec<String>,
         cotangent: &Bound<'py, PyAny>,
@@ -316,43 +325,13 @@ impl Scene {
         mode: &str,
         allow_unconverged: bool,
     ) -> PyResult<Bound<'py, PyDict>> {
+        let (py, s) = snapshot(slf);
         names(&params)?;
         let m = self::mode(mode)?;
-        let n = self.inner.model.n();
-        let read = |name: &str, c: &Bound<'py, PyAny>| -> PyResult<Vec<nalgebra::Vector3<f64>>> {
-            let (data, shape) = arrays::read(name, c)?;
-            if shape != [steps + 1, n, 3] {
-                return Err(errors::value(format!(
-                    "{name}: shape {shape:?}, expected (steps + 1, n, 3) = ({}, {n}, 3)",
-                    steps + 1
-                )));
-            }
-            Ok(data
-                .chunks_exact(3)
-                .map(|c| nalgebra::Vector3::new(c[0], c[1], c[2]))
-                .collect())
-        };
-        let cq = read("cotangent", cotangent)?;
-        let cv = velocity_cotangent.map(|c| read("velocity_cotangent", c)).transpose()?;
-        Self::check_steps(steps)?;
-        let cot = Cotangent::new(n, steps, cq, cv).map_err(errors::diff)?;
-        let controls = self.inputs.controls(&self.inner.model);
-        let g = interrupt::run(py, || {
-            diff::vjp(
-                &self.inner.model,
-                &self.inner.settings,
-                steps,
-                &controls,
-                &cot,
-                Options {
-                    allow_unconverged,
-                    ..Options::mode(m)
-                },
-            )
-        })?
-        .map_err(errors::diff)?;
+        let cot = crate::vjp::cotangent(&s, steps, cotangent, velocity_cotangent, "")?;
+        let g = interrupt::run(py, || s.vjp_gradient(steps, &cot, m, allow_unconverged))??;
         warn_one_iteration(py, m, &g, steps)?;
-        grads(py, &self.inner.model, &g, &params)
+        grads(py, &s.inner.model, &g, &params)
     }
 
     fn __repr__(&self) -> String {
@@ -366,21 +345,35 @@ impl Scene {
     }
 }
 
-/// A `UserWarning` when unrolled mode went through steps that met the tolerance in their first
-/// iteration (their derivative is that one iteration's, not the converged step's; see
-/// `DiffStats::one_iteration_steps`), and one for each of `DiffStats::warnings` (steps at a
-/// kink of the loss, adjoint solves that stopped unconverged).
+/// A copy of the scene a call runs on, with the borrow of the Python object released: another
+/// thread's `set` or `configure` during the run changes the scene, not the run (the calls
+/// serialise: the run sees the values from before the change).
+fn snapshot(slf: PyRef<'_, Scene>) -> (Python<'_>, Scene) {
+    (slf.py(), slf.clone())
+}
+
+/// The scene for `set`/`configure`, or a `SceneBusyError` while a call on another thread holds
+/// it (a batch or `gradcheck` reading it without the GIL).
+fn busy<'py>(slf: &Bound<'py, Scene>, method: &str) -> PyResult<PyRefMut<'py, Scene>> {
+    slf.try_borrow_mut().map_err(|_| {
+        errors::Class::Busy.err(format!(
+            "Scene.{method}: the scene is in use by a call running on another thread (a batch or gradcheck); wait for it to return, or change a copy (Scene.copy())"
+        ))
+    })
+}
+
+/// A `UserWarning` at the caller's line ([`crate::warn`]) when unrolled mode went through
+/// steps that met the tolerance in their first iteration (their derivative is that one
+/// iteration's, not the converged step's; see `DiffStats::one_iteration_steps`), and one for
+/// each of `DiffStats::warnings` (steps at a kink of the loss, adjoint solves that stopped
+/// unconverged).
 pub(crate) fn warn_one_iteration(py: Python<'_>, mode: Mode, g: &diffsoft::Gradient, steps: usize) -> PyResult<()> {
-    let warn = |message: String| -> PyResult<()> {
-        let message = std::ffi::CString::new(message).map_err(|e| errors::value(e.to_string()))?;
-        let category = py.get_type::<pyo3::exceptions::PyUserWarning>();
-        PyErr::warn(py, category.as_any(), &message, 1)
-    };
+    let warn = |message: String| crate::warn::user(py, &message);
     if mode == Mode::Unrolled && g.stats.one_iteration_steps > 0 {
-        warn(format!(
-            "{} of {steps} forward steps met the tolerance in their first iteration; unrolled mode differentiates that one iteration, not the converged step (use mode='implicit', or a tolerance of 0 with a fixed iteration count)",
-            g.stats.one_iteration_steps
-        ))?;
+        // No count in the text: Python's filter shows a warning once per call site and text.
+        warn(
+            "diffsoft: forward steps met the tolerance in their first iteration; unrolled mode differentiates that one iteration, not the converged step (use mode='implicit', or a tolerance of 0 with a fixed iteration count)".to_string(),
+        )?;
     }
     for w in g.stats.warnings(steps) {
         warn(w)?;

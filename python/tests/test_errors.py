@@ -25,6 +25,7 @@ CLASSES = {
     diffsoft.SimulationError: ((diffsoft.DiffsoftError, RuntimeError), RuntimeError),
     diffsoft.DivergenceError: ((diffsoft.SimulationError,), RuntimeError),
     diffsoft.ConvergenceError: ((diffsoft.SimulationError,), RuntimeError),
+    diffsoft.SceneBusyError: ((diffsoft.DiffsoftError, RuntimeError), RuntimeError),
 }
 
 

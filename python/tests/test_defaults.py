@@ -1,0 +1,195 @@
+"""Honest defaults: warnings at the caller's line (once per call site), ``allow_unconverged`` in
+the wrappers, eager ``configure`` checks, outputs on the inputs' device and dtype, and a scene
+shared by threads."""
+
+from __future__ import annotations
+
+import inspect
+import threading
+import time
+import warnings
+
+import numpy as np
+import pytest
+
+import diffsoft
+
+torch = pytest.importorskip("torch")
+jax = pytest.importorskip("jax")
+jax.config.update("jax_enable_x64", True)
+import jax.numpy as jnp  # noqa: E402
+
+
+def _line() -> int:
+    """The caller's line number (``_line() + 1``: the next line's)."""
+    frame = inspect.currentframe()
+    assert frame is not None and frame.f_back is not None
+    return frame.f_back.f_lineno
+
+
+@pytest.fixture
+def loose(beam):
+    """The beam with a tolerance its few iterations cannot meet: every step is unconverged."""
+    s = beam.copy()
+    s.set("youngs_modulus", 1e20)
+    s.configure(tolerance=1e-6, max_iterations=5)
+    return s
+
+
+def test_an_unconverged_simulation_warns_once_per_call_site_at_the_callers_line(loose, beam):
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("default")
+        for _ in range(3):
+            line = _line() + 1
+            loose.simulate(3)
+        other = _line() + 1
+        loose.simulate(3)
+    got = [(w.category, w.filename, w.lineno) for w in caught]
+    assert got == [(diffsoft.ConvergenceWarning, __file__, line), (diffsoft.ConvergenceWarning, __file__, other)]
+    assert "unconverged_steps" in str(caught[0].message)
+    # A run that converges, or a fixed iteration count (tolerance 0), does not warn.
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        beam.simulate(3)
+        diffsoft.simulate_batch(beam, 3, [{}, {}])
+    with pytest.warns(diffsoft.ConvergenceWarning):
+        diffsoft.simulate_batch(loose, 3, [{}, {}])
+
+
+def test_the_wrappers_warn_at_the_callers_line(loose, ground):
+    e = torch.tensor(1e20, dtype=torch.float64)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        line = _line() + 1
+        diffsoft.torch.simulate(loose, 3, {"youngs_modulus": e})
+        jline = _line() + 1
+        diffsoft.jax.simulate(loose, 3, {"youngs_modulus": jnp.asarray(1e20)})
+        vline = _line() + 1
+        jax.jit(jax.vmap(lambda x: diffsoft.jax.simulate(loose, 3, {"youngs_modulus": x})))(jnp.asarray([1e20, 2e20]))
+    assert [(w.category, w.filename, w.lineno) for w in caught] == [
+        (diffsoft.ConvergenceWarning, __file__, line),
+        (diffsoft.ConvergenceWarning, __file__, jline),
+        (diffsoft.ConvergenceWarning, __file__, vline),
+    ]
+
+    # Unrolled mode through steps that converged in one iteration: the backward's warning points
+    # at the user's backward() and is shown once for a loop under the default filter.
+    ground.configure(tolerance=1e-10, max_iterations=2000)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("default")
+        for _ in range(2):
+            x = torch.tensor(ground.get("youngs_modulus"), dtype=torch.float64, requires_grad=True)
+            q = diffsoft.torch.simulate(ground, 5, {"youngs_modulus": x})
+            line = _line() + 1
+            q[-1, :, 1].sum().backward()
+    first = [w for w in caught if "first iteration" in str(w.message)]
+    assert [(w.filename, w.lineno) for w in first] == [(__file__, line)]
+
+
+def test_the_wrappers_take_allow_unconverged(loose):
+    e = torch.tensor(1e20, dtype=torch.float64, requires_grad=True)
+    with pytest.warns(diffsoft.ConvergenceWarning):
+        q = diffsoft.torch.simulate(loose, 3, {"youngs_modulus": e})
+    with pytest.raises(diffsoft.ConvergenceError, match="allow_unconverged"):
+        q[-1].sum().backward()
+    with pytest.warns(diffsoft.ConvergenceWarning):
+        q = diffsoft.torch.simulate(loose, 3, {"youngs_modulus": e}, allow_unconverged=True)
+    q[-1].sum().backward()
+    assert e.grad is not None and np.isfinite(float(e.grad))
+
+    def f(x, allow):
+        return diffsoft.jax.simulate(loose, 3, {"youngs_modulus": x}, allow_unconverged=allow)[-1].sum()
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", diffsoft.ConvergenceWarning)
+        with pytest.raises(diffsoft.ConvergenceError, match="allow_unconverged"):
+            jax.grad(lambda x: f(x, False))(jnp.asarray(1e20))
+        g = jax.grad(lambda x: f(x, True))(jnp.asarray(1e20))
+    assert np.isfinite(float(g)) and float(g) == pytest.approx(float(e.grad), rel=1e-12)
+
+
+@pytest.mark.parametrize(
+    "setting, value, message",
+    [
+        ("tolerance", -1.0, "tolerance must be finite and >= 0"),
+        ("max_iterations", 0, "max_iterations"),
+        ("dt", 0.0, "time step must be finite and positive"),
+        ("damping", 1.5, "damping must be in"),
+        ("no_such_setting", 1, "unknown setting 'no_such_setting'"),
+    ],
+)
+def test_configure_refuses_bad_settings_at_once(beam, setting, value, message):
+    before = beam.settings
+    with pytest.raises(diffsoft.InputError, match=message):
+        beam.configure(**{setting: value})
+    assert beam.settings == before
+
+
+def test_torch_outputs_follow_the_inputs_dtype_and_device(beam):
+    e32 = torch.tensor(2e4, dtype=torch.float32, requires_grad=True)
+    q32 = diffsoft.torch.simulate(beam, 3, {"youngs_modulus": e32})
+    assert q32.dtype == torch.float32 and q32.device == e32.device
+    q32[-1].sum().backward()
+    assert e32.grad is not None and e32.grad.dtype == torch.float32
+    # The simulation itself is float64: the float32 output is its rounding.
+    ref = beam.simulate(3).positions
+    np.testing.assert_array_equal(q32.detach().numpy(), ref.astype(np.float32))
+    # float64 wins over float32, and numbers and no parameters give float64.
+    v0 = torch.tensor(beam.get("initial_velocities"), dtype=torch.float32)
+    assert diffsoft.torch.simulate(beam, 3, {"youngs_modulus": 2e4, "initial_velocities": v0}).dtype == torch.float64
+    assert diffsoft.torch.simulate(beam, 3).dtype == torch.float64
+    with pytest.raises(diffsoft.InputError, match=r"different devices \(youngs_modulus on cpu, density on meta\)"):
+        diffsoft.torch.simulate(beam, 3, {"youngs_modulus": e32, "density": torch.empty((), device="meta")})
+
+
+@pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA device")
+def test_torch_outputs_come_back_on_the_cuda_device(beam):
+    e = torch.tensor(2e4, dtype=torch.float64, device="cuda", requires_grad=True)
+    q = diffsoft.torch.simulate(beam, 3, {"youngs_modulus": e})
+    assert q.device == e.device
+    target = torch.zeros_like(q)
+    ((q - target) ** 2).sum().backward()
+    assert e.grad is not None and e.grad.device == e.device
+
+
+def test_a_scene_shared_by_two_threads_serialises(beam):
+    """``simulate`` runs on a copy: another thread's ``set`` during the run changes the scene,
+    not the run, whose result is that of the value before or after the change."""
+    steps = 1000
+    old, new = beam.copy(), beam.copy()
+    new.set("youngs_modulus", 3e4)
+    results = {}
+    thread = threading.Thread(target=lambda: results.setdefault("run", beam.simulate(steps)))
+    thread.start()
+    time.sleep(0.02)
+    beam.set("youngs_modulus", 3e4)  # no "Already borrowed"
+    thread.join()
+    final = results["run"].positions[-1]
+    refs = [old.simulate(steps).positions[-1], new.simulate(steps).positions[-1]]
+    assert sum(np.array_equal(final, r) for r in refs) == 1
+    assert beam.get("youngs_modulus") == 3e4
+
+
+def test_setting_a_scene_that_a_batch_reads_raises_the_named_error(beam):
+    """A batch reads the caller's scene on another thread: ``set`` and ``configure`` raise
+    ``SceneBusyError`` (a ``RuntimeError``) until it returns, and change nothing."""
+    done = threading.Event()
+    thread = threading.Thread(target=lambda: (diffsoft.simulate_batch(beam, 5000, [{}]), done.set()))
+    thread.start()
+    busy = []
+    while not done.is_set() and not busy:
+        try:
+            beam.configure(max_iterations=15)
+        except diffsoft.SceneBusyError as e:
+            busy.append(e)
+    with pytest.raises(RuntimeError, match="in use by a call running on another thread"):
+        if busy:
+            raise busy[0]
+    while not done.is_set():
+        with pytest.raises(diffsoft.SceneBusyError, match=r"Scene.set: "):
+            beam.set("youngs_modulus", 5e4)
+        break
+    thread.join()
+    assert beam.get("youngs_modulus") == 2e4
+    beam.set("youngs_modulus", 5e4)
+    assert beam.get("youngs_modulus") == 5e4
