@@ -110,7 +110,10 @@ fn summary(h: &mut String, contents: &Contents, c: Counts) {
     if c.expected_failing > 0 {
         let _ = write!(h, " ({} of them expected to fail)", c.expected_failing);
     }
-    let _ = writeln!(h, ", <span class=\"n-hold\">{holding} hold</span>. Failing verdicts come first.</p>");
+    let _ = writeln!(
+        h,
+        ", <span class=\"n-hold\">{holding} hold</span>. Failing verdicts come first.</p>"
+    );
     // Which reports the failures are in.
     let failing: Vec<String> = contents
         .reports
@@ -148,7 +151,13 @@ fn summary(h: &mut String, contents: &Contents, c: Counts) {
     if !commits.is_empty() {
         let list: Vec<String> = commits
             .iter()
-            .map(|(c, n)| format!("<code title=\"{}\">{}</code> ({n})", escape(c), escape(&short_commit(c))))
+            .map(|(c, n)| {
+                format!(
+                    "<code title=\"{}\">{}</code> ({n})",
+                    escape(c),
+                    escape(&short_commit(c))
+                )
+            })
             .collect();
         let _ = write!(h, "; git commit {}", list.join(", "));
     }

@@ -124,7 +124,10 @@ fn walk(dir: &Path, prefix: &str, out: &mut Vec<(String, PathBuf)>) -> Result<()
             walk(&path, &format!("{rel}/"), out)?;
         } else if name.ends_with(".json") || name.ends_with(".svg") {
             // A link to a file counts as the file; a link to a directory is not followed.
-            if std::fs::metadata(&path).with_context(|| format!("{}", path.display()))?.is_file() {
+            if std::fs::metadata(&path)
+                .with_context(|| format!("{}", path.display()))?
+                .is_file()
+            {
                 out.push((rel, path));
             }
         }
@@ -134,7 +137,9 @@ fn walk(dir: &Path, prefix: &str, out: &mut Vec<(String, PathBuf)>) -> Result<()
 
 /// The header and verdicts of the report `value` at `file`.
 fn report(file: &str, value: &Value) -> Result<Report> {
-    let top = value.as_object().ok_or_else(|| anyhow!("the report is not a JSON object"))?;
+    let top = value
+        .as_object()
+        .ok_or_else(|| anyhow!("the report is not a JSON object"))?;
     let text = |key: &str| -> Result<Option<String>> {
         match top.get(key) {
             None | Some(Value::Null) => Ok(None),
@@ -231,7 +236,12 @@ fn place(path: &[Step]) -> String {
 }
 
 /// Walk `value` (inside the object `parent`, if any) and push its verdicts in document order.
-fn collect(value: &Value, parent: Option<&Map<String, Value>>, path: &mut Vec<Step>, out: &mut Vec<Found>) -> Result<()> {
+fn collect(
+    value: &Value,
+    parent: Option<&Map<String, Value>>,
+    path: &mut Vec<Step>,
+    out: &mut Vec<Found>,
+) -> Result<()> {
     match value {
         Value::Object(map) => {
             if map.contains_key("claim") && map.contains_key("holds") {
@@ -317,7 +327,10 @@ mod tests {
             "appendix_b": {"holds": true},
         });
         let found = verdicts(&v).unwrap();
-        let mut claims: Vec<_> = found.iter().map(|f| (f.claim.as_str(), f.place.as_str(), f.expected_to_fail)).collect();
+        let mut claims: Vec<_> = found
+            .iter()
+            .map(|f| (f.claim.as_str(), f.place.as_str(), f.expected_to_fail))
+            .collect();
         claims.sort();
         assert_eq!(
             claims,
@@ -328,7 +341,10 @@ mod tests {
             ]
         );
         let by_claim = |c: &str| found.iter().find(|f| f.claim == c).unwrap();
-        assert_eq!((by_claim("top").measured, by_claim("top").threshold), (Some(1.0), Some(2.0)));
+        assert_eq!(
+            (by_claim("top").measured, by_claim("top").threshold),
+            (Some(1.0), Some(2.0))
+        );
         assert_eq!((by_claim("a").measured, by_claim("a").comparison.as_str()), (None, ""));
     }
 
