@@ -243,8 +243,7 @@ def test_every_verdict_is_on_the_page_failing_first(page: dict[str, Any]) -> Non
     assert len(want) > 0
     rows = page["rows"]
     got = [
-        (r["report"], " ".join(r["claim"].split()), r["status"] == "holds", r["measured"], r["threshold"])
-        for r in rows
+        (r["report"], " ".join(r["claim"].split()), r["status"] == "holds", r["measured"], r["threshold"]) for r in rows
     ]
     assert Counter(got) == Counter(want)
     for r in rows:
@@ -264,4 +263,3 @@ def test_every_report_is_linked(page: dict[str, Any]) -> None:
     reports = {p.relative_to(REPORTS).as_posix() for p in REPORTS.rglob("*.json")}
     links = set(page["page"]["links"])
     assert reports <= links, f"not linked: {sorted(reports - links)}"
-
