@@ -1,9 +1,23 @@
 #!/usr/bin/env bash
 # Every test of the project, from a fresh clone: the Rust crate's (unit, integration, doc), then
-# the Python package's (ruff, mypy, stubtest, pytest), built with maturin and installed into a
-# virtual environment under target/ (created on first use; packages from PyPI only).
+# the Python package's (ruff, mypy, stubtest, pytest; the report page in headless Chromium),
+# built with maturin and installed into a virtual environment under target/ (created on first
+# use; packages from PyPI only).
 set -euo pipefail
 cd "$(dirname "$0")/.."
+
+# The report page's browser test (python/tests/test_report_page.py) renders reports/index.html in
+# headless Chromium: Debian's package, installed here when missing (as root; DIFFSOFT_CHROMIUM
+# names another binary). Without it that test fails, it never skips.
+if [ -z "${DIFFSOFT_CHROMIUM:-}" ] && [ ! -x /usr/bin/chromium ]; then
+    if [ "$(id -u)" -eq 0 ]; then
+        apt-get update -qq
+        DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null
+    else
+        echo "tests/run.sh: /usr/bin/chromium is missing: install Debian's chromium package (apt-get install chromium) or set DIFFSOFT_CHROMIUM" >&2
+        exit 1
+    fi
+fi
 
 cargo test --release --workspace
 

@@ -272,7 +272,14 @@ enum Command {
         #[arg(long, default_value = "schemas")]
         out: PathBuf,
     },
-    /// The main job: run the verification suite and write reports/.
+    /// Rewrite the report page (DIR/index.html) from the JSON reports and SVG plots in DIR:
+    /// every verdict, failing first, with provenance, links and the plots.
+    ReportPage {
+        /// Reports directory.
+        #[arg(long, default_value = "reports")]
+        reports: PathBuf,
+    },
+    /// The main job: run the verification suite and write reports/ (and reports/index.html).
     Verify {
         /// Suite definition.
         #[arg(long, default_value = "verification/suite.json")]
@@ -661,6 +668,17 @@ fn run(command: Command) -> Result<()> {
                 }
             }
             say!("merged {} partial reports", inputs.len());
+        }
+        Command::ReportPage { reports } => {
+            let (page, path) = diffsoft_harness::page::write(&reports)?;
+            say!(
+                "wrote {} ({} verdicts in {} reports, {} fail, {} plots)",
+                path.display(),
+                page.verdicts,
+                page.reports,
+                page.failing,
+                page.plots
+            );
         }
         Command::Verify { suite, out } => {
             diffsoft_harness::run_suite(&find_data(&suite)?, &out)?;

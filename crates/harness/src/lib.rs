@@ -43,6 +43,7 @@ pub mod fd;
 pub mod gradients;
 pub mod jacobians;
 pub mod merge;
+pub mod page;
 pub mod physics;
 mod physics_suite;
 pub mod plot;

@@ -2,7 +2,8 @@
 //! `T` scaling and the paper's arithmetic, Jacobian checks, physics checks, the skeleton,
 //! actuator and gradient studies, the trade-off study, extremes, cloth and the validation
 //! against closed forms), writes their reports
-//! and plots and prints their summaries and the wall time per section.
+//! and plots and prints their summaries and the wall time per section, and last writes the
+//! report page (`index.html`, [`crate::page`]) of everything in the output directory.
 
 use std::path::Path;
 use std::time::Instant;
@@ -187,6 +188,15 @@ pub fn run_suite(suite_path: &Path, out: &Path) -> Result<SuiteBoundsReport> {
         out.join("actuators.json").display(),
         report.meshes.len(),
         t0.elapsed().as_secs_f64()
+    );
+    // Last: the page shows every report and plot written above (and any other in `out`).
+    let (page, page_path) = crate::page::write(out).context("the reports are written, the report page is not")?;
+    crate::say!(
+        "wrote {} ({} verdicts, {} fail, {} plots)",
+        page_path.display(),
+        page.verdicts,
+        page.failing,
+        page.plots
     );
     Ok(report)
 }

@@ -241,3 +241,29 @@ fn jacobians_writes_its_report_with_every_check_passing() {
     let text = String::from_utf8_lossy(&o.stdout);
     assert!(text.contains("column 0 of B") && text.contains("rotational"), "{text}");
 }
+
+#[test]
+fn report_page_rewrites_the_page_and_names_a_bad_report() {
+    let dir = tmp_dir("cli-report-page");
+    write(
+        &dir,
+        "a.json",
+        r#"{"schema": "diffsoft.a/1", "verdicts": [{"claim": "x < 1", "holds": false, "measured": 2, "threshold": 1, "comparison": "measured < threshold"}]}"#,
+    );
+    let out = diffsoft(&["report-page", "--reports", dir.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let said = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        said.contains("index.html (1 verdicts in 1 reports, 1 fail, 0 plots)"),
+        "{said}"
+    );
+    let html = std::fs::read_to_string(dir.join("index.html")).unwrap();
+    assert!(html.contains("x &lt; 1") && html.contains("FAILS"));
+    write(&dir, "b.json", r#"{"verdicts": [{"claim": "y", "holds": 1}]}"#);
+    let out = diffsoft(&["report-page", "--reports", dir.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("b.json") && err.contains("/verdicts/0/holds"), "{err}");
+    // The page of the good reports stays as it was.
+    assert_eq!(std::fs::read_to_string(dir.join("index.html")).unwrap(), html);
+}

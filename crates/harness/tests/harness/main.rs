@@ -13,6 +13,7 @@ mod gradients;
 mod materials;
 mod newton_contact;
 mod newton_skeleton;
+mod page;
 mod physics;
 mod schemas;
 mod skeleton;
