@@ -61,6 +61,11 @@ def _surface_arrays(vertices: ArrayLike, faces: ArrayLike) -> tuple[NDArray[np.f
 
 def _segments_hit_triangles(p: NDArray[np.float64], q: NDArray[np.float64], tri: NDArray[np.float64]) -> NDArray[Any]:
     """Whether segment ``p[i]q[i]`` crosses the interior of triangle ``tri[i]`` (``(k, 3, 3)``)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return _crossings(p, q, tri)
+
+
+def _crossings(p: NDArray[np.float64], q: NDArray[np.float64], tri: NDArray[np.float64]) -> NDArray[Any]:
     a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
     n = np.cross(b - a, c - a)
     dp = np.einsum("ij,ij->i", p - a, n)
@@ -68,8 +73,7 @@ def _segments_hit_triangles(p: NDArray[np.float64], q: NDArray[np.float64], tri:
     scale = np.linalg.norm(n, axis=1) * np.maximum(np.linalg.norm(q - p, axis=1), 1e-300)
     eps = 1e-12 * scale
     crosses = ((dp > eps) & (dq < -eps)) | ((dp < -eps) & (dq > eps))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = dp / (dp - dq)
+    t = dp / (dp - dq)
     x = p + t[:, None] * (q - p)
     s1 = np.einsum("ij,ij->i", np.cross(b - a, x - a), n)
     s2 = np.einsum("ij,ij->i", np.cross(c - b, x - b), n)
@@ -172,7 +176,10 @@ def tetrahedralize(
     t = tetgen.TetGen(v, f.astype(np.int32))
     try:
         nodes, elems, *_ = t.tetrahedralize(
-            quality=True, minratio=float(min_ratio), maxvolume=-1.0 if max_volume is None else float(max_volume)
+            quality=True,
+            minratio=float(min_ratio),
+            fixedvolume=max_volume is not None,
+            maxvolume=-1.0 if max_volume is None else float(max_volume),
         )
     except RuntimeError as e:
         raise InputError(f"TetGen could not tetrahedralize the surface: {e}") from e

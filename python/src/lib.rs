@@ -32,18 +32,19 @@ fn scalar_parameters() -> Vec<&'static str> {
 }
 
 /// A structured box mesh (the library's generator): `cells` hexahedral cells per axis of a box
-/// of edge lengths `size` with its minimum corner at `origin`, each cell split into six tets
+/// of edge lengths `size` with its minimum corner at `origin` (the origin by default), each cell split into six tets
 /// (`split="kuhn"`) or five (`split="five"`); `(vertices (n, 3) float64, tets (m, 4) int64)`.
 #[pyfunction]
-#[pyo3(signature = (cells, size, origin = [0.0, 0.0, 0.0], split = "kuhn"))]
+#[pyo3(signature = (cells, size, origin = None, split = "kuhn"))]
 fn mesh_box<'py>(
     py: Python<'py>,
     cells: [usize; 3],
     size: [f64; 3],
-    origin: [f64; 3],
+    origin: Option<[f64; 3]>,
     split: &str,
 ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
     use diffsoft::mesh::generate::{BoxSpec, CellSplit};
+    let origin = origin.unwrap_or([0.0; 3]);
     let split = match split {
         "kuhn" => CellSplit::Kuhn6,
         "five" => CellSplit::Five,
