@@ -134,8 +134,7 @@ def check_surface(vertices: ArrayLike, faces: ArrayLike) -> None:
     if (counts > 2).any():
         e = edges[counts > 2]
         raise InputError(
-            f"the surface is not manifold: {len(e)} edges are shared by more than two triangles, "
-            f"e.g. {e[0].tolist()}"
+            f"the surface is not manifold: {len(e)} edges are shared by more than two triangles, e.g. {e[0].tolist()}"
         )
     _, dcounts = np.unique(directed, axis=0, return_counts=True)
     if (dcounts > 1).any():
@@ -213,6 +212,6 @@ def _meshio_scene(mesh: Any, scene: Mapping[str, Any] | None, body: Mapping[str,
     b["mesh"] = {"vertices": points, "tets": np.concatenate(tets).astype(np.int64)}
     d: dict[str, Any] = dict(scene or {})
     if "bodies" in d:
-        raise InputError("from_meshio: `scene` holds the scene's other keys; the body is given by the keyword arguments")
+        raise InputError("from_meshio: `scene` holds the scene's other keys; the body is in the keyword arguments")
     d["bodies"] = [b]
     return d

@@ -37,7 +37,11 @@ pub fn install<T: Send>(work: impl FnOnce() -> T + Send) -> T {
             Some((p, pool)) if *p == pid => Some(pool.clone()),
             _ => {
                 let threads = std::thread::available_parallelism().map_or(1, usize::from);
-                let built = rayon::ThreadPoolBuilder::new().num_threads(threads).build().ok().map(Arc::new);
+                let built = rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()
+                    .ok()
+                    .map(Arc::new);
                 *slot = built.clone().map(|b| (pid, b));
                 built
             }

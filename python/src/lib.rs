@@ -51,7 +51,9 @@ fn mesh_box<'py>(
         _ => return Err(errors::value(format!("split '{split}': expected 'kuhn' or 'five'"))),
     };
     if cells.contains(&0) {
-        return Err(errors::value(format!("cells {cells:?}: every count must be at least 1")));
+        return Err(errors::value(format!(
+            "cells {cells:?}: every count must be at least 1"
+        )));
     }
     if !size.iter().chain(&origin).all(|x| x.is_finite()) || size.iter().any(|&x| x <= 0.0) {
         return Err(errors::value(format!(

@@ -49,12 +49,7 @@ impl Run {
 
 /// A `Run` from its four attributes (what unpickling calls).
 #[pyfunction]
-pub fn _run_from_state(
-    positions: Py<PyAny>,
-    velocities: Py<PyAny>,
-    times: Py<PyAny>,
-    stats: Py<PyAny>,
-) -> Run {
+pub fn _run_from_state(positions: Py<PyAny>, velocities: Py<PyAny>, times: Py<PyAny>, stats: Py<PyAny>) -> Run {
     Run {
         positions,
         velocities,

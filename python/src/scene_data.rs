@@ -91,7 +91,9 @@ pub(crate) fn source_of_file(path: &Path, format: SceneFormat) -> Result<Source,
         }
         SceneFormat::Paper => {
             let root = dir.parent().unwrap_or(dir);
-            let dir_name = dir.file_name().map_or("scene".into(), |n| n.to_string_lossy().into_owned());
+            let dir_name = dir
+                .file_name()
+                .map_or("scene".into(), |n| n.to_string_lossy().into_owned());
             let mut names = Vec::new();
             strings(&doc, &mut names);
             let mut files: Vec<(String, Vec<u8>)> = Vec::new();
@@ -115,7 +117,9 @@ pub(crate) fn source_of_file(path: &Path, format: SceneFormat) -> Result<Source,
                     }
                 }
             }
-            let name = path.file_name().map_or("scene.json".into(), |n| n.to_string_lossy().into_owned());
+            let name = path
+                .file_name()
+                .map_or("scene.json".into(), |n| n.to_string_lossy().into_owned());
             Ok(Source::Paper(Arc::new(PaperFiles {
                 dir: dir_name,
                 name,
@@ -151,7 +155,9 @@ pub(crate) fn to_json(obj: &Bound<'_, PyAny>, at: &str) -> PyResult<Json> {
         if let Ok(v) = i.extract::<i64>() {
             return Ok(Json::from(v));
         }
-        return Ok(Json::from(i.extract::<u64>().map_err(|_| here(": integer out of range".into()))?));
+        return Ok(Json::from(
+            i.extract::<u64>().map_err(|_| here(": integer out of range".into()))?,
+        ));
     }
     if let Ok(f) = obj.cast::<PyFloat>() {
         let v = f.value();
@@ -165,10 +171,17 @@ pub(crate) fn to_json(obj: &Bound<'_, PyAny>, at: &str) -> PyResult<Json> {
     if let Ok(d) = obj.cast::<PyDict>() {
         let mut m = serde_json::Map::new();
         for (k, v) in d.iter() {
-            let key: String = k
-                .extract()
-                .map_err(|_| here(format!(": keys must be strings, got {}", k.repr().map_or("?".into(), |r| r.to_string()))))?;
-            let inner = if at.is_empty() { key.clone() } else { format!("{at}.{key}") };
+            let key: String = k.extract().map_err(|_| {
+                here(format!(
+                    ": keys must be strings, got {}",
+                    k.repr().map_or("?".into(), |r| r.to_string())
+                ))
+            })?;
+            let inner = if at.is_empty() {
+                key.clone()
+            } else {
+                format!("{at}.{key}")
+            };
             m.insert(key, to_json(&v, &inner)?);
         }
         return Ok(Json::Object(m));
@@ -296,7 +309,10 @@ pub(crate) fn state<'py>(py: Python<'py>, s: &Scene) -> PyResult<Bound<'py, PyDi
     }
     d.set_item("path", s.inner.path.display().to_string())?;
     d.set_item("notes", s.inner.notes.clone())?;
-    d.set_item("settings", serde_json::to_string(&s.inner.settings).map_err(errors::other)?)?;
+    d.set_item(
+        "settings",
+        serde_json::to_string(&s.inner.settings).map_err(errors::other)?,
+    )?;
     let sets = s
         .data
         .sets
@@ -320,7 +336,11 @@ fn load_paper(py: Python<'_>, paper: &Bound<'_, PyDict>) -> PyResult<lib_scene::
     let dir: String = item(paper, "dir")?.extract()?;
     let name: String = item(paper, "name")?.extract()?;
     let text: String = item(paper, "text")?.extract()?;
-    let files: Vec<(String, Vec<u8>)> = item(paper, "files")?.cast::<PyDict>()?.iter().map(|(k, v)| Ok((k.extract()?, v.extract()?))).collect::<PyResult<_>>()?;
+    let files: Vec<(String, Vec<u8>)> = item(paper, "files")?
+        .cast::<PyDict>()?
+        .iter()
+        .map(|(k, v)| Ok((k.extract()?, v.extract()?)))
+        .collect::<PyResult<_>>()?;
     let nanos = std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
         .map_or(0, |d| d.subsec_nanos());
@@ -341,7 +361,9 @@ fn load_paper(py: Python<'_>, paper: &Bound<'_, PyDict>) -> PyResult<lib_scene::
         for (key, bytes) in &files {
             let p = Path::new(key);
             if p.is_absolute() || p.components().any(|c| !matches!(c, std::path::Component::Normal(_))) {
-                return Err(errors::value(format!("scene state: file '{key}' leaves the scene's directory")));
+                return Err(errors::value(format!(
+                    "scene state: file '{key}' leaves the scene's directory"
+                )));
             }
             let target = root.join(p);
             if let Some(parent) = target.parent() {

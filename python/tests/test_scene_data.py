@@ -299,7 +299,12 @@ def test_a_surface_mesh_tetrahedralizes_and_simulates():
             "time_step": 0.01,
             "gravity": [0, -9.81, 0],
             "bodies": [
-                {"name": "cube", "mesh": mesh, "material": {"youngs_modulus": 1e5, "poisson_ratio": 0.3}, "density": 100}
+                {
+                    "name": "cube",
+                    "mesh": mesh,
+                    "material": {"youngs_modulus": 1e5, "poisson_ratio": 0.3},
+                    "density": 100,
+                }
             ],
             "obstacles": [{"plane": {"point": [0, -0.05, 0], "normal": [0, 1, 0]}, "friction": 0.5}],
         }

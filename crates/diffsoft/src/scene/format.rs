@@ -512,7 +512,8 @@ impl<'de> Deserialize<'de> for TetMeshSource {
 impl<'de> Deserialize<'de> for SurfaceSource {
     fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
         Ok(
-            match path_or_arrays::<D, TriArrays>(d, r#"{"vertices": [[x, y, z], ...], "triangles": [[i, j, k], ...]}"#)? {
+            match path_or_arrays::<D, TriArrays>(d, r#"{"vertices": [[x, y, z], ...], "triangles": [[i, j, k], ...]}"#)?
+            {
                 Ok(p) => SurfaceSource::File(p),
                 Err(a) => SurfaceSource::Arrays(a),
             },

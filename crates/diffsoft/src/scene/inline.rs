@@ -37,7 +37,12 @@ pub(crate) fn tet_mesh(name: &str, a: &TetArrays) -> Result<LoadedMesh, SceneErr
         tet_lines: Vec::new(),
         skipped_elements: 0,
     };
-    Ok(TetMesh::from_raw(name, MeshFormat::Memory, raw, LoadOptions::default())?)
+    Ok(TetMesh::from_raw(
+        name,
+        MeshFormat::Memory,
+        raw,
+        LoadOptions::default(),
+    )?)
 }
 
 /// A triangle surface from arrays (`name` in messages).
@@ -108,7 +113,13 @@ pub fn inline_meshes(scene: &mut Value, dir: &Path, shown: &str) -> Result<(), S
                 continue;
             };
             let loaded = mesh::load(dir.join(file))?;
-            let ids: HashMap<i64, usize> = loaded.info.file_ids.iter().enumerate().map(|(i, &id)| (id, i)).collect();
+            let ids: HashMap<i64, usize> = loaded
+                .info
+                .file_ids
+                .iter()
+                .enumerate()
+                .map(|(i, &id)| (id, i))
+                .collect();
             let renumber = |v: &mut Value, what: &str| -> Result<(), SceneError> {
                 let Some(list) = v.as_array_mut() else { return Ok(()) };
                 for x in list {
