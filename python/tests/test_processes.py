@@ -50,6 +50,12 @@ def test_a_forked_pool_computes_the_in_process_gradients():
     same_grads(expected, got)
 
 
+def spawned(workers: int) -> ProcessPoolExecutor:
+    """Workers started fresh (nothing inherited: the scene arrives only as its pickle; and no
+    fork of a process that other tests filled with JAX's threads)."""
+    return ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"))
+
+
 def beam_values() -> list[dict[str, Any]]:
     return [{"youngs_modulus": e, "initial_velocity.y": 0.1 * k} for k, e in enumerate([1e4, 2e4, 3e4])]
 
@@ -59,7 +65,7 @@ def test_grad_batch_and_simulate_batch_on_a_process_pool():
     scene.configure(tolerance=0.0, max_iterations=15)
     values = beam_values()
     expected = diffsoft.grad_batch(scene, 10, "final_com.y", PARAMS, values)
-    with ProcessPoolExecutor(2) as ex:
+    with spawned(2) as ex:
         got = diffsoft.grad_batch(scene, 10, "final_com.y", PARAMS, values, executor=ex)
         runs = diffsoft.simulate_batch(scene, 10, values, executor=ex)
         bad = [values[0], {"youngs_modulus": -1.0}]
@@ -77,9 +83,13 @@ def test_warnings_of_workers_reach_the_caller():
     scene = diffsoft.Scene.load(REPO / "verification/scenes/ball_on_cloth.json")
     with pytest.warns(UserWarning, match="first iteration") as expected:
         diffsoft.grad_batch(scene, 3, "final_com.y", ["density"], [{}])
-    with ProcessPoolExecutor(1) as ex, pytest.warns(UserWarning, match="first iteration") as got:
+    with spawned(1) as ex, pytest.warns(UserWarning, match="first iteration") as got:
         diffsoft.grad_batch(scene, 3, "final_com.y", ["density"], [{}], executor=ex)
-    assert [str(w.message) for w in expected] == [str(w.message) for w in got]
+
+    def ours(caught: Any) -> list[str]:
+        return [str(w.message) for w in caught if w.category is UserWarning]
+
+    assert ours(expected) == ours(got) and len(ours(got)) >= 1
 
 
 def test_grad_batch_on_a_dask_local_cluster():
