@@ -8,7 +8,9 @@ mod errors;
 mod fork;
 mod harness;
 mod interrupt;
+mod mesh_access;
 mod params;
+mod pyjson;
 mod run;
 mod scene;
 mod scene_data;
@@ -65,7 +67,7 @@ fn mesh_box<'py>(
         .split(split)
         .build()
         .map_err(errors::mesh)?;
-    let tets = scene_data::index_array(py, &m.tets)?;
+    let tets = mesh_access::index_array(py, &m.tets)?;
     Ok((arrays::vectors(py, m.vertices)?, tets))
 }
 

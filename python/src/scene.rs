@@ -365,7 +365,7 @@ impl Scene {
         grads(py, &self.inner.model, &g, &params)
     }
 
-    // --- Scenes as data, pickling and accessors (crate::scene_data) ---
+    // --- Scenes as data, pickling (crate::scene_data) and accessors (crate::mesh_access) ---
 
     /// A scene from a dict of the scene file's structure (`schemas/scene.schema.json`; `schema`
     /// may be left out). A mesh is a file path (relative to `base_dir`, by default the working
@@ -404,21 +404,21 @@ impl Scene {
     /// Every tet, `(m, 4)` int64, in the global vertex numbering (rows of the position arrays).
     #[getter]
     fn tets<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        crate::scene_data::tets(py, self)
+        crate::mesh_access::tets(py, self)
     }
 
     /// The boundary faces of the tets, `(k, 3)` int64, oriented outward (counter-clockwise seen
     /// from outside at rest), global vertex numbering.
     #[getter]
     fn surface_triangles<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        crate::scene_data::surface_triangles(py, self)
+        crate::mesh_access::surface_triangles(py, self)
     }
 
     /// Every body: `name`, `kind` (`soft`, `cloth`), `vertices` `(start, stop)` (its rows of
     /// the position arrays) and `tets` (soft) or `triangles` (cloth) `(start, stop)`.
     #[getter]
     fn bodies<'py>(&self, py: Python<'py>) -> PyResult<Vec<Bound<'py, PyDict>>> {
-        crate::scene_data::bodies(py, self)
+        crate::mesh_access::bodies(py, self)
     }
 
     /// Pickling by value: the scene's document (meshes inline, or a paper scene's files), its

@@ -2,14 +2,15 @@
 //! and a scene's state by value for pickling and copying: its document (every mesh inline, so
 //! it needs no file and no directory), the solver settings and the parameters the caller set.
 //! A paper-format scene travels as its file's text and the files it names, restored in a
-//! temporary directory.
+//! temporary directory. (Python objects to JSON: `crate::pyjson`; the mesh accessors:
+//! `crate::mesh_access`.)
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use diffsoft::scene::{self as lib_scene, SceneFormat};
 use pyo3::prelude::*;
-use pyo3::types::{PyBool, PyBytes, PyDict, PyFloat, PyInt, PyList, PyString, PyTuple};
+use pyo3::types::{PyBytes, PyDict, PyTuple};
 use serde_json::Value as Json;
 
 use crate::arrays;
@@ -140,76 +141,6 @@ fn strings(v: &Json, out: &mut Vec<String>) {
     }
 }
 
-/// A Python object of a scene dict as JSON: dicts with string keys, lists, tuples, numpy arrays
-/// and scalars, numbers (finite), strings, paths, bools and `None`. `at` names the place in
-/// messages (`bodies[0].mesh.vertices[3][1]`).
-pub(crate) fn to_json(obj: &Bound<'_, PyAny>, at: &str) -> PyResult<Json> {
-    let here = |what: String| errors::value(format!("scene dict: {}{what}", if at.is_empty() { "" } else { at }));
-    if obj.is_none() {
-        return Ok(Json::Null);
-    }
-    if let Ok(b) = obj.cast::<PyBool>() {
-        return Ok(Json::Bool(b.is_true()));
-    }
-    if let Ok(i) = obj.cast::<PyInt>() {
-        if let Ok(v) = i.extract::<i64>() {
-            return Ok(Json::from(v));
-        }
-        return Ok(Json::from(
-            i.extract::<u64>().map_err(|_| here(": integer out of range".into()))?,
-        ));
-    }
-    if let Ok(f) = obj.cast::<PyFloat>() {
-        let v = f.value();
-        return serde_json::Number::from_f64(v)
-            .map(Json::Number)
-            .ok_or_else(|| here(format!(": {v} is not a finite number")));
-    }
-    if let Ok(s) = obj.cast::<PyString>() {
-        return Ok(Json::String(s.extract::<String>()?));
-    }
-    if let Ok(d) = obj.cast::<PyDict>() {
-        let mut m = serde_json::Map::new();
-        for (k, v) in d.iter() {
-            let key: String = k.extract().map_err(|_| {
-                here(format!(
-                    ": keys must be strings, got {}",
-                    k.repr().map_or("?".into(), |r| r.to_string())
-                ))
-            })?;
-            let inner = if at.is_empty() {
-                key.clone()
-            } else {
-                format!("{at}.{key}")
-            };
-            m.insert(key, to_json(&v, &inner)?);
-        }
-        return Ok(Json::Object(m));
-    }
-    if obj.is_instance_of::<PyList>() || obj.is_instance_of::<PyTuple>() {
-        return obj
-            .try_iter()?
-            .enumerate()
-            .map(|(k, x)| to_json(&x?, &format!("{at}[{k}]")))
-            .collect::<PyResult<Vec<_>>>()
-            .map(Json::Array);
-    }
-    let py = obj.py();
-    // numpy arrays and scalars (and anything else with `tolist`) as lists and numbers.
-    let np = py.import("numpy")?;
-    if obj.is_instance(&np.getattr("ndarray")?)? || obj.is_instance(&np.getattr("generic")?)? {
-        return to_json(&obj.call_method0("tolist")?, at);
-    }
-    let os = py.import("os")?;
-    if obj.is_instance(&os.getattr("PathLike")?)? {
-        return to_json(&os.call_method1("fspath", (obj,))?, at);
-    }
-    Err(here(format!(
-        ": cannot be written in a scene (a {})",
-        obj.get_type().name().map_or("?".into(), |n| n.to_string())
-    )))
-}
-
 /// `Scene.from_dict`: a scene from its document; relative mesh paths resolve against
 /// `base_dir` (the working directory when `None`).
 pub(crate) fn from_dict(py: Python<'_>, d: &Bound<'_, PyAny>, base_dir: Option<PathBuf>) -> PyResult<Scene> {
@@ -219,7 +150,7 @@ pub(crate) fn from_dict(py: Python<'_>, d: &Bound<'_, PyAny>, base_dir: Option<P
             d.get_type().name()?
         )));
     }
-    let mut doc = to_json(d, "")?;
+    let mut doc = crate::pyjson::to_json(d, "")?;
     if doc.get("schema").is_none() {
         if let Some(o) = doc.as_object_mut() {
             o.insert("schema".into(), Json::String(lib_scene::format::SCENE_SCHEMA.into()));
@@ -434,75 +365,4 @@ pub(crate) fn _scene_from_state(py: Python<'_>, state: &Bound<'_, PyDict>) -> Py
         v.apply(&mut scene.inner.model, &mut scene.inputs)?;
     }
     Ok(scene)
-}
-
-/// `Scene.tets`: every tet, global vertex numbering, `(m, 4)` int64.
-pub(crate) fn tets<'py>(py: Python<'py>, s: &Scene) -> PyResult<Bound<'py, PyAny>> {
-    index_array(py, s.inner.model.tets())
-}
-
-/// `(rows, K)` int64 array of index rows.
-pub(crate) fn index_array<'py, const K: usize>(py: Python<'py>, rows: &[[usize; K]]) -> PyResult<Bound<'py, PyAny>> {
-    use numpy::PyArrayMethods;
-    let flat: Vec<i64> = rows.iter().flatten().map(|&i| i as i64).collect();
-    Ok(numpy::PyArray1::from_vec(py, flat).reshape([rows.len(), K])?.into_any())
-}
-
-/// `Scene.surface_triangles`: the boundary faces of the tets (faces of exactly one tet),
-/// oriented outward, `(k, 3)` int64, sorted by vertex ids.
-pub(crate) fn surface_triangles<'py>(py: Python<'py>, s: &Scene) -> PyResult<Bound<'py, PyAny>> {
-    use std::collections::HashMap;
-    let model = &s.inner.model;
-    let rest = model.rest();
-    // For each face: (how many tets, the face, the vertex opposite it).
-    let mut faces: HashMap<[usize; 3], (usize, [usize; 3], usize)> = HashMap::new();
-    for t in model.tets() {
-        for skip in 0..4 {
-            let f: Vec<usize> = (0..4).filter(|&k| k != skip).map(|k| t[k]).collect();
-            let face = [f[0], f[1], f[2]];
-            let mut key = face;
-            key.sort_unstable();
-            faces.entry(key).and_modify(|e| e.0 += 1).or_insert((1, face, t[skip]));
-        }
-    }
-    let mut out: Vec<[usize; 3]> = faces
-        .into_values()
-        .filter(|(count, _, _)| *count == 1)
-        .map(|(_, [a, b, c], opposite)| {
-            let n = (rest[b] - rest[a]).cross(&(rest[c] - rest[a]));
-            if n.dot(&(rest[opposite] - rest[a])) > 0.0 {
-                [a, c, b]
-            } else {
-                [a, b, c]
-            }
-        })
-        .collect();
-    out.sort_unstable();
-    index_array(py, &out)
-}
-
-/// `Scene.bodies`: each body's name, kind (`soft`, `cloth`) and vertex range `(start, stop)`
-/// (rows of the position arrays), and its tet (soft) or triangle (cloth) range.
-pub(crate) fn bodies<'py>(py: Python<'py>, s: &Scene) -> PyResult<Vec<Bound<'py, PyDict>>> {
-    let model = &s.inner.model;
-    let mut out = Vec::new();
-    for b in model.bodies() {
-        let d = PyDict::new(py);
-        d.set_item("name", &b.name)?;
-        d.set_item("kind", "soft")?;
-        d.set_item("vertices", (b.vertices.start, b.vertices.end))?;
-        d.set_item("tets", (b.tets.start, b.tets.end))?;
-        out.push(d);
-    }
-    if let Some(c) = model.cloth() {
-        for b in &c.bodies {
-            let d = PyDict::new(py);
-            d.set_item("name", &b.name)?;
-            d.set_item("kind", "cloth")?;
-            d.set_item("vertices", (b.vertices.start, b.vertices.end))?;
-            d.set_item("triangles", (b.triangles.start, b.triangles.end))?;
-            out.push(d);
-        }
-    }
-    Ok(out)
 }
