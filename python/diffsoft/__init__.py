@@ -47,15 +47,14 @@ import importlib
 from typing import Any
 
 from . import _diffsoft
+from ._batch import grad_batch, simulate_batch
 from ._diffsoft import (
     Run,
     Scene,
     __version__,
     bounds,
-    grad_batch,
     gradcheck,
     jacobians,
-    simulate_batch,
     vjp_batch,
 )
 from ._errors import (
@@ -105,7 +104,8 @@ __all__ = [
 
 
 def __getattr__(name: str) -> Any:
-    # `diffsoft.torch` and `diffsoft.jax` import their framework only when first used.
-    if name in ("torch", "jax"):
+    # `diffsoft.torch` and `diffsoft.jax` import their framework only when first used
+    # (`diffsoft.mesh`, the mesh helpers, likewise).
+    if name in ("torch", "jax", "mesh"):
         return importlib.import_module(f".{name}", __name__)
     raise AttributeError(f"module 'diffsoft' has no attribute '{name}'")

@@ -13,11 +13,14 @@ __all__ = [
     "Run",
     "Scene",
     "__version__",
+    "_run_from_state",
+    "_scene_from_state",
     "array_parameters",
     "bounds",
     "grad_batch",
     "gradcheck",
     "jacobians",
+    "mesh_box",
     "scalar_parameters",
     "simulate_batch",
     "vjp_batch",
@@ -43,6 +46,8 @@ class Run:
     """The run log (as ``run.json``): ``summary``, ``certificate``, ``settings``,
     ``unconverged_steps`` and ``steps`` (one dict per step: iterations, converged, contacts,
     energies, timings)."""
+    def __reduce__(self) -> tuple[Any, tuple[Any, ...]]:
+        """Pickling and copying by value (its arrays and log)."""
 
 @final
 class Scene:
@@ -128,6 +133,37 @@ class Scene:
         (both ``(steps + 1, n, 3)``) with respect to ``params``; ``allow_unconverged`` as in
         ``grad``."""
 
+    # Scenes as data, pickling and accessors.
+    @staticmethod
+    def from_dict(d: dict[str, Any], base_dir: str | PathLike[str] | None = None) -> Scene:
+        """A scene from a dict of the scene file's structure (``schemas/scene.schema.json``;
+        ``schema`` may be left out). A mesh is a file path (relative to ``base_dir``, by default
+        the working directory) or arrays: ``{"vertices": (n, 3), "tets": (m, 4)}`` for a body,
+        ``{"vertices": (n, 3), "triangles": (k, 3)}`` for a cloth or an obstacle's ``file``."""
+    @staticmethod
+    def from_meshio(mesh: Any, scene: dict[str, Any] | None = None, **body: Any) -> Scene:
+        """A scene of one body from a ``meshio.Mesh`` (its ``tetra`` cells): ``body`` holds the
+        body's keys (``material``, ``density`` or ``total_mass``, ``name``, ...), ``scene`` the
+        scene's other keys (``time_step`` or ``solver.dt``, ``gravity``, ``obstacles``, ...)."""
+    def to_dict(self) -> dict[str, Any]:
+        """The scene as a dict of the scene file's structure, meshes inline as lists (``json.dump``
+        writes a scene file) and ``solver`` the current settings; ``set`` values are not part
+        of it (pickling keeps them). Raises ``UnsupportedError`` for paper-format scenes."""
+    @property
+    def tets(self) -> npt.NDArray[np.int64]:
+        """Every tet, ``(m, 4)``, in the global vertex numbering."""
+    @property
+    def surface_triangles(self) -> npt.NDArray[np.int64]:
+        """Boundary faces of the tets, ``(k, 3)``, oriented outward."""
+    @property
+    def bodies(self) -> list[dict[str, Any]]:
+        """Every body: ``name``, ``kind`` (``soft``, ``cloth``), ``vertices`` ``(start, stop)``
+        and ``tets`` (soft) or ``triangles`` (cloth) ``(start, stop)``."""
+    def __reduce__(self) -> tuple[Any, tuple[Any, ...]]:
+        """Pickling by value: document (meshes inline), settings and the parameters set."""
+    def __copy__(self) -> Scene: ...
+    def __deepcopy__(self, memo: Any) -> Scene: ...
+
 def grad_batch(
     scene: Scene,
     steps: int,
@@ -184,6 +220,21 @@ def gradcheck(
 
 def jacobians(seed: int = 2021) -> dict[str, Any]:
     """The ``diffsoft jacobians`` report (joint and ``B = dq/dz`` Jacobians)."""
+
+def mesh_box(
+    cells: tuple[int, int, int],
+    size: tuple[float, float, float],
+    origin: tuple[float, float, float] | None = None,
+    split: str = "kuhn",
+) -> tuple[_FloatArray, npt.NDArray[np.int64]]:
+    """A structured box mesh, ``(vertices (n, 3), tets (m, 4))`` (``diffsoft.mesh.box``); the
+    minimum corner at ``origin`` (the origin by default)."""
+
+def _scene_from_state(state: dict[str, Any]) -> Scene:
+    """A scene from its pickled state."""
+
+def _run_from_state(positions: Any, velocities: Any, times: Any, stats: Any) -> Run:
+    """A run from its pickled state."""
 
 def scalar_parameters() -> list[str]:
     """Names of the scalar parameters, from the library's parameter registry (as the CLI's

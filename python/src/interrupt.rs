@@ -23,7 +23,7 @@ pub fn run<T: Send>(py: Python<'_>, work: impl FnOnce() -> T + Send) -> PyResult
         let worker = {
             let token = token.clone();
             scope.spawn(move || {
-                let out = token.scope(work);
+                let out = token.scope(|| crate::fork::install(work));
                 // The receiver lives until the worker is joined.
                 let _ = tx.send(out);
             })

@@ -5,11 +5,15 @@
 mod arrays;
 mod batch;
 mod errors;
+mod fork;
 mod harness;
 mod interrupt;
+mod mesh_access;
 mod params;
+mod pyjson;
 mod run;
 mod scene;
+mod scene_data;
 mod vjp;
 mod warn;
 
@@ -31,12 +35,51 @@ fn scalar_parameters() -> Vec<&'static str> {
     diffsoft::diff::params::scalar_names()
 }
 
+/// A structured box mesh (the library's generator): `cells` hexahedral cells per axis of a box
+/// of edge lengths `size` with its minimum corner at `origin` (the origin by default), each cell split into six tets
+/// (`split="kuhn"`) or five (`split="five"`); `(vertices (n, 3) float64, tets (m, 4) int64)`.
+#[pyfunction]
+#[pyo3(signature = (cells, size, origin = None, split = "kuhn"))]
+fn mesh_box<'py>(
+    py: Python<'py>,
+    cells: [usize; 3],
+    size: [f64; 3],
+    origin: Option<[f64; 3]>,
+    split: &str,
+) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
+    use diffsoft::mesh::generate::{BoxSpec, CellSplit};
+    let origin = origin.unwrap_or([0.0; 3]);
+    let split = match split {
+        "kuhn" => CellSplit::Kuhn6,
+        "five" => CellSplit::Five,
+        _ => return Err(errors::value(format!("split '{split}': expected 'kuhn' or 'five'"))),
+    };
+    if cells.contains(&0) {
+        return Err(errors::value(format!(
+            "cells {cells:?}: every count must be at least 1"
+        )));
+    }
+    if !size.iter().chain(&origin).all(|x| x.is_finite()) || size.iter().any(|&x| x <= 0.0) {
+        return Err(errors::value(format!(
+            "size {size:?} must be finite and positive, origin {origin:?} finite"
+        )));
+    }
+    let m = BoxSpec::new(cells, size)
+        .origin(origin)
+        .split(split)
+        .build()
+        .map_err(errors::mesh)?;
+    let tets = mesh_access::index_array(py, &m.tets)?;
+    Ok((arrays::vectors(py, m.vertices)?, tets))
+}
+
 #[pymodule]
 fn _diffsoft(m: &Bound<'_, PyModule>) -> PyResult<()> {
     // numpy's C API is loaded now, at import: loaded lazily by the first array a call returns,
     // a Ctrl-C pending at that moment made the loader fail, and that failure is a panic.
     m.py().import("numpy")?;
     drop(numpy::PyArray1::<f64>::zeros(m.py(), 0, false));
+    fork::init();
     m.add_class::<scene::Scene>()?;
     m.add_class::<run::Run>()?;
     m.add_function(wrap_pyfunction!(batch::grad_batch, m)?)?;
@@ -47,6 +90,9 @@ fn _diffsoft(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(harness::jacobians, m)?)?;
     m.add_function(wrap_pyfunction!(array_parameters, m)?)?;
     m.add_function(wrap_pyfunction!(scalar_parameters, m)?)?;
+    m.add_function(wrap_pyfunction!(scene_data::_scene_from_state, m)?)?;
+    m.add_function(wrap_pyfunction!(run::_run_from_state, m)?)?;
+    m.add_function(wrap_pyfunction!(mesh_box, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

@@ -47,8 +47,29 @@ impl Run {
     }
 }
 
+/// A `Run` from its four attributes (what unpickling calls).
+#[pyfunction]
+pub fn _run_from_state(positions: Py<PyAny>, velocities: Py<PyAny>, times: Py<PyAny>, stats: Py<PyAny>) -> Run {
+    Run {
+        positions,
+        velocities,
+        times,
+        stats,
+    }
+}
+
 #[pymethods]
 impl Run {
+    /// Pickling and copying by value (its arrays and log).
+    fn __reduce__<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, pyo3::types::PyTuple>> {
+        let f = py.import("diffsoft._diffsoft")?.getattr("_run_from_state")?;
+        let args = pyo3::types::PyTuple::new(
+            py,
+            [&self.positions, &self.velocities, &self.times, &self.stats].map(|x| x.clone_ref(py)),
+        )?;
+        pyo3::types::PyTuple::new(py, [f, args.into_any()])
+    }
+
     fn __repr__(&self, py: Python<'_>) -> PyResult<String> {
         let shape = self.positions.bind(py).getattr("shape")?.str()?.to_string();
         Ok(format!("Run(positions{shape})"))

@@ -19,6 +19,8 @@ use crate::run::Run;
 pub struct Scene {
     pub(crate) inner: lib_scene::Scene,
     pub(crate) inputs: Inputs,
+    /// Its source and the parameters set, by value (`crate::scene_data`).
+    pub(crate) data: crate::scene_data::Data,
 }
 
 /// A differentiation mode by name.
@@ -125,12 +127,19 @@ impl Scene {
     #[staticmethod]
     #[pyo3(signature = (path, passive = false))]
     fn load(py: Python<'_>, path: std::path::PathBuf, passive: bool) -> PyResult<Self> {
-        let inner = py
-            .detach(|| lib_scene::load(&path, lib_scene::LoadOptions { passive }))
+        let (inner, source) = py
+            .detach(|| {
+                crate::fork::install(|| {
+                    let inner = lib_scene::load(&path, lib_scene::LoadOptions { passive })?;
+                    let source = crate::scene_data::source_of_file(&path, inner.format)?;
+                    Ok((inner, source))
+                })
+            })
             .map_err(errors::scene)?;
         Ok(Scene {
             inner,
             inputs: Inputs::default(),
+            data: crate::scene_data::Data::new(source),
         })
     }
 
@@ -142,7 +151,10 @@ impl Scene {
         let v = Value::read(&this.inner.model, name, value)?;
         let mut model = this.inner.model.clone();
         let mut inputs = this.inputs.clone();
+        let recorded = v.clone();
         v.apply(&mut model, &mut inputs)?;
+        // Recorded for pickling once it applies (a refused value changes nothing).
+        this.data.record(name, &recorded);
         this.inner.model = model;
         this.inputs = inputs;
         Ok(())
@@ -332,6 +344,79 @@ impl Scene {
         let g = interrupt::run(py, || s.vjp_gradient(steps, &cot, m, allow_unconverged))??;
         warn_one_iteration(py, m, &g, steps)?;
         grads(py, &s.inner.model, &g, &params)
+    }
+
+    // --- Scenes as data, pickling (crate::scene_data) and accessors (crate::mesh_access) ---
+
+    /// A scene from a dict of the scene file's structure (`schemas/scene.schema.json`; `schema`
+    /// may be left out). A mesh is a file path (relative to `base_dir`, by default the working
+    /// directory) or arrays: `{"vertices": (n, 3), "tets": (m, 4)}` for a body,
+    /// `{"vertices": (n, 3), "triangles": (k, 3)}` for a cloth or an obstacle's `file`.
+    #[staticmethod]
+    #[pyo3(signature = (d, base_dir = None))]
+    fn from_dict(py: Python<'_>, d: &Bound<'_, PyAny>, base_dir: Option<std::path::PathBuf>) -> PyResult<Self> {
+        crate::scene_data::from_dict(py, d, base_dir)
+    }
+
+    /// A scene of one body from a meshio mesh (its `tetra` cells): `body` holds the body's keys
+    /// (`material`, `density` or `total_mass`, `name`, ...) and `scene` the scene's other keys
+    /// (`time_step` or `solver.dt`, `gravity`, `obstacles`, ...).
+    #[staticmethod]
+    #[pyo3(signature = (mesh, scene = None, **body))]
+    fn from_meshio(
+        py: Python<'_>,
+        mesh: &Bound<'_, PyAny>,
+        scene: Option<&Bound<'_, PyDict>>,
+        body: Option<&Bound<'_, PyDict>>,
+    ) -> PyResult<Self> {
+        let d = py
+            .import("diffsoft.mesh")?
+            .call_method1("_meshio_scene", (mesh, scene, body))?;
+        crate::scene_data::from_dict(py, &d, None)
+    }
+
+    /// The scene as a dict of the scene file's structure, every mesh inline as lists (so
+    /// `json.dump` writes a scene file) and `solver` the current settings (`configure`).
+    /// Parameters changed with `set` are not part of it (pickling keeps them).
+    fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        crate::scene_data::to_dict(py, self)
+    }
+
+    /// Every tet, `(m, 4)` int64, in the global vertex numbering (rows of the position arrays).
+    #[getter]
+    fn tets<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        crate::mesh_access::tets(py, self)
+    }
+
+    /// The boundary faces of the tets, `(k, 3)` int64, oriented outward (counter-clockwise seen
+    /// from outside at rest), global vertex numbering.
+    #[getter]
+    fn surface_triangles<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        crate::mesh_access::surface_triangles(py, self)
+    }
+
+    /// Every body: `name`, `kind` (`soft`, `cloth`), `vertices` `(start, stop)` (its rows of
+    /// the position arrays) and `tets` (soft) or `triangles` (cloth) `(start, stop)`.
+    #[getter]
+    fn bodies<'py>(&self, py: Python<'py>) -> PyResult<Vec<Bound<'py, PyDict>>> {
+        crate::mesh_access::bodies(py, self)
+    }
+
+    /// Pickling by value: the scene's document (meshes inline, or a paper scene's files), its
+    /// settings and the parameters set.
+    fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyTuple>> {
+        let py = slf.py();
+        let f = py.import("diffsoft._diffsoft")?.getattr("_scene_from_state")?;
+        let state = crate::scene_data::state(py, &slf.borrow())?;
+        PyTuple::new(py, [f, PyTuple::new(py, [state])?.into_any()])
+    }
+
+    fn __copy__(&self) -> Self {
+        self.clone()
+    }
+
+    fn __deepcopy__(&self, _memo: &Bound<'_, PyAny>) -> Self {
+        self.clone()
     }
 
     fn __repr__(&self) -> String {

@@ -87,8 +87,9 @@ impl SceneFile {
 pub struct BodyFile {
     /// Name.
     pub name: String,
-    /// Tet mesh file, relative to the scene file.
-    pub mesh: PathBuf,
+    /// Tet mesh: a file (relative to the scene file) or inline arrays
+    /// `{ "vertices": [[x, y, z], ...], "tets": [[i, j, k, l], ...] }` (0-based).
+    pub mesh: TetMeshSource,
     /// Scale applied to the mesh about the origin (1).
     #[serde(default = "one")]
     pub scale: f64,
@@ -141,8 +142,9 @@ pub struct BodyFile {
 pub struct ClothFile {
     /// Name.
     pub name: String,
-    /// Triangle mesh (OBJ), relative to the scene file.
-    pub mesh: PathBuf,
+    /// Triangle mesh: an OBJ file (relative to the scene file) or inline arrays
+    /// `{ "vertices": [[x, y, z], ...], "triangles": [[i, j, k], ...] }` (0-based).
+    pub mesh: SurfaceSource,
     /// Scale applied to the mesh about the origin (1).
     #[serde(default = "one")]
     pub scale: f64,
@@ -422,11 +424,101 @@ pub struct PlaneFile {
 #[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct ObstacleMeshFile {
-    /// OBJ file, relative to the scene file.
-    pub file: PathBuf,
+    /// An OBJ file (relative to the scene file) or inline arrays
+    /// `{ "vertices": [[x, y, z], ...], "triangles": [[i, j, k], ...] }` (0-based).
+    pub file: SurfaceSource,
     /// Scale about the origin (1).
     #[serde(default = "one")]
     pub scale: f64,
+}
+
+/// A body's tet mesh: a file path or inline arrays.
+#[derive(Debug, Clone, PartialEq, schemars::JsonSchema)]
+#[serde(untagged)]
+pub enum TetMeshSource {
+    /// A mesh file (`.obj` with `t` lines, TetGen `.node`/`.ele`, Gmsh `.msh`), relative to the
+    /// scene file.
+    File(PathBuf),
+    /// Vertices and tets.
+    Arrays(TetArrays),
+}
+
+/// A tet mesh as arrays.
+#[derive(Debug, Clone, PartialEq, Deserialize, schemars::JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct TetArrays {
+    /// Vertex positions (mesh coordinates, before `scale`, `rotate`, `translate`).
+    pub vertices: Vec<[f64; 3]>,
+    /// Tets as 0-based vertex indices (either orientation; vertices no tet uses are dropped).
+    pub tets: Vec<[usize; 4]>,
+}
+
+/// A triangle surface (cloth, obstacle): an OBJ file path or inline arrays.
+#[derive(Debug, Clone, PartialEq, schemars::JsonSchema)]
+#[serde(untagged)]
+pub enum SurfaceSource {
+    /// An OBJ file (`v`/`f` lines), relative to the scene file.
+    File(PathBuf),
+    /// Vertices and triangles.
+    Arrays(TriArrays),
+}
+
+/// A triangle surface as arrays.
+#[derive(Debug, Clone, PartialEq, Deserialize, schemars::JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct TriArrays {
+    /// Vertex positions.
+    pub vertices: Vec<[f64; 3]>,
+    /// Triangles as 0-based vertex indices.
+    pub triangles: Vec<[usize; 3]>,
+}
+
+/// A path string or an object of arrays; anything else is an error that says what is expected
+/// (serde's untagged enums only say that nothing matched).
+fn path_or_arrays<'de, D, T>(d: D, what: &str) -> Result<Result<PathBuf, T>, D::Error>
+where
+    D: serde::Deserializer<'de>,
+    T: serde::de::DeserializeOwned,
+{
+    use serde::de::Error;
+    match serde_json::Value::deserialize(d)? {
+        serde_json::Value::String(s) => Ok(Ok(PathBuf::from(s))),
+        v @ serde_json::Value::Object(_) => serde_json::from_value(v)
+            .map(Err)
+            .map_err(|e| D::Error::custom(format!("inline mesh: {e}"))),
+        other => Err(D::Error::custom(format!(
+            "a mesh is a file path or {what}, got {}",
+            match other {
+                serde_json::Value::Null => "null",
+                serde_json::Value::Bool(_) => "a bool",
+                serde_json::Value::Number(_) => "a number",
+                _ => "an array",
+            }
+        ))),
+    }
+}
+
+impl<'de> Deserialize<'de> for TetMeshSource {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        Ok(
+            match path_or_arrays::<D, TetArrays>(d, r#"{"vertices": [[x, y, z], ...], "tets": [[i, j, k, l], ...]}"#)? {
+                Ok(p) => TetMeshSource::File(p),
+                Err(a) => TetMeshSource::Arrays(a),
+            },
+        )
+    }
+}
+
+impl<'de> Deserialize<'de> for SurfaceSource {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        Ok(
+            match path_or_arrays::<D, TriArrays>(d, r#"{"vertices": [[x, y, z], ...], "triangles": [[i, j, k], ...]}"#)?
+            {
+                Ok(p) => SurfaceSource::File(p),
+                Err(a) => SurfaceSource::Arrays(a),
+            },
+        )
+    }
 }
 
 fn one() -> f64 {

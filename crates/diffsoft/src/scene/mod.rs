@@ -11,6 +11,7 @@
 //! A scene builds only what it names: no obstacles, no collision code.
 
 pub mod format;
+pub mod inline;
 pub mod json;
 pub mod paper;
 
@@ -27,7 +28,7 @@ use crate::mesh::{self, MeshInfo, TetMesh};
 use crate::model::{BodySpec, MassSpec, Model, ModelBuilder};
 use crate::skeleton::BoneSpec;
 use crate::solver::Settings;
-use format::{SceneFile, VertexSelector, SCENE_SCHEMA};
+use format::{SceneFile, SurfaceSource, TetMeshSource, VertexSelector, SCENE_SCHEMA};
 
 /// Errors reading a scene; each names the scene file.
 #[derive(Debug, thiserror::Error)]
@@ -125,8 +126,7 @@ fn cloth_from_file(scene: &str, dir: &Path, c: &format::ClothFile) -> Result<cra
             c.name, c.scale
         )));
     }
-    let path = dir.join(&c.mesh);
-    let s = mesh::surface::load_obj(&path)?;
+    let (s, source) = surface_of(scene, dir, &c.mesh, &format!("cloth '{}' mesh", c.name))?;
     let rot = Rotation3::from_scaled_axis(finite3(scene, "rotate", &c.rotate)?);
     let t = finite3(scene, "translate", &c.translate)?;
     let surface = mesh::surface::TriSurface {
@@ -139,9 +139,8 @@ fn cloth_from_file(scene: &str, dir: &Path, c: &format::ClothFile) -> Result<cra
             VertexSelector::Indices(ids) => {
                 if let Some(bad) = ids.iter().find(|&&i| i >= n) {
                     return Err(invalid(format!(
-                        "cloth '{}': vertex {bad} out of range ({n} vertices in {})",
-                        c.name,
-                        path.display()
+                        "cloth '{}': vertex {bad} out of range ({n} vertices in {source})",
+                        c.name
                     )));
                 }
                 Ok(ids.clone())
@@ -170,12 +169,64 @@ fn cloth_from_file(scene: &str, dir: &Path, c: &format::ClothFile) -> Result<cra
         attachments.extend(pick(&a.vertices)?.into_iter().map(|v| (v, a.stiffness)));
     }
     let mut spec = crate::cloth::ClothSpec::new(&c.name, surface, c.stretching, c.bending, c.area_density);
-    spec.source = path.display().to_string();
+    spec.source = source;
     spec.gravity = c.gravity;
     spec.initial_velocity = finite3(scene, "initial_velocity", &c.initial_velocity)?;
     spec.fixed = fixed;
     spec.attachments = attachments;
     Ok(spec)
+}
+
+/// A triangle surface of the diffsoft format and where it came from (`what` names an inline
+/// one in messages).
+fn surface_of(
+    scene: &str,
+    dir: &Path,
+    src: &SurfaceSource,
+    what: &str,
+) -> Result<(mesh::surface::TriSurface, String), SceneError> {
+    match src {
+        SurfaceSource::File(f) => {
+            let path = dir.join(f);
+            Ok((mesh::surface::load_obj(&path)?, path.display().to_string()))
+        }
+        SurfaceSource::Arrays(a) => {
+            let name = format!("{scene}: {what}");
+            Ok((inline::surface(&name, a)?, name))
+        }
+    }
+}
+
+/// Build a scene of the diffsoft format from its JSON document, as [`load`] does from a file:
+/// `path` names the scene in messages and its directory is where relative mesh paths resolve
+/// (a document whose meshes are all inline needs no file). Meshes may be inline arrays (see
+/// [`format::TetMeshSource`]).
+///
+/// ```
+/// use diffsoft::scene;
+///
+/// let doc = serde_json::json!({
+///     "schema": "diffsoft.scene/1", "time_step": 0.01, "gravity": [0, -9.81, 0],
+///     "bodies": [{ "name": "tet", "density": 1000,
+///         "material": { "youngs_modulus": 1e5, "poisson_ratio": 0.3 },
+///         "mesh": { "vertices": [[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], "tets": [[0, 2, 1, 3]] } }]
+/// });
+/// let sc = scene::from_value(doc, std::path::Path::new("<dict>"))?;
+/// assert_eq!((sc.model.n(), sc.model.tets().len()), (4, 1));
+/// let bad = serde_json::json!({ "schema": "diffsoft.scene/1", "time_step": 0.01, "bodies": [{ "name": "b",
+///     "density": 1, "material": { "youngs_modulus": 1, "poisson_ratio": 0.3 }, "mesh": 3 }] });
+/// let err = scene::from_value(bad, std::path::Path::new("<dict>")).unwrap_err().to_string();
+/// assert!(err.contains("a mesh is a file path or"), "{err}");
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+pub fn from_value(value: serde_json::Value, path: &Path) -> Result<Scene, SceneError> {
+    let shown = path.display().to_string();
+    let solver_gives_dt = value.pointer("/solver/dt").is_some();
+    let file: SceneFile = serde_json::from_value(value).map_err(|e| SceneError::Syntax {
+        path: shown,
+        message: e.to_string(),
+    })?;
+    from_diffsoft(path, file, solver_gives_dt)
 }
 
 /// Read a scene file of either format.
@@ -488,7 +539,10 @@ fn from_diffsoft(path: &Path, file: SceneFile, solver_gives_dt: bool) -> Result<
     let mut builder = ModelBuilder::new().gravity(finite3(&scene, "gravity", &file.gravity)?);
     let mut meshes = Vec::new();
     for b in &file.bodies {
-        let loaded = mesh::load(dir.join(&b.mesh))?;
+        let loaded = match &b.mesh {
+            TetMeshSource::File(f) => mesh::load(dir.join(f))?,
+            TetMeshSource::Arrays(a) => inline::tet_mesh(&format!("{scene}: body '{}' mesh", b.name), a)?,
+        };
         if !(b.scale.is_finite() && b.scale > 0.0) {
             return Err(invalid(format!(
                 "body '{}': scale must be finite and positive, got {}",
@@ -560,7 +614,9 @@ fn from_diffsoft(path: &Path, file: SceneFile, solver_gives_dt: bool) -> Result<
                 Arc::new(plane) as Arc<dyn Shape>
             }
             (None, Some(m)) => {
-                let s = mesh::surface::load_obj(dir.join(&m.file))?.scaled(m.scale);
+                let s = surface_of(&scene, dir, &m.file, &format!("obstacle '{name}' mesh"))?
+                    .0
+                    .scaled(m.scale);
                 Arc::new(
                     TriMeshObstacle::new(s.vertices, s.triangles)
                         .map_err(|e| invalid(format!("obstacle '{name}': {e}")))?,

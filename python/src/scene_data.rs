@@ -1,0 +1,368 @@
+//! Scenes as data: `Scene.from_dict` / `to_dict` (the scene file's structure, meshes inline),
+//! and a scene's state by value for pickling and copying: its document (every mesh inline, so
+//! it needs no file and no directory), the solver settings and the parameters the caller set.
+//! A paper-format scene travels as its file's text and the files it names, restored in a
+//! temporary directory. (Python objects to JSON: `crate::pyjson`; the mesh accessors:
+//! `crate::mesh_access`.)
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use diffsoft::scene::{self as lib_scene, SceneFormat};
+use pyo3::prelude::*;
+use pyo3::types::{PyBytes, PyDict, PyTuple};
+use serde_json::Value as Json;
+
+use crate::arrays;
+use crate::errors;
+use crate::params::{Inputs, Value};
+use crate::scene::Scene;
+
+/// Version of the state `__reduce__` writes (checked when it is read back).
+const STATE_VERSION: u32 = 1;
+
+/// Where a scene came from, by value.
+#[derive(Debug, Clone)]
+pub(crate) enum Source {
+    /// A `diffsoft.scene/1` document with every mesh inline.
+    Document(Arc<Json>),
+    /// A paper-format scene file and the files it names.
+    Paper(Arc<PaperFiles>),
+}
+
+/// A paper-format scene as files: its text and every file it names, relative to a root (the
+/// scene's parent directory, where the paper's files resolve first).
+#[derive(Debug)]
+pub(crate) struct PaperFiles {
+    /// The scene's directory name under the root.
+    dir: String,
+    /// The scene file's name.
+    name: String,
+    /// The scene file's text.
+    text: String,
+    /// `(path relative to the root, contents)`.
+    files: Vec<(String, Vec<u8>)>,
+}
+
+/// What a scene holds besides its model: its source and the parameters the caller set.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct Data {
+    source: Option<Source>,
+    /// `Scene.set` calls in order, each name's last value only (a set overwrites what an
+    /// earlier set of the same name wrote).
+    sets: Vec<(String, Value)>,
+}
+
+impl Data {
+    /// Data of a scene from `source`.
+    pub(crate) fn new(source: Source) -> Self {
+        Self {
+            source: Some(source),
+            sets: Vec::new(),
+        }
+    }
+
+    /// Remember that `name` was set to `value`.
+    pub(crate) fn record(&mut self, name: &str, value: &Value) {
+        self.sets.retain(|(n, _)| n != name);
+        self.sets.push((name.to_string(), value.clone()));
+    }
+}
+
+/// The source of a scene just loaded from `path`: native scenes as their document with the
+/// meshes inline, paper scenes as their files.
+pub(crate) fn source_of_file(path: &Path, format: SceneFormat) -> Result<Source, lib_scene::SceneError> {
+    let shown = path.display().to_string();
+    let io = |e: std::io::Error| lib_scene::SceneError::Io {
+        path: shown.clone(),
+        message: e.to_string(),
+    };
+    let text = std::fs::read_to_string(path).map_err(io)?;
+    let syntax = |e: serde_json::Error| lib_scene::SceneError::Syntax {
+        path: shown.clone(),
+        message: e.to_string(),
+    };
+    let mut doc = lib_scene::json::parse_lenient(&text).map_err(syntax)?;
+    let abs = std::path::absolute(path).map_err(io)?;
+    let dir = abs.parent().unwrap_or(Path::new("."));
+    match format {
+        SceneFormat::Diffsoft => {
+            lib_scene::inline::inline_meshes(&mut doc, dir, &shown)?;
+            Ok(Source::Document(Arc::new(doc)))
+        }
+        SceneFormat::Paper => {
+            let root = dir.parent().unwrap_or(dir);
+            let dir_name = dir
+                .file_name()
+                .map_or("scene".into(), |n| n.to_string_lossy().into_owned());
+            let mut names = Vec::new();
+            strings(&doc, &mut names);
+            let mut files: Vec<(String, Vec<u8>)> = Vec::new();
+            for s in names {
+                let p = Path::new(&s);
+                // The paper importer's search order (`paper::Context::resolve`); names that
+                // leave the directory tree are not carried.
+                if s.is_empty()
+                    || p.is_absolute()
+                    || p.components().any(|c| !matches!(c, std::path::Component::Normal(_)))
+                {
+                    continue;
+                }
+                let mut candidates = vec![(root.join(p), s.clone()), (dir.join(p), format!("{dir_name}/{s}"))];
+                if let Some(n) = p.file_name() {
+                    candidates.push((dir.join(n), format!("{dir_name}/{}", n.to_string_lossy())));
+                }
+                if let Some((found, key)) = candidates.into_iter().find(|(c, _)| c.is_file()) {
+                    if !files.iter().any(|(k, _)| *k == key) {
+                        files.push((key, std::fs::read(found).map_err(io)?));
+                    }
+                }
+            }
+            let name = path
+                .file_name()
+                .map_or("scene.json".into(), |n| n.to_string_lossy().into_owned());
+            Ok(Source::Paper(Arc::new(PaperFiles {
+                dir: dir_name,
+                name,
+                text,
+                files,
+            })))
+        }
+    }
+}
+
+/// Every string in `v`.
+fn strings(v: &Json, out: &mut Vec<String>) {
+    match v {
+        Json::String(s) => out.push(s.clone()),
+        Json::Array(a) => a.iter().for_each(|x| strings(x, out)),
+        Json::Object(o) => o.values().for_each(|x| strings(x, out)),
+        _ => {}
+    }
+}
+
+/// `Scene.from_dict`: a scene from its document; relative mesh paths resolve against
+/// `base_dir` (the working directory when `None`).
+pub(crate) fn from_dict(py: Python<'_>, d: &Bound<'_, PyAny>, base_dir: Option<PathBuf>) -> PyResult<Scene> {
+    if !d.is_instance_of::<PyDict>() {
+        return Err(errors::value(format!(
+            "Scene.from_dict: expected a dict, got a {}",
+            d.get_type().name()?
+        )));
+    }
+    let mut doc = crate::pyjson::to_json(d, "")?;
+    if doc.get("schema").is_none() {
+        if let Some(o) = doc.as_object_mut() {
+            o.insert("schema".into(), Json::String(lib_scene::format::SCENE_SCHEMA.into()));
+        }
+    }
+    let path = match &base_dir {
+        Some(dir) => dir.join("<dict>"),
+        None => PathBuf::from("<dict>"),
+    };
+    let dir = base_dir.unwrap_or_default();
+    let inner = py
+        .detach(|| {
+            crate::fork::install(|| {
+                lib_scene::inline::inline_meshes(&mut doc, &dir, "<dict>")?;
+                let scene = lib_scene::from_value(doc.clone(), &path)?;
+                Ok::<_, lib_scene::SceneError>((scene, doc))
+            })
+        })
+        .map_err(errors::scene)?;
+    let (inner, doc) = inner;
+    Ok(Scene {
+        inner,
+        inputs: Inputs::default(),
+        data: Data::new(Source::Document(Arc::new(doc))),
+    })
+}
+
+/// `Scene.to_dict`: the document with every mesh inline (plain lists; `json.dump` writes it as
+/// a scene file), the solver section as the scene's current settings.
+pub(crate) fn to_dict<'py>(py: Python<'py>, s: &Scene) -> PyResult<Bound<'py, PyAny>> {
+    match &s.data.source {
+        Some(Source::Document(doc)) => {
+            let mut doc = (**doc).clone();
+            if let Some(o) = doc.as_object_mut() {
+                o.remove("time_step");
+                o.insert("solver".into(), serde_json::to_value(&s.inner.settings).map_err(errors::other)?);
+            }
+            arrays::json(py, &doc)
+        }
+        Some(Source::Paper(_)) => Err(errors::Class::Unsupported.err(format!(
+            "{}: to_dict writes diffsoft.scene/1 documents; this scene is in the paper's format (it pickles and copies, but has no diffsoft.scene/1 document)",
+            s.inner.path.display()
+        ))),
+        None => Err(errors::value("this scene has no document")),
+    }
+}
+
+/// A value that was set, as the Python object `Scene.set` takes.
+fn set_value<'py>(py: Python<'py>, s: &Scene, v: &Value) -> PyResult<Bound<'py, PyAny>> {
+    use diffsoft::diff::params::ArrayParam;
+    let model = &s.inner.model;
+    Ok(match v {
+        Value::Scalar(_, x) => x.into_pyobject(py)?.into_any(),
+        Value::Vectors(_, vs) => arrays::vectors(py, vs.clone())?,
+        Value::PerTet(e) => arrays::array(py, e.clone(), &[e.len()])?,
+        Value::PerStep(a, rows) => {
+            let cols = match a {
+                ArrayParam::Activations => model.actuators().map_or(0, |g| g.groups.len()),
+                _ => model.skeleton().map_or(0, |k| k.dofs),
+            };
+            arrays::matrix(py, rows, cols)?
+        }
+    })
+}
+
+/// The state `__reduce__` pickles: a dict of plain Python objects.
+pub(crate) fn state<'py>(py: Python<'py>, s: &Scene) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("version", STATE_VERSION)?;
+    match &s.data.source {
+        Some(Source::Document(doc)) => {
+            d.set_item("document", serde_json::to_string(&**doc).map_err(errors::other)?)?;
+        }
+        Some(Source::Paper(p)) => {
+            let files = PyDict::new(py);
+            for (k, bytes) in &p.files {
+                files.set_item(k, PyBytes::new(py, bytes))?;
+            }
+            let paper = PyDict::new(py);
+            paper.set_item("dir", &p.dir)?;
+            paper.set_item("name", &p.name)?;
+            paper.set_item("text", &p.text)?;
+            paper.set_item("files", files)?;
+            d.set_item("paper", paper)?;
+        }
+        None => return Err(errors::value("this scene has no source to pickle")),
+    }
+    d.set_item("path", s.inner.path.display().to_string())?;
+    d.set_item("notes", s.inner.notes.clone())?;
+    d.set_item(
+        "settings",
+        serde_json::to_string(&s.inner.settings).map_err(errors::other)?,
+    )?;
+    let sets = s
+        .data
+        .sets
+        .iter()
+        .map(|(n, v)| PyTuple::new(py, [n.into_pyobject(py)?.into_any(), set_value(py, s, v)?]))
+        .collect::<PyResult<Vec<_>>>()?;
+    d.set_item("sets", sets)?;
+    Ok(d)
+}
+
+fn item<'py>(state: &Bound<'py, PyDict>, key: &str) -> PyResult<Bound<'py, PyAny>> {
+    state
+        .get_item(key)?
+        .ok_or_else(|| errors::value(format!("scene state: no '{key}'")))
+}
+
+/// A paper scene written under a fresh temporary directory, loaded, and the directory removed.
+fn load_paper(py: Python<'_>, paper: &Bound<'_, PyDict>) -> PyResult<lib_scene::Scene> {
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    static COUNT: AtomicUsize = AtomicUsize::new(0);
+    let dir: String = item(paper, "dir")?.extract()?;
+    let name: String = item(paper, "name")?.extract()?;
+    let text: String = item(paper, "text")?.extract()?;
+    let files: Vec<(String, Vec<u8>)> = item(paper, "files")?
+        .cast::<PyDict>()?
+        .iter()
+        .map(|(k, v)| Ok((k.extract()?, v.extract()?)))
+        .collect::<PyResult<_>>()?;
+    let nanos = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.subsec_nanos());
+    let root = std::env::temp_dir().join(format!(
+        "diffsoft-scene-{}-{}-{nanos}",
+        std::process::id(),
+        COUNT.fetch_add(1, Ordering::Relaxed)
+    ));
+    let io = |e: std::io::Error| errors::Class::File.err(format!("{}: {e}", root.display()));
+    let result = (|| {
+        for part in [&dir, &name] {
+            if Path::new(part).components().count() != 1 {
+                return Err(errors::value(format!("scene state: '{part}' is not a plain name")));
+            }
+        }
+        let scene_dir = root.join(&dir);
+        std::fs::create_dir_all(&scene_dir).map_err(io)?;
+        for (key, bytes) in &files {
+            let p = Path::new(key);
+            if p.is_absolute() || p.components().any(|c| !matches!(c, std::path::Component::Normal(_))) {
+                return Err(errors::value(format!(
+                    "scene state: file '{key}' leaves the scene's directory"
+                )));
+            }
+            let target = root.join(p);
+            if let Some(parent) = target.parent() {
+                std::fs::create_dir_all(parent).map_err(io)?;
+            }
+            std::fs::write(&target, bytes).map_err(io)?;
+        }
+        let path = scene_dir.join(&name);
+        std::fs::write(&path, &text).map_err(io)?;
+        py.detach(|| crate::fork::install(|| lib_scene::load(&path, lib_scene::LoadOptions::default())))
+            .map_err(errors::scene)
+    })();
+    let _ = std::fs::remove_dir_all(&root);
+    result
+}
+
+/// A scene from the state of [`state`] (what unpickling calls).
+#[pyfunction]
+pub(crate) fn _scene_from_state(py: Python<'_>, state: &Bound<'_, PyDict>) -> PyResult<Scene> {
+    let version: u32 = item(state, "version")?.extract()?;
+    if version != STATE_VERSION {
+        return Err(errors::value(format!(
+            "scene state version {version}: this version of diffsoft reads version {STATE_VERSION}"
+        )));
+    }
+    let path = PathBuf::from(item(state, "path")?.extract::<String>()?);
+    let (mut inner, source) = match state.get_item("document")? {
+        Some(doc) => {
+            let text: String = doc.extract()?;
+            let doc: Json = serde_json::from_str(&text).map_err(errors::other)?;
+            let inner = py
+                .detach(|| crate::fork::install(|| lib_scene::from_value(doc.clone(), &path)))
+                .map_err(errors::scene)?;
+            (inner, Source::Document(Arc::new(doc)))
+        }
+        None => {
+            let paper = item(state, "paper")?;
+            let paper = paper.cast::<PyDict>()?;
+            let inner = load_paper(py, paper)?;
+            let files: Vec<(String, Vec<u8>)> = item(paper, "files")?
+                .cast::<PyDict>()?
+                .iter()
+                .map(|(k, v)| Ok((k.extract()?, v.extract()?)))
+                .collect::<PyResult<_>>()?;
+            let source = Source::Paper(Arc::new(PaperFiles {
+                dir: item(paper, "dir")?.extract()?,
+                name: item(paper, "name")?.extract()?,
+                text: item(paper, "text")?.extract()?,
+                files,
+            }));
+            (inner, source)
+        }
+    };
+    inner.path = path;
+    inner.notes = item(state, "notes")?.extract()?;
+    let settings: String = item(state, "settings")?.extract()?;
+    inner.settings = serde_json::from_str(&settings).map_err(errors::other)?;
+    let mut scene = Scene {
+        inner,
+        inputs: Inputs::default(),
+        data: Data::new(source),
+    };
+    for entry in item(state, "sets")?.try_iter()? {
+        let entry = entry?;
+        let (name, value): (String, Bound<'_, PyAny>) = entry.extract()?;
+        let v = Value::read(&scene.inner.model, &name, &value)?;
+        scene.data.record(&name, &v);
+        v.apply(&mut scene.inner.model, &mut scene.inputs)?;
+    }
+    Ok(scene)
+}

@@ -1,0 +1,343 @@
+"""Scenes built in code (``Scene.from_dict``, ``from_meshio``, ``diffsoft.mesh``), scenes as
+data (``to_dict``), pickling and copying by value, and the mesh accessors."""
+
+from __future__ import annotations
+
+import copy
+import json
+import os
+import pickle
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+import diffsoft
+from conftest import DATA, REPO
+
+
+def read_tet_obj(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices and tets of an OBJ tet mesh (``v`` and 0-based ``t`` lines)."""
+    v, t = [], []
+    for line in path.read_text().splitlines():
+        parts = line.split()
+        if parts and parts[0] == "v":
+            v.append([float(x) for x in parts[1:4]])
+        elif parts and parts[0] == "t":
+            t.append([int(x) for x in parts[1:5]])
+    return np.array(v), np.array(t, dtype=np.int64)
+
+
+def same_run(a: diffsoft.Scene, b: diffsoft.Scene, steps: int) -> None:
+    """Bit-identical trajectories."""
+    ra, rb = a.simulate(steps), b.simulate(steps)
+    np.testing.assert_array_equal(ra.positions, rb.positions)
+    np.testing.assert_array_equal(ra.velocities, rb.velocities)
+
+
+def beam_dict() -> dict[str, Any]:
+    d: dict[str, Any] = json.loads((DATA / "beam.json").read_text())
+    v, t = read_tet_obj(DATA / "beam.obj")
+    d["bodies"][0]["mesh"] = {"vertices": v, "tets": t}
+    return d
+
+
+def test_from_dict_with_arrays_runs_the_file_scenes_trajectory():
+    from_file = diffsoft.Scene.load(DATA / "beam.json")
+    from_arrays = diffsoft.Scene.from_dict(beam_dict())
+    assert from_arrays.n_vertices == from_file.n_vertices == 20
+    same_run(from_file, from_arrays, 40)
+    la, ga = from_file.grad(20, params=["youngs_modulus", "initial_velocities"])
+    lb, gb = from_arrays.grad(20, params=["youngs_modulus", "initial_velocities"])
+    assert la == lb and ga["youngs_modulus"] == gb["youngs_modulus"]
+    np.testing.assert_array_equal(ga["initial_velocities"], gb["initial_velocities"])
+    # Lists and a relative path (against base_dir) build the same scene too.
+    d = beam_dict()
+    d["bodies"][0]["mesh"] = {k: np.asarray(x).tolist() for k, x in d["bodies"][0]["mesh"].items()}
+    same_run(from_file, diffsoft.Scene.from_dict(d), 10)
+    d["bodies"][0]["mesh"] = "beam.obj"
+    same_run(from_file, diffsoft.Scene.from_dict(d, base_dir=DATA), 10)
+
+
+@pytest.mark.parametrize(
+    "path",
+    [
+        DATA / "beam.json",
+        DATA / "ground.json",
+        REPO / "verification/scenes/ball_on_cloth.json",
+        REPO / "verification/scenes/baymax_skeleton.json",
+    ],
+    ids=lambda p: p.stem,
+)
+def test_to_dict_is_a_self_contained_scene_file(path, tmp_path):
+    scene = diffsoft.Scene.load(path)
+    d = scene.to_dict()
+    # Every mesh inline: a valid scene file of its own, in any directory.
+    text = json.dumps(d)
+    assert ".obj" not in text
+    import jsonschema
+
+    jsonschema.validate(d, json.loads((REPO / "schemas/scene.schema.json").read_text()))
+    (tmp_path / "copy.json").write_text(text)
+    same_run(scene, diffsoft.Scene.load(tmp_path / "copy.json"), 8)
+    same_run(scene, diffsoft.Scene.from_dict(d), 8)
+    assert diffsoft.Scene.from_dict(d).to_dict() == d
+
+
+def test_to_dict_renumbers_vertex_ids_of_one_based_meshes(tmp_path):
+    # A TetGen pair numbered from 1 with a node no tet uses (dropped on loading): `fixed` names
+    # file ids, which the inline mesh renumbers.
+    v, t = read_tet_obj(DATA / "beam.obj")
+    nodes = np.vstack([v[:5], [[9.0, 9.0, 9.0]], v[5:]])
+    tets = np.where(t >= 5, t + 1, t) + 1
+    (tmp_path / "m.node").write_text(
+        f"{len(nodes)} 3 0 0\n" + "".join(f"{i + 1} {x!r} {y!r} {z!r}\n" for i, (x, y, z) in enumerate(nodes.tolist()))
+    )
+    (tmp_path / "m.ele").write_text(
+        f"{len(tets)} 4 0\n" + "".join(f"{k + 1} {a} {b} {c} {d}\n" for k, (a, b, c, d) in enumerate(tets.tolist()))
+    )
+    d = json.loads((DATA / "beam.json").read_text())
+    d["bodies"][0]["mesh"] = "m.node"
+    d["bodies"][0]["fixed"] = {"indices": [1, 2, 8]}  # file ids: vertices 0, 1 and 6 of beam.obj
+    (tmp_path / "s.json").write_text(json.dumps(d))
+    scene = diffsoft.Scene.load(tmp_path / "s.json")
+    inline = scene.to_dict()
+    assert inline["bodies"][0]["fixed"]["indices"] == [0, 1, 6]
+    assert len(inline["bodies"][0]["mesh"]["vertices"]) == 20
+    again = diffsoft.Scene.from_dict(inline)
+    assert again.fixed == scene.fixed and sum(scene.fixed) == 3
+    same_run(scene, again, 10)
+    # An id that names no vertex of a tet is refused, not renumbered to another vertex.
+    d["bodies"][0]["fixed"] = {"indices": [6]}  # the dropped node
+    with pytest.raises(diffsoft.InputError, match="vertex 6 is not a vertex of any tet"):
+        diffsoft.Scene.from_dict(d, base_dir=tmp_path)
+
+
+def test_from_meshio_runs_the_file_scenes_trajectory(tmp_path):
+    import meshio
+
+    v, t = read_tet_obj(DATA / "beam.obj")
+    d = json.loads((DATA / "beam.json").read_text())
+    body = d.pop("bodies")[0]
+    body.pop("mesh")
+    mesh = meshio.Mesh(v, [("tetra", t)])
+    from_file = diffsoft.Scene.load(DATA / "beam.json")
+    same_run(from_file, diffsoft.Scene.from_meshio(mesh, scene=d, **body), 30)
+    # Through a file meshio writes and reads (VTU, binary: exact).
+    meshio.write(tmp_path / "beam.vtu", mesh)
+    same_run(from_file, diffsoft.Scene.from_meshio(meshio.read(tmp_path / "beam.vtu"), scene=d, **body), 30)
+    surface = meshio.Mesh(v, [("triangle", t[:, :3])])
+    with pytest.raises(diffsoft.InputError, match="no 'tetra' cells.*tetrahedralize"):
+        diffsoft.Scene.from_meshio(surface, scene=d, **body)
+    with pytest.raises(diffsoft.InputError, match="expected a meshio.Mesh"):
+        diffsoft.Scene.from_meshio("beam.vtu", scene=d, **body)
+
+
+def test_bad_scene_dicts_raise_input_errors_naming_the_place():
+    def build(mutate) -> None:
+        d = beam_dict()
+        mutate(d)
+        diffsoft.Scene.from_dict(d)
+
+    def mesh_number(d):
+        d["bodies"][0]["mesh"] = 3
+
+    def nan_vertex(d):
+        d["bodies"][0]["mesh"]["vertices"][2, 1] = np.nan
+
+    def index_out_of_range(d):
+        d["bodies"][0]["mesh"]["tets"][5, 2] = 99
+
+    def unknown_mesh_key(d):
+        d["bodies"][0]["mesh"]["faces"] = []
+
+    def unknown_key(d):
+        d["bodies"][0]["colour"] = "red"
+
+    def flat_tet(d):
+        d["bodies"][0]["mesh"]["vertices"][:] = 0.0
+
+    cases = [
+        (mesh_number, "a mesh is a file path or"),
+        (nan_vertex, r"bodies\[0\]\.mesh\.vertices\[2\]\[1\]: NaN is not a finite number"),
+        (index_out_of_range, "body 'beam' mesh.*99"),
+        (unknown_mesh_key, "inline mesh: unknown field `faces`"),
+        (unknown_key, "unknown field `colour`"),
+        (flat_tet, "body 'beam' mesh"),
+    ]
+    for mutate, message in cases:
+        with pytest.raises(diffsoft.InputError, match=message):
+            build(mutate)
+    with pytest.raises(diffsoft.InputError, match="expected a dict"):
+        diffsoft.Scene.from_dict([1, 2])  # type: ignore[arg-type]
+    with pytest.raises(diffsoft.FileError, match="no_such.obj"):
+        d = beam_dict()
+        d["bodies"][0]["mesh"] = "no_such.obj"
+        diffsoft.Scene.from_dict(d)
+
+
+def test_pickle_and_copy_keep_what_was_set_and_configured():
+    scene = diffsoft.Scene.load(DATA / "beam.json")
+    scene.set("youngs_modulus", 3e4)
+    scene.set("youngs_modulus_per_tet", np.linspace(2e4, 4e4, scene.n_tets))
+    scene.set("youngs_modulus", 2.5e4)  # overrides the per-tet values again
+    scene.set("initial_velocities", np.full((scene.n_vertices, 3), 0.1))
+    scene.set("initial_velocity.y", 0.7)  # sets the y column of the initial velocities
+    scene.configure(tolerance=1e-9, max_iterations=77)
+    for other in (
+        pickle.loads(pickle.dumps(scene)),
+        copy.copy(scene),
+        copy.deepcopy(scene),
+        scene.copy(),
+    ):
+        assert other.settings == scene.settings and other.settings["max_iterations"] == 77
+        for name in ("youngs_modulus_per_tet", "initial_velocities"):
+            np.testing.assert_array_equal(other.get(name), scene.get(name))
+        same_run(scene, other, 25)
+        assert scene.grad(10, params=["density"]) == other.grad(10, params=["density"])
+    # The pickle carries the values: unchanged by later sets on the original.
+    data = pickle.dumps(scene)
+    scene.set("youngs_modulus", 9e4)
+    assert pickle.loads(data).get("youngs_modulus") == 2.5e4
+    # Repeated sets of one name keep one value in the pickle.
+    for e in np.linspace(1e4, 2e4, 200):
+        scene.set("youngs_modulus_per_tet", np.full(scene.n_tets, e))
+    assert len(pickle.dumps(scene)) < len(data) + 2000
+
+
+def test_pickled_scene_needs_no_files(tmp_path):
+    paper = diffsoft.Scene.load(REPO / "verification/paper/bridgesus/bridgesus.json")
+    cloth = diffsoft.Scene.load(REPO / "verification/scenes/ball_on_cloth.json")
+    cloth.set("initial_velocity.x", 0.2)
+    blobs = [pickle.dumps(paper), pickle.dumps(cloth)]
+    cwd = os.getcwd()
+    os.chdir(tmp_path)
+    try:
+        restored = [pickle.loads(b) for b in blobs]
+    finally:
+        os.chdir(cwd)
+    assert restored[0].path == paper.path and restored[0].notes == paper.notes
+    same_run(paper, restored[0], 5)
+    same_run(cloth, restored[1], 5)
+    with pytest.raises(diffsoft.UnsupportedError, match="paper's format"):
+        paper.to_dict()
+
+
+def test_runs_pickle_by_value():
+    run = diffsoft.Scene.load(DATA / "beam.json").simulate(4)
+    other = pickle.loads(pickle.dumps(run))
+    np.testing.assert_array_equal(other.positions, run.positions)
+    np.testing.assert_array_equal(other.times, run.times)
+    assert other.stats == run.stats
+    deep = copy.deepcopy(run)
+    assert deep.positions is not run.positions
+    np.testing.assert_array_equal(deep.velocities, run.velocities)
+
+
+def test_accessors_tets_surface_and_body_ranges():
+    box = diffsoft.mesh.box((2, 1, 1), (0.2, 0.1, 0.1), origin=(0.0, 1.0, 0.0))
+    assert box["vertices"].shape == (12, 3) and box["tets"].shape == (12, 4)
+    assert box["vertices"][:, 1].min() == 1.0
+    scene = diffsoft.Scene.from_dict(
+        {
+            "time_step": 0.01,
+            "gravity": [0, -9.81, 0],
+            "bodies": [
+                {"name": "a", "mesh": box, "material": {"youngs_modulus": 1e5, "poisson_ratio": 0.3}, "density": 500},
+                {
+                    "name": "b",
+                    "mesh": box,
+                    "translate": [0, 0.5, 0],
+                    "material": {"youngs_modulus": 1e5, "poisson_ratio": 0.3},
+                    "density": 500,
+                },
+            ],
+        }
+    )
+    assert [b["vertices"] for b in scene.bodies] == [(0, 12), (12, 24)]
+    assert [b["tets"] for b in scene.bodies] == [(0, 12), (12, 24)]
+    np.testing.assert_array_equal(scene.tets[:12], box["tets"])
+    np.testing.assert_array_equal(scene.tets[12:], box["tets"] + 12)
+    tri = scene.surface_triangles
+    # Two boxes of 2 x 1 x 1 cells: 10 square faces each, two triangles per square.
+    assert tri.shape == (40, 3)
+    # Oriented outward: the divergence theorem gives each box's volume.
+    x = scene.get("initial_positions")
+    a, b, c = x[tri[:, 0]], x[tri[:, 1]], x[tri[:, 2]]
+    volume = np.einsum("ij,ij->i", a, np.cross(b, c)).sum() / 6
+    assert volume == pytest.approx(2 * 0.2 * 0.1 * 0.1, rel=1e-12)
+    cloth = diffsoft.Scene.load(REPO / "verification/scenes/ball_on_cloth.json")
+    kinds = [(b["name"], b["kind"]) for b in cloth.bodies]
+    assert kinds == [("ball", "soft"), ("flag", "cloth")]
+    assert cloth.bodies[1]["vertices"] == (43, 43 + 81) and cloth.n_vertices == 124
+    with pytest.raises(diffsoft.InputError, match="split 'six'"):
+        diffsoft.mesh.box((1, 1, 1), (1, 1, 1), split="six")
+    with pytest.raises(diffsoft.InputError, match="at least 1"):
+        diffsoft.mesh.box((0, 1, 1), (1, 1, 1))
+
+
+def cube_surface() -> tuple[np.ndarray, np.ndarray]:
+    """The unit cube's surface, 12 triangles oriented outward."""
+    v = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], dtype=float)
+    quads = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
+    f = np.array([t for a, b, c, d in quads for t in ((a, b, c), (a, c, d))])
+    return v, f
+
+
+def test_a_surface_mesh_tetrahedralizes_and_simulates():
+    v, f = cube_surface()
+    diffsoft.mesh.check_surface(v, f)
+    mesh = diffsoft.mesh.tetrahedralize(v, f, max_volume=0.01)
+    tv, tt = mesh["vertices"], mesh["tets"]
+    assert len(tt) >= 100  # at most 0.01 m^3 each
+    e = tv[tt[:, 1:]] - tv[tt[:, :1]]
+    volumes = np.abs(np.linalg.det(e)) / 6
+    assert volumes.sum() == pytest.approx(1.0, rel=1e-12) and volumes.max() <= 0.01 * (1 + 1e-9)
+    scene = diffsoft.Scene.from_dict(
+        {
+            "time_step": 0.01,
+            "gravity": [0, -9.81, 0],
+            "bodies": [
+                {
+                    "name": "cube",
+                    "mesh": mesh,
+                    "material": {"youngs_modulus": 1e5, "poisson_ratio": 0.3},
+                    "density": 100,
+                }
+            ],
+            "obstacles": [{"plane": {"point": [0, -0.05, 0], "normal": [0, 1, 0]}, "friction": 0.5}],
+        }
+    )
+    run = scene.simulate(30)
+    assert np.isfinite(run.positions).all()
+    # It falls onto the ground and stays above it (the plane's thickness aside).
+    com = run.positions[:, :, 1].mean(axis=1)
+    assert com[10] < com[0] and run.positions[-1, :, 1].min() > -0.06
+
+
+def test_bad_surfaces_are_refused_with_the_problem_named():
+    v, f = cube_surface()
+    with pytest.raises(diffsoft.InputError, match="open: 3 edges"):
+        diffsoft.mesh.tetrahedralize(v, f[1:])
+    flipped = f.copy()
+    flipped[0] = flipped[0, ::-1]
+    with pytest.raises(diffsoft.InputError, match="not consistently oriented"):
+        diffsoft.mesh.tetrahedralize(v, flipped)
+    # A second cube sharing one edge with the first: four triangles on that edge.
+    v2 = np.vstack([v, v + [1.0, 1.0, 0.0]])
+    shared = np.vstack([f, f + 8])
+    shared = np.where(shared == 8 + 0, 6, shared)  # the second cube's (0,0,*) corners are the first's (1,1,*)
+    shared = np.where(shared == 8 + 1, 7, shared)
+    with pytest.raises(diffsoft.InputError, match="not manifold"):
+        diffsoft.mesh.tetrahedralize(v2, shared)
+    # Two cubes overlapping: closed and manifold, but crossing.
+    v3 = np.vstack([v, v + [0.3, 0.4, 0.45]])
+    with pytest.raises(diffsoft.InputError, match="intersects itself"):
+        diffsoft.mesh.tetrahedralize(v3, np.vstack([f, f + 8]))
+    with pytest.raises(diffsoft.InputError, match="zero area"):
+        diffsoft.mesh.check_surface(np.vstack([v, v[:1]]), np.vstack([f, [[0, 8, 1]]]))
+    with pytest.raises(diffsoft.InputError, match="out of range"):
+        diffsoft.mesh.tetrahedralize(v, f + 1)
+    with pytest.raises(diffsoft.InputError, match="max_volume"):
+        diffsoft.mesh.tetrahedralize(v, f, max_volume=-1.0)
