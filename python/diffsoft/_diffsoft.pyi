@@ -62,8 +62,8 @@ class Scene:
     def set(self, name: str, value: _ParamValue) -> None:
         """Set a scalar (``youngs_modulus``, ``gravity.y``, ...) or array parameter
         (``initial_positions``, ``youngs_modulus_per_tet``, ``activations``, ...): a name of
-        ``scalar_parameters()`` or ``array_parameters()``. Raises ``SceneBusyError`` while a
-        batch or ``gradcheck`` on another thread reads the scene."""
+        ``scalar_parameters()`` or ``array_parameters()``. Raises SceneBusyError while a
+        batch or gradcheck on another thread reads the scene."""
     def get(self, name: str) -> float | _FloatArray | None:
         """A parameter's value (``None``: per-step controls that follow the schedules)."""
     def configure(self, **settings: Any) -> None:

@@ -24,6 +24,21 @@ pub(crate) fn scenes(base: &Scene, values: &[Bound<'_, PyDict>]) -> PyResult<Vec
         .collect()
 }
 
+/// `f` of every item in parallel ([`tasks::map_each`]) with the GIL released and Ctrl-C
+/// watched; an item that panics gives the package's error for a panic.
+pub(crate) fn each<T: Sync, R: Send>(
+    py: Python<'_>,
+    items: &[T],
+    f: impl Fn(&T) -> PyResult<R> + Send + Sync,
+) -> PyResult<Vec<PyResult<R>>> {
+    interrupt::run(py, || {
+        tasks::map_each(items, f)
+            .into_iter()
+            .map(|r| r.unwrap_or_else(|panic| Err(crate::errors::panicked(panic))))
+            .collect()
+    })
+}
+
 /// `[(loss, grads)]`, one per dict of `values` (each sets parameters on a copy of `scene`).
 #[pyfunction]
 #[pyo3(signature = (scene, steps, loss, params, values, mode = "unrolled", allow_unconverged = false))]
@@ -41,12 +56,7 @@ pub fn grad_batch<'py>(
     scene::names(&params)?;
     let m = scene::mode(mode)?;
     let runs = scenes(scene, &values)?;
-    let results: Vec<PyResult<diffsoft::Gradient>> = interrupt::run(py, || {
-        tasks::map_each(&runs, |s| s.gradient(steps, loss, m, allow_unconverged))
-            .into_iter()
-            .map(|r| r.unwrap_or_else(|panic| Err(crate::errors::panicked(panic))))
-            .collect()
-    })?;
+    let results = each(py, &runs, |s| s.gradient(steps, loss, m, allow_unconverged))?;
     runs.iter()
         .zip(results)
         .map(|(s, g)| {
@@ -69,12 +79,7 @@ pub fn simulate_batch<'py>(
 ) -> PyResult<Vec<Run>> {
     let runs = scenes(scene, &values)?;
     let mut unconverged = false;
-    let results: Vec<PyResult<diffsoft::diff::Rollout>> = interrupt::run(py, || {
-        tasks::map_each(&runs, |s| s.rollout(steps))
-            .into_iter()
-            .map(|r| r.unwrap_or_else(|panic| Err(crate::errors::panicked(panic))))
-            .collect()
-    })?;
+    let results = each(py, &runs, |s| s.rollout(steps))?;
     let runs: Vec<Run> = runs
         .iter()
         .zip(results)

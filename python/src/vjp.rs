@@ -3,7 +3,6 @@
 //! like `grad_batch`), which custom losses and the frameworks' batching rules
 //! (`torch.func.vmap`, `jax.vmap`) map to.
 
-use diffsoft::base::tasks;
 use diffsoft::diff::{self, Cotangent, Options};
 use diffsoft::Mode;
 use nalgebra::Vector3;
@@ -12,7 +11,6 @@ use pyo3::types::PyDict;
 
 use crate::arrays;
 use crate::errors;
-use crate::interrupt;
 use crate::scene::{self, Scene};
 
 /// One `(steps + 1, n, 3)` cotangent array named `name`, as vectors.
@@ -122,12 +120,7 @@ pub fn vjp_batch<'py>(
         })
         .collect::<PyResult<Vec<_>>>()?;
     let jobs: Vec<(&Scene, &Cotangent)> = runs.iter().zip(&cots).collect();
-    let results: Vec<PyResult<diffsoft::Gradient>> = interrupt::run(py, || {
-        tasks::map_each(&jobs, |(s, c)| s.vjp_gradient(steps, c, m, allow_unconverged))
-            .into_iter()
-            .map(|r| r.unwrap_or_else(|panic| Err(crate::errors::panicked(panic))))
-            .collect()
-    })?;
+    let results = crate::batch::each(py, &jobs, |(s, c)| s.vjp_gradient(steps, c, m, allow_unconverged))?;
     runs.iter()
         .zip(results)
         .map(|(s, g)| {

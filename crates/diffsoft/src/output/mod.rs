@@ -15,3 +15,17 @@ pub use run_dir::{RunDir, RunStatus, COLLECTION, RUN_LOG};
 
 pub use runlog::{BodyLog, MaterialLog, RunLog, RunSummary, RUN_SCHEMA};
 pub use vtk::FrameWriter;
+
+/// Standard base64 (RFC 4648, with padding) of `bytes`: the encoding of the VTK frames' binary
+/// arrays, also used by the harness's report page for its inline plots.
+///
+/// ```
+/// assert_eq!(diffsoft::output::base64(b"foobar"), "Zm9vYmFy");
+/// assert_eq!(diffsoft::output::base64(b"fo"), "Zm8=");
+/// ```
+pub fn base64(bytes: &[u8]) -> String {
+    let mut out = Vec::with_capacity(bytes.len().div_ceil(3) * 4);
+    vtk::base64_encode(bytes, &mut out);
+    // The alphabet and the padding are ASCII.
+    String::from_utf8(out).unwrap_or_default()
+}

@@ -423,7 +423,7 @@ impl std::fmt::Write for VecWriter<'_> {
 const BASE64: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
 
 /// Append the standard base64 encoding (RFC 4648, with padding) of `input` to `out`.
-fn base64_encode(input: &[u8], out: &mut Vec<u8>) {
+pub(crate) fn base64_encode(input: &[u8], out: &mut Vec<u8>) {
     let start = out.len();
     out.resize(start + input.len().div_ceil(3) * 4, 0);
     let dst = &mut out[start..];

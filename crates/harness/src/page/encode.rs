@@ -1,5 +1,5 @@
-//! Text encodings the page needs: HTML escaping, percent-encoding of relative links, base64 of
-//! embedded files, and the short display of numbers.
+//! Text encodings the page needs: HTML escaping, percent-encoding of relative links and the
+//! short display of numbers (the embedded plots' base64 is `diffsoft::output::base64`).
 
 /// `text` with `& < > " '` replaced by entities: safe in element content and quoted attributes.
 pub(crate) fn escape(text: &str) -> String {
@@ -27,24 +27,6 @@ pub(crate) fn url_path(path: &str) -> String {
             out.push(char::from(b));
         } else {
             out.push_str(&format!("%{b:02X}"));
-        }
-    }
-    out
-}
-
-/// Standard base64 (RFC 4648, with padding).
-pub(crate) fn base64(bytes: &[u8]) -> String {
-    const ALPHABET: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-    let mut out = String::with_capacity(bytes.len().div_ceil(3) * 4);
-    for chunk in bytes.chunks(3) {
-        let b = [chunk[0], *chunk.get(1).unwrap_or(&0), *chunk.get(2).unwrap_or(&0)];
-        let n = (u32::from(b[0]) << 16) | (u32::from(b[1]) << 8) | u32::from(b[2]);
-        for k in 0..4 {
-            if k <= chunk.len() {
-                out.push(char::from(ALPHABET[((n >> (18 - 6 * k)) & 63) as usize]));
-            } else {
-                out.push('=');
-            }
         }
     }
     out
@@ -100,22 +82,6 @@ mod tests {
         assert_eq!(url_path("sweeps/ball.json"), "sweeps/ball.json");
         assert_eq!(url_path("a b#c?d%e\"f.svg"), "a%20b%23c%3Fd%25e%22f.svg");
         assert_eq!(url_path("é.json"), "%C3%A9.json");
-    }
-
-    #[test]
-    fn base64_matches_rfc_4648_vectors() {
-        for (plain, coded) in [
-            ("", ""),
-            ("f", "Zg=="),
-            ("fo", "Zm8="),
-            ("foo", "Zm9v"),
-            ("foob", "Zm9vYg=="),
-            ("fooba", "Zm9vYmE="),
-            ("foobar", "Zm9vYmFy"),
-        ] {
-            assert_eq!(base64(plain.as_bytes()), coded, "{plain}");
-        }
-        assert_eq!(base64(&[0xff, 0xfe, 0x00]), "//4A");
     }
 
     #[test]

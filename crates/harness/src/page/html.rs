@@ -4,8 +4,9 @@
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 
-use super::encode::{base64, escape, short_number, url_path};
+use super::encode::{escape, short_number, url_path};
 use super::reports::{Contents, Found, Origin, Report};
+use diffsoft::output::base64;
 
 /// Counts the page states in its summary line.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
