@@ -30,8 +30,8 @@ py="$venv/bin/python"
 # Lint and formatting of the Python code (settings in python/pyproject.toml; --config so that
 # they apply to examples/python/ too).
 export RUFF_CACHE_DIR="${RUFF_CACHE_DIR:-target/ruff_cache}" MYPY_CACHE_DIR="${MYPY_CACHE_DIR:-target/mypy_cache}"
-"$venv/bin/ruff" check --config python/pyproject.toml python examples/python
-"$venv/bin/ruff" format --check --config python/pyproject.toml python examples/python
+"$venv/bin/ruff" check --config python/pyproject.toml python examples/python benches
+"$venv/bin/ruff" format --check --config python/pyproject.toml python examples/python benches
 # Builds the extension (release) in an isolated environment with maturin from PyPI.
 "$py" -m pip install --quiet --disable-pip-version-check --force-reinstall --no-deps ./python
 # Types of the package's modules, and the stubs of the native module against the installed one.

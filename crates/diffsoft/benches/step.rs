@@ -11,6 +11,12 @@
 //!   ground: paper 14.5 ms/step (5 bones, 3-6 local-global iterations per step);
 //! * the skeleton's overhead: the same scene with and without bones, both held to exactly 5
 //!   local-global iterations per step (so the ratio is the cost per iteration).
+//!
+//! Two environment variables serve runs on other machines (a many-core one, say):
+//! `DIFFSOFT_BENCH_THREADS=1,4,16` replaces the thread counts `1,2`, and
+//! `DIFFSOFT_BENCH_ONLY=beam_52k_10_iterations,bridge` builds only the named cases (criterion's
+//! own filter only skips the timing, not the building). Scenes are read from the repository's
+//! `verification/`, or from `./verification` when the build's checkout is not there.
 
 use std::path::PathBuf;
 
@@ -21,9 +27,37 @@ use diffsoft::{BodySpec, MassSpec, Material, ModelBuilder, Settings, Simulator, 
 use nalgebra::Vector3;
 
 fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+    let built = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
         .join("../..")
-        .join("verification")
+        .join("verification");
+    if built.is_dir() {
+        built
+    } else {
+        PathBuf::from("verification")
+    }
+}
+
+/// The thread counts to time: `DIFFSOFT_BENCH_THREADS` (comma-separated) or 1 and 2.
+fn thread_counts() -> Vec<usize> {
+    match std::env::var("DIFFSOFT_BENCH_THREADS") {
+        Ok(list) => list
+            .split(',')
+            .map(|t| {
+                t.trim()
+                    .parse()
+                    .expect("DIFFSOFT_BENCH_THREADS: comma-separated thread counts")
+            })
+            .collect(),
+        Err(_) => vec![1, 2],
+    }
+}
+
+/// Whether the case `name` is built and timed: all, or those `DIFFSOFT_BENCH_ONLY` names.
+fn wanted(name: &str) -> bool {
+    match std::env::var("DIFFSOFT_BENCH_ONLY") {
+        Ok(list) => list.split(',').any(|n| n.trim() == name),
+        Err(_) => true,
+    }
 }
 
 fn scene_sim(path: &str, warmup: usize, strip_obstacles: bool) -> Simulator {
@@ -165,8 +199,8 @@ fn steps(c: &mut Criterion) {
             }),
         ),
     ];
-    for (name, make) in cases {
-        for threads in [1usize, 2] {
+    for (name, make) in cases.into_iter().filter(|(name, _)| wanted(name)) {
+        for threads in thread_counts() {
             let pool = pool(threads);
             let mut sim = pool.install(&make);
             g.bench_function(BenchmarkId::new(name, format!("{threads}_threads")), |b| {
@@ -182,7 +216,10 @@ fn steps(c: &mut Criterion) {
 fn episodes(c: &mut Criterion) {
     let mut g = c.benchmark_group("episode_100_steps");
     g.sample_size(10);
-    for threads in [1usize, 2] {
+    for threads in thread_counts()
+        .into_iter()
+        .filter(|_| wanted("episode_baymax_skeleton"))
+    {
         let pool = pool(threads);
         g.bench_function(BenchmarkId::new("baymax_skeleton", format!("{threads}_threads")), |b| {
             b.iter_batched(
@@ -228,8 +265,8 @@ fn contacts(c: &mut Criterion) {
         ("impact_100_m_s", 3, Box::new(impact(100.0))),
         ("impact_1000_m_s", 3, Box::new(impact(1000.0))),
     ];
-    for (name, steps, make) in cases {
-        for threads in [1usize, 2] {
+    for (name, steps, make) in cases.into_iter().filter(|(name, _, _)| wanted(name)) {
+        for threads in thread_counts() {
             let pool = pool(threads);
             let mut sim = pool.install(&make);
             let (q, v) = (sim.state().q.clone(), sim.state().v.clone());
