@@ -83,10 +83,11 @@ impl CholeskyFactor {
 pub(crate) struct Direct {
     factor: Arc<CholeskyFactor>,
     solve_mem: MemBuffer,
-    /// Scratch of the two- and one-column solves when the axes are solved concurrently.
-    axis_mem: [MemBuffer; 2],
-    /// Solve the three axes concurrently (large systems with several worker threads).
-    axis_parallel: bool,
+    /// Scratch of the two- or one-column solves when the axes are solved concurrently.
+    axis_mem: [MemBuffer; 3],
+    /// How the three axes are solved: 1 (together, on this thread), 2 (two on this thread,
+    /// one on another) or 3 (each on its own thread): large systems with several worker threads.
+    axis_split: usize,
     rhs: Mat<f64>,
     /// Columns of `A^-1` at contact vertices (free index -> column).
     delassus: HashMap<usize, Vec<f64>>,
@@ -117,13 +118,17 @@ impl Direct {
         let par = Par::Seq;
         let symbolic = &factor.symbolic;
         let solve_mem = MemBuffer::new(symbolic.solve_in_place_scratch::<f64>(3, par));
-        let axis_mem = [2, 1].map(|k| MemBuffer::new(symbolic.solve_in_place_scratch::<f64>(k, par)));
-        let axis_parallel = n >= AXIS_PARALLEL_MIN && rayon::current_num_threads() >= 2;
+        let axis_mem = [2, 1, 1].map(|k| MemBuffer::new(symbolic.solve_in_place_scratch::<f64>(k, par)));
+        let axis_split = if n < AXIS_PARALLEL_MIN {
+            1
+        } else {
+            rayon::current_num_threads().clamp(1, 3)
+        };
         Self {
             factor,
             solve_mem,
             axis_mem,
-            axis_parallel,
+            axis_split,
             rhs: Mat::zeros(n, 3),
             delassus: HashMap::new(),
             control,
@@ -138,14 +143,28 @@ impl Direct {
 
     fn solve_rhs(&mut self) {
         let llt = self.factor.llt();
-        if self.axis_parallel {
+        let [m2, m1, m0] = &mut self.axis_mem;
+        if self.axis_split == 2 {
             // The three axes share the factor: two axes on this thread (one pass over the
             // factor serves both), the third on another.
             let (xy, z) = self.rhs.as_mut().split_at_col_mut(2);
-            let [m2, m1] = &mut self.axis_mem;
             rayon::join(
                 || llt.solve_in_place_with_conj(Conj::No, xy, Par::Seq, MemStack::new(m2)),
                 || llt.solve_in_place_with_conj(Conj::No, z, Par::Seq, MemStack::new(m1)),
+            );
+        } else if self.axis_split == 3 {
+            // Three threads or more: an axis each (the solves are bound by memory traffic,
+            // which more cores share out).
+            let (x, yz) = self.rhs.as_mut().split_at_col_mut(1);
+            let (y, z) = yz.split_at_col_mut(1);
+            rayon::join(
+                || llt.solve_in_place_with_conj(Conj::No, x, Par::Seq, MemStack::new(m2)),
+                || {
+                    rayon::join(
+                        || llt.solve_in_place_with_conj(Conj::No, y, Par::Seq, MemStack::new(m1)),
+                        || llt.solve_in_place_with_conj(Conj::No, z, Par::Seq, MemStack::new(m0)),
+                    )
+                },
             );
         } else {
             llt.solve_in_place_with_conj(
@@ -375,6 +394,6 @@ impl GlobalSolver for Direct {
     }
 
     fn parallel_inside(&self) -> bool {
-        self.axis_parallel
+        self.axis_split > 1
     }
 }
