@@ -18,7 +18,7 @@ use diffsoft::kernel::actuator::tet_target_dual;
 use diffsoft::kernel::linearization::TetLinearization;
 use diffsoft::kernel::svd::svd3;
 use diffsoft::model::Model;
-use diffsoft::testing::{Case, Group};
+use diffsoft::testing::{Case, Direction, Group};
 
 /// One point of a V-curve.
 #[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
@@ -81,8 +81,24 @@ pub fn steps_sweep() -> Vec<f64> {
 /// over [`steps_sweep`] along a random direction, or the scalar itself), given the gradient `g`
 /// of a run with the case's settings.
 pub fn check_group(case: &Case, group: &Group, g: &Gradient, seed: u64) -> Result<GroupCheck, DiffError> {
+    let sweep = fd_sweep(case, group, seed)?;
+    Ok(assess_group(case, group, g, &sweep))
+}
+
+/// The central differences of one group's loss along its seeded direction: the same for every
+/// mode of a case, so [`check_case`] computes them once.
+#[derive(Debug, Clone)]
+pub struct FdSweep {
+    /// The direction `u` (the group's unit perturbation).
+    direction: Direction,
+    /// `(e, (L(p + e s u) - L(p - e s u)) / 2e)` for each step `e` of [`steps_sweep`] that stays
+    /// in the parameter's valid range.
+    differences: Vec<(f64, f64)>,
+}
+
+/// The V-curve's forward runs of `group` with the direction of `seed`.
+pub fn fd_sweep(case: &Case, group: &Group, seed: u64) -> Result<FdSweep, DiffError> {
     let d = case.direction(group, seed);
-    let a = case.analytic(group, g, &d);
     // The sweep's forward runs are independent: they run on every core, each on one thread
     // (their results do not depend on how many run at once; inside a task of `check_all` they
     // run one after another).
@@ -102,7 +118,7 @@ pub fn check_group(case: &Case, group: &Group, g: &Gradient, seed: u64) -> Resul
             .unwrap_or_else(|| Err("task did not run".into()))
             .map_err(|panic| DiffError::Unsupported(format!("a finite-difference run panicked: {panic}")))?
     };
-    let mut curve = Vec::new();
+    let mut differences = Vec::new();
     for e in sweep {
         // Steps that leave the parameter's valid range (e.g. nu >= 0.5) are skipped.
         let (p, m) = match (next(), next()) {
@@ -110,7 +126,21 @@ pub fn check_group(case: &Case, group: &Group, g: &Gradient, seed: u64) -> Resul
             (Err(DiffError::Input(_)), _) | (_, Err(DiffError::Input(_))) => continue,
             (Err(err), _) | (_, Err(err)) => return Err(err),
         };
-        let fd = (p - m) / (2.0 * e);
+        differences.push((e, (p - m) / (2.0 * e)));
+    }
+    Ok(FdSweep {
+        direction: d,
+        differences,
+    })
+}
+
+/// `group`'s check: the analytic derivative of the gradient `g` along the sweep's direction
+/// against the sweep's central differences.
+pub fn assess_group(case: &Case, group: &Group, g: &Gradient, sweep: &FdSweep) -> GroupCheck {
+    let d = &sweep.direction;
+    let a = case.analytic(group, g, d);
+    let mut curve = Vec::new();
+    for &(e, fd) in &sweep.differences {
         let abs = (a - fd).abs();
         curve.push(VPoint {
             step: e,
@@ -155,7 +185,7 @@ pub fn check_group(case: &Case, group: &Group, g: &Gradient, seed: u64) -> Resul
     } else {
         None
     };
-    Ok(GroupCheck {
+    GroupCheck {
         group: group.name(),
         kind: if matches!(group, Group::Scalar(_)) {
             "scalar"
@@ -173,7 +203,7 @@ pub fn check_group(case: &Case, group: &Group, g: &Gradient, seed: u64) -> Resul
         truncation_slope: slope,
         passes: abs_best <= ATOL + RTOL * fd_best.abs(),
         v_curve: curve,
-    })
+    }
 }
 
 /// Dual-number check of the local step's linearization at the final state of a run.
@@ -299,11 +329,17 @@ pub fn check_case(case: &Case, seed: u64) -> CaseCheck {
         implicit_error: None,
         passes: false,
     };
-    let run = |mode: Mode| -> Result<ModeCheck, DiffError> {
+    // The finite differences do not depend on the mode: computed once, on first use.
+    let mut sweeps: Vec<Option<FdSweep>> = vec![None; case.groups.len()];
+    let mut run = |mode: Mode| -> Result<ModeCheck, DiffError> {
         let g = case.gradient(&case.settings, Options::mode(mode))?;
         let mut groups = Vec::new();
         for (k, grp) in case.groups.iter().enumerate() {
-            groups.push(check_group(case, grp, &g, seed + k as u64)?);
+            let sweep = match &mut sweeps[k] {
+                Some(sweep) => sweep,
+                slot => slot.insert(fd_sweep(case, grp, seed + k as u64)?),
+            };
+            groups.push(assess_group(case, grp, &g, sweep));
         }
         let worst = groups
             .iter()
