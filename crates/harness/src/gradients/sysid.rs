@@ -6,9 +6,10 @@ use anyhow::Result;
 use nalgebra::Vector3;
 use serde::Serialize;
 
-use diffsoft::diff::loss::CenterOfMass;
+use diffsoft::diff::loss::{CenterOfMass, Loss, LossGrad};
 use diffsoft::diff::optim::{lbfgs, Lbfgs, Minimum};
 use diffsoft::diff::{self, DiffError, Mode, Options, Param};
+use diffsoft::model::Model;
 use diffsoft::testing::Case;
 
 /// System identification (paper Sec. 5): recover Young's modulus from the final barycentre
@@ -63,34 +64,27 @@ pub fn sysid(case: &Case, factor: f64) -> Result<SysId, DiffError> {
         *t = diff::loss_value(&case.model, &case.settings, case.steps, &case.controls, &l)? - com0[k];
     }
     let d2: f64 = target.iter().map(|t| t * t).sum();
+    // Axes the load does not move (symmetry: round-off only) carry no information.
+    let misfit = Misfit {
+        com0,
+        target: Vector3::from(target),
+        axes: target.map(|t| t.abs() > 1e-9 * d2.sqrt()),
+        d2,
+    };
+    // One forward and one backward per evaluation: the misfit of all axes is one loss.
     let eval = |x: &[f64]| -> Result<(f64, Vec<f64>), DiffError> {
         let mut model = case.model.clone();
         let e = x[0].exp();
         Param::YOUNGS_MODULUS.set(&mut model, e)?;
-        let mut f = 0.0;
-        let mut g = 0.0;
-        for (k, t) in target.iter().enumerate() {
-            // Axes the load does not move (symmetry: round-off only) carry no information.
-            if t.abs() <= 1e-9 * d2.sqrt() {
-                continue;
-            }
-            let l = CenterOfMass {
-                direction: Vector3::ith(k, 1.0),
-                time_average: false,
-                vertices: None,
-            };
-            let gr = diff::gradient(
-                &model,
-                &case.settings,
-                case.steps,
-                &case.controls,
-                &l,
-                Options::mode(Mode::Unrolled),
-            )?;
-            let r = gr.loss - com0[k] - t;
-            f += r * r / d2;
-            g += 2.0 * r / d2 * Param::YOUNGS_MODULUS.derivative(&model, &gr) * e;
-        }
+        let gr = diff::gradient(
+            &model,
+            &case.settings,
+            case.steps,
+            &case.controls,
+            &misfit,
+            Options::mode(Mode::Unrolled),
+        )?;
+        let (f, g) = (gr.loss, Param::YOUNGS_MODULUS.derivative(&model, &gr) * e);
         if std::env::var_os("DIFFSOFT_TRACE").is_some() {
             crate::warn!("sysid eval E {e:.6e} f {f:.3e} g {g:.3e} target {target:?} d2 {d2:.3e}");
         }
@@ -120,4 +114,44 @@ pub fn sysid(case: &Case, factor: f64) -> Result<SysId, DiffError> {
         optimizer: r,
         wall_s: t0.elapsed().as_secs_f64(),
     })
+}
+
+/// The identification's loss: `sum_k (c_k - c0_k - t_k)^2 / |t|^2` over the axes the load
+/// moves, `c` the final centre of mass, `c0` the rest one and `t` the target displacement.
+struct Misfit {
+    com0: Vector3<f64>,
+    target: Vector3<f64>,
+    axes: [bool; 3],
+    d2: f64,
+}
+
+impl Loss for Misfit {
+    fn term(
+        &self,
+        model: &Model,
+        n: usize,
+        steps: usize,
+        q: &[Vector3<f64>],
+        _v: &[Vector3<f64>],
+        g: LossGrad<'_>,
+    ) -> f64 {
+        if n != steps {
+            return 0.0;
+        }
+        let mass = model.mass();
+        let total: f64 = mass.iter().sum();
+        let com: Vector3<f64> = q.iter().zip(mass).map(|(x, m)| x * *m).sum::<Vector3<f64>>() / total;
+        // dL/dc, zero on the axes left out.
+        let r = (com - self.com0 - self.target).zip_map(&Vector3::from(self.axes.map(f64::from)), |r, on| r * on);
+        let dc = r * (2.0 / self.d2);
+        for ((gq, gm), (x, m)) in g.q.iter_mut().zip(g.mass.iter_mut()).zip(q.iter().zip(mass)) {
+            *gq += dc * (*m / total);
+            *gm += dc.dot(&(x - com)) / total;
+        }
+        r.norm_squared() / self.d2
+    }
+
+    fn name(&self) -> String {
+        "displacement_misfit".into()
+    }
 }
