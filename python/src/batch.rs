@@ -8,7 +8,7 @@ use pyo3::types::{PyDict, PyTuple};
 
 use crate::interrupt;
 use crate::run::Run;
-use crate::scene::{self, Scene};
+use crate::scene_core::{self as scene, Scene};
 
 /// A copy of `base` for every parameter set of `values` (errors name the set's index).
 pub(crate) fn scenes(base: &Scene, values: &[Bound<'_, PyDict>]) -> PyResult<Vec<Scene>> {

@@ -12,7 +12,7 @@ use crate::arrays;
 use crate::errors;
 use crate::interrupt;
 use crate::params::Name;
-use crate::scene::{self, Scene};
+use crate::scene_core::{self as scene, Scene};
 
 /// Spectral radii and critical time steps of the paper's iterations (19) and (21) on a mesh,
 /// with the appendix's verdicts (the `diffsoft bounds` report).

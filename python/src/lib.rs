@@ -13,7 +13,9 @@ mod params;
 mod pyjson;
 mod run;
 mod scene;
+mod scene_core;
 mod scene_data;
+mod scene_source;
 mod vjp;
 mod warn;
 
@@ -80,7 +82,7 @@ fn _diffsoft(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.py().import("numpy")?;
     drop(numpy::PyArray1::<f64>::zeros(m.py(), 0, false));
     fork::init();
-    m.add_class::<scene::Scene>()?;
+    m.add_class::<scene_core::Scene>()?;
     m.add_class::<run::Run>()?;
     m.add_function(wrap_pyfunction!(batch::grad_batch, m)?)?;
     m.add_function(wrap_pyfunction!(batch::simulate_batch, m)?)?;

@@ -4,7 +4,7 @@
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::scene::Scene;
+use crate::scene_core::Scene;
 
 /// `Scene.tets`: every tet, global vertex numbering, `(m, 4)` int64.
 pub(crate) fn tets<'py>(py: Python<'py>, s: &Scene) -> PyResult<Bound<'py, PyAny>> {

@@ -8,7 +8,7 @@
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use diffsoft::scene::{self as lib_scene, SceneFormat};
+use diffsoft::scene as lib_scene;
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict, PyTuple};
 use serde_json::Value as Json;
@@ -16,130 +16,11 @@ use serde_json::Value as Json;
 use crate::arrays;
 use crate::errors;
 use crate::params::{Inputs, Value};
-use crate::scene::Scene;
+use crate::scene_core::Scene;
+use crate::scene_source::{Data, PaperFiles, Source};
 
 /// Version of the state `__reduce__` writes (checked when it is read back).
 const STATE_VERSION: u32 = 1;
-
-/// Where a scene came from, by value.
-#[derive(Debug, Clone)]
-pub(crate) enum Source {
-    /// A `diffsoft.scene/1` document with every mesh inline.
-    Document(Arc<Json>),
-    /// A paper-format scene file and the files it names.
-    Paper(Arc<PaperFiles>),
-}
-
-/// A paper-format scene as files: its text and every file it names, relative to a root (the
-/// scene's parent directory, where the paper's files resolve first).
-#[derive(Debug)]
-pub(crate) struct PaperFiles {
-    /// The scene's directory name under the root.
-    dir: String,
-    /// The scene file's name.
-    name: String,
-    /// The scene file's text.
-    text: String,
-    /// `(path relative to the root, contents)`.
-    files: Vec<(String, Vec<u8>)>,
-}
-
-/// What a scene holds besides its model: its source and the parameters the caller set.
-#[derive(Debug, Clone, Default)]
-pub(crate) struct Data {
-    source: Option<Source>,
-    /// `Scene.set` calls in order, each name's last value only (a set overwrites what an
-    /// earlier set of the same name wrote).
-    sets: Vec<(String, Value)>,
-}
-
-impl Data {
-    /// Data of a scene from `source`.
-    pub(crate) fn new(source: Source) -> Self {
-        Self {
-            source: Some(source),
-            sets: Vec::new(),
-        }
-    }
-
-    /// Remember that `name` was set to `value`.
-    pub(crate) fn record(&mut self, name: &str, value: &Value) {
-        self.sets.retain(|(n, _)| n != name);
-        self.sets.push((name.to_string(), value.clone()));
-    }
-}
-
-/// The source of a scene just loaded from `path`: native scenes as their document with the
-/// meshes inline, paper scenes as their files.
-pub(crate) fn source_of_file(path: &Path, format: SceneFormat) -> Result<Source, lib_scene::SceneError> {
-    let shown = path.display().to_string();
-    let io = |e: std::io::Error| lib_scene::SceneError::Io {
-        path: shown.clone(),
-        message: e.to_string(),
-    };
-    let text = std::fs::read_to_string(path).map_err(io)?;
-    let syntax = |e: serde_json::Error| lib_scene::SceneError::Syntax {
-        path: shown.clone(),
-        message: e.to_string(),
-    };
-    let mut doc = lib_scene::json::parse_lenient(&text).map_err(syntax)?;
-    let abs = std::path::absolute(path).map_err(io)?;
-    let dir = abs.parent().unwrap_or(Path::new("."));
-    match format {
-        SceneFormat::Diffsoft => {
-            lib_scene::inline::inline_meshes(&mut doc, dir, &shown)?;
-            Ok(Source::Document(Arc::new(doc)))
-        }
-        SceneFormat::Paper => {
-            let root = dir.parent().unwrap_or(dir);
-            let dir_name = dir
-                .file_name()
-                .map_or("scene".into(), |n| n.to_string_lossy().into_owned());
-            let mut names = Vec::new();
-            strings(&doc, &mut names);
-            let mut files: Vec<(String, Vec<u8>)> = Vec::new();
-            for s in names {
-                let p = Path::new(&s);
-                // The paper importer's search order (`paper::Context::resolve`); names that
-                // leave the directory tree are not carried.
-                if s.is_empty()
-                    || p.is_absolute()
-                    || p.components().any(|c| !matches!(c, std::path::Component::Normal(_)))
-                {
-                    continue;
-                }
-                let mut candidates = vec![(root.join(p), s.clone()), (dir.join(p), format!("{dir_name}/{s}"))];
-                if let Some(n) = p.file_name() {
-                    candidates.push((dir.join(n), format!("{dir_name}/{}", n.to_string_lossy())));
-                }
-                if let Some((found, key)) = candidates.into_iter().find(|(c, _)| c.is_file()) {
-                    if !files.iter().any(|(k, _)| *k == key) {
-                        files.push((key, std::fs::read(found).map_err(io)?));
-                    }
-                }
-            }
-            let name = path
-                .file_name()
-                .map_or("scene.json".into(), |n| n.to_string_lossy().into_owned());
-            Ok(Source::Paper(Arc::new(PaperFiles {
-                dir: dir_name,
-                name,
-                text,
-                files,
-            })))
-        }
-    }
-}
-
-/// Every string in `v`.
-fn strings(v: &Json, out: &mut Vec<String>) {
-    match v {
-        Json::String(s) => out.push(s.clone()),
-        Json::Array(a) => a.iter().for_each(|x| strings(x, out)),
-        Json::Object(o) => o.values().for_each(|x| strings(x, out)),
-        _ => {}
-    }
-}
 
 /// `Scene.from_dict`: a scene from its document; relative mesh paths resolve against
 /// `base_dir` (the working directory when `None`).

@@ -11,7 +11,7 @@ use pyo3::types::PyDict;
 
 use crate::arrays;
 use crate::errors;
-use crate::scene::{self, Scene};
+use crate::scene_core::{self as scene, Scene};
 
 /// One `(steps + 1, n, 3)` cotangent array named `name`, as vectors.
 fn states(name: &str, c: &Bound<'_, PyAny>, steps: usize, n: usize) -> PyResult<Vec<Vector3<f64>>> {

@@ -1,0 +1,137 @@
+//! `diffsoft.Scene`'s state and the calls every binding module shares: the library's gradient
+//! and rollout on a scene, parameter names and values read from Python, gradients as a dict,
+//! and the warnings a gradient raises. The Python methods are in `crate::scene`.
+
+use diffsoft::diff::{self, Options};
+use diffsoft::{scene as lib_scene, Mode, Model};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+use crate::errors;
+use crate::params::{self, Inputs, Name, Value};
+
+/// A scene ready to simulate and differentiate.
+#[pyclass(name = "Scene", module = "diffsoft")]
+#[derive(Clone)]
+pub struct Scene {
+    pub(crate) inner: lib_scene::Scene,
+    pub(crate) inputs: Inputs,
+    /// Its source and the parameters set, by value (`crate::scene_source`).
+    pub(crate) data: crate::scene_source::Data,
+}
+
+/// A differentiation mode by name.
+pub fn mode(name: &str) -> PyResult<Mode> {
+    match name {
+        "unrolled" => Ok(Mode::Unrolled),
+        "implicit" => Ok(Mode::Implicit),
+        _ => Err(errors::value(format!(
+            "mode '{name}': expected 'unrolled' or 'implicit'"
+        ))),
+    }
+}
+
+/// Parameter names, parsed.
+pub fn names(params: &[String]) -> PyResult<Vec<Name>> {
+    params.iter().map(|p| Name::parse(p)).collect()
+}
+
+/// `name -> derivative` for `params`.
+pub fn grads<'py>(
+    py: Python<'py>,
+    model: &Model,
+    g: &diffsoft::Gradient,
+    params: &[String],
+) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    for (p, n) in params.iter().zip(names(params)?) {
+        d.set_item(p, params::derivative(py, model, g, n)?)?;
+    }
+    Ok(d)
+}
+
+/// Read `{name: value}` pairs for `model`.
+pub fn values(model: &Model, values: &Bound<'_, PyDict>) -> PyResult<Vec<Value>> {
+    let mut out = values
+        .iter()
+        .map(|(k, v)| {
+            let name: String = k
+                .extract()
+                .map_err(|_| errors::value("parameter names must be strings"))?;
+            Value::read(model, &name, &v)
+        })
+        .collect::<PyResult<Vec<_>>>()?;
+    // Scalars first, so a per-tet array in the same dict overrides its scalar whatever the
+    // dict's order.
+    out.sort_by_key(|v| !matches!(v, Value::Scalar(..)));
+    Ok(out)
+}
+
+impl Scene {
+    /// This scene with `values` set.
+    pub fn with(&self, values: Vec<Value>) -> PyResult<Scene> {
+        let mut s = self.clone();
+        for v in values {
+            v.apply(&mut s.inner.model, &mut s.inputs)?;
+        }
+        Ok(s)
+    }
+
+    fn check_steps(steps: usize) -> PyResult<()> {
+        if steps == 0 {
+            return Err(errors::value("steps must be at least 1"));
+        }
+        Ok(())
+    }
+
+    /// The gradient of `loss` (the library's call, without the GIL).
+    pub fn gradient(
+        &self,
+        steps: usize,
+        loss: &str,
+        mode: Mode,
+        allow_unconverged: bool,
+    ) -> PyResult<diffsoft::Gradient> {
+        Self::check_steps(steps)?;
+        let loss = diff::loss::by_name(loss).map_err(errors::diff)?;
+        let controls = self.inputs.controls(&self.inner.model);
+        diff::gradient(
+            &self.inner.model,
+            &self.inner.settings,
+            steps,
+            &controls,
+            loss.as_ref(),
+            Options {
+                allow_unconverged,
+                ..Options::mode(mode)
+            },
+        )
+        .map_err(errors::diff)
+    }
+
+    /// A rollout (the library's call, without the GIL).
+    pub fn rollout(&self, steps: usize) -> PyResult<diff::Rollout> {
+        Self::check_steps(steps)?;
+        let controls = self.inputs.controls(&self.inner.model);
+        diff::rollout(&self.inner.model, &self.inner.settings, steps, &controls).map_err(errors::diff)
+    }
+}
+
+/// A `UserWarning` at the caller's line ([`crate::warn`]) when unrolled mode went through
+/// steps that met the tolerance in their first iteration (their derivative is that one
+/// iteration's, not the converged step's; see `DiffStats::one_iteration_steps`), and one for
+/// each of `DiffStats::warnings` (steps at a kink of the loss, adjoint solves that stopped
+/// unconverged).
+pub(crate) fn warn_one_iteration(py: Python<'_>, mode: Mode, g: &diffsoft::Gradient, steps: usize) -> PyResult<()> {
+    let warn = |message: String| crate::warn::user(py, &message);
+    if mode == Mode::Unrolled && g.stats.one_iteration_steps > 0 {
+        // No count in the text: Python's filter shows a warning once per call site and text.
+        warn(
+            "diffsoft: forward steps met the tolerance in their first iteration; unrolled mode differentiates that one iteration, not the converged step (use mode='implicit', or a tolerance of 0 with a fixed iteration count)".to_string(),
+        )?;
+    }
+    for w in g.stats.warnings(steps) {
+        warn(w)?;
+    }
+    Ok(())
+}
