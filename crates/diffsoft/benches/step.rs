@@ -21,9 +21,9 @@
 use std::path::PathBuf;
 
 use criterion::{criterion_group, criterion_main, BatchSize, BenchmarkId, Criterion};
-use diffsoft::mesh::generate::{box_with_about, BoxSpec};
+use diffsoft::mesh::generate::box_with_about;
 use diffsoft::scene::{self, LoadOptions};
-use diffsoft::{BodySpec, MassSpec, Material, ModelBuilder, Settings, Simulator, SolverKind};
+use diffsoft::{BodySpec, MassSpec, Material, ModelBuilder, Settings, Simulator};
 use nalgebra::Vector3;
 
 fn root() -> PathBuf {
@@ -81,37 +81,7 @@ fn scene_sim_with(path: &str, warmup: usize, edit: impl Fn(&mut scene::Scene)) -
 /// The clamped cantilever of the trade-off study (52 x 13 x 13 cells, 52 728 tets, its `x = 0`
 /// face fixed) at exactly 10 local-global iterations per step: the many-core case.
 fn beam_52k_10_iterations() -> Simulator {
-    let mesh = BoxSpec::new([52, 13, 13], [1.0, 0.25, 0.25]).build().expect("box");
-    let fixed: Vec<usize> = (0..mesh.num_vertices())
-        .filter(|&i| mesh.vertices[i].x < 1e-9)
-        .collect();
-    let mut body = BodySpec::new(
-        "cantilever",
-        mesh,
-        Material {
-            youngs_modulus: 1e6,
-            poisson_ratio: 0.3,
-        },
-        MassSpec::Density(1000.0),
-    );
-    body.fixed = fixed;
-    let model = ModelBuilder::new()
-        .gravity(Vector3::new(0.0, -9.81, 0.0))
-        .body(body)
-        .build()
-        .expect("model");
-    let mut sim = Simulator::new(
-        model,
-        Settings {
-            dt: 0.01,
-            solver: SolverKind::Direct,
-            tolerance: 0.0,
-            max_iterations: 10,
-            anderson: 0,
-            ..Settings::default()
-        },
-    )
-    .expect("simulator");
+    let mut sim = diffsoft::testing::clamped_cantilever_52k_fixed(10).expect("simulator");
     sim.step().expect("warm-up");
     sim
 }

@@ -8,42 +8,6 @@
 
 use std::time::Instant;
 
-use diffsoft::mesh::generate::BoxSpec;
-use diffsoft::{BodySpec, MassSpec, Material, ModelBuilder, Settings, Simulator, SolverKind};
-use nalgebra::Vector3;
-
-fn beam() -> anyhow::Result<Simulator> {
-    let mesh = BoxSpec::new([52, 13, 13], [1.0, 0.25, 0.25]).build()?;
-    let fixed: Vec<usize> = (0..mesh.num_vertices())
-        .filter(|&i| mesh.vertices[i].x < 1e-9)
-        .collect();
-    let mut body = BodySpec::new(
-        "cantilever",
-        mesh,
-        Material {
-            youngs_modulus: 1e6,
-            poisson_ratio: 0.3,
-        },
-        MassSpec::Density(1000.0),
-    );
-    body.fixed = fixed;
-    let model = ModelBuilder::new()
-        .gravity(Vector3::new(0.0, -9.81, 0.0))
-        .body(body)
-        .build()?;
-    Ok(Simulator::new(
-        model,
-        Settings {
-            dt: 0.01,
-            solver: SolverKind::Direct,
-            tolerance: 0.0,
-            max_iterations: 10,
-            anderson: 0,
-            ..Settings::default()
-        },
-    )?)
-}
-
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     v[v.len() / 2]
@@ -63,7 +27,7 @@ fn main() -> anyhow::Result<()> {
     for t in threads {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(t).build()?;
         let rows = pool.install(|| -> anyhow::Result<_> {
-            let mut sim = beam()?;
+            let mut sim = diffsoft::testing::clamped_cantilever_52k_fixed(10)?;
             sim.step()?;
             let mut rows = Vec::with_capacity(steps);
             for _ in 0..steps {

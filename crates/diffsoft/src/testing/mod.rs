@@ -5,7 +5,7 @@
 //! * [`Case`]: a scene, its settings, a loss, controls and the parameter groups to check,
 //!   with its finite-difference perturbations ([`Case::perturbed`]-style helpers) and
 //!   [`Case::gradient`];
-//! * scene builders: [`free_body`], [`ground_box`], [`ground_contact`], [`actuated`],
+//! * scene builders: [`clamped_cantilever_52k`] (and [`clamped_cantilever_52k_fixed`]), [`free_body`], [`ground_box`], [`ground_contact`], [`actuated`],
 //!   [`ball_on_cloth`], the paper's scenes ([`bridgesus`], [`baymax_torques`],
 //!   [`baymax_ground`], [`paper_ball_on_cloth`]), [`actuated_beam`], the collision-detection
 //!   scene [`detection_scene`] and random joint chains ([`random_chain`]).
