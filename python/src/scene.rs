@@ -184,13 +184,17 @@ impl Scene {
 
     /// Simulate `steps` steps: positions and velocities of every state and the run log. Steps
     /// that stopped at `max_iterations` before meeting a positive tolerance raise a
-    /// `ConvergenceWarning` at the caller's line.
+    /// `ConvergenceWarning` at the caller's line; steps that ended with bodies passing through
+    /// each other a `UserWarning`.
     fn simulate(slf: PyRef<'_, Self>, steps: usize) -> PyResult<Run> {
         let (py, s) = snapshot(slf);
         let r = interrupt::run(py, || s.rollout(steps))??;
         // A tolerance of 0 asks for a fixed iteration count: no step is meant to converge.
         if s.inner.settings.tolerance > 0.0 && r.unconverged_steps() > 0 {
             crate::warn::unconverged(py)?;
+        }
+        if r.interpenetrating_steps() > 0 {
+            crate::warn::interpenetration(py, r.interpenetrating_steps())?;
         }
         Run::new(py, r, &s.inner.settings)
     }

@@ -80,3 +80,15 @@ pub(crate) fn unconverged(py: Python<'_>) -> PyResult<()> {
         "diffsoft: steps of this simulation stopped at max_iterations before meeting the solver's tolerance (Run.stats['unconverged_steps'] counts them; raise max_iterations or the tolerance with Scene.configure); a gradient through such a run raises ConvergenceError unless allow_unconverged=True",
     )
 }
+
+/// The warning of a run whose steps ended with bodies passing through each other
+/// (`Scene.simulate`, the batches, the wrappers' forward passes): a `UserWarning`, since more
+/// iterations do not mend it.
+pub(crate) fn interpenetration(py: Python<'_>, steps: usize) -> PyResult<()> {
+    user(
+        py,
+        &format!(
+            "diffsoft: {steps} steps of this simulation ended with bodies passing through each other (contacts the run missed; Run.stats['steps'][k]['pair_crossings'] counts the crossing surface edges): lower the time step or the speed, or raise contact_rounds; a gradient through such a run raises SimulationError"
+        ),
+    )
+}

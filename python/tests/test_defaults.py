@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 import diffsoft
+from conftest import REPO
 
 torch = pytest.importorskip("torch")
 jax = pytest.importorskip("jax")
@@ -193,3 +194,28 @@ def test_setting_a_scene_that_a_batch_reads_raises_the_named_error(beam):
     assert beam.get("youngs_modulus") == 2e4
     beam.set("youngs_modulus", 5e4)
     assert beam.get("youngs_modulus") == 5e4
+
+
+def test_bodies_passing_through_each_other_warn_and_refuse_gradients():
+    """The ball thrown at the cloth at 1000 m/s crosses it within a step: the run says so (a
+    ``UserWarning`` at the caller's line, ``pair_crossings`` in the step log) and a gradient
+    through it is refused; batches warn too."""
+    scene = diffsoft.Scene.load(REPO / "verification/scenes/ball_on_cloth.json")
+    v = np.asarray(scene.get("initial_velocities"))
+    scene.set("initial_velocities", 1000.0 * v)
+    with pytest.warns(UserWarning, match="passing through each other") as caught:
+        line = _line() + 1
+        run = scene.simulate(4)
+    assert caught[0].lineno == line and caught[0].filename == __file__
+    assert any(s["pair_crossings"] > 0 for s in run.stats["steps"])
+    assert run.stats["summary"]["steps_with_pair_crossings"] > 0
+    with pytest.raises(diffsoft.SimulationError, match="passing through each other"):
+        scene.grad(4, "final_com.y", ["youngs_modulus"])
+    with pytest.warns(UserWarning, match="passing through each other"):
+        diffsoft.simulate_batch(scene, 4, [{}])
+    # At the scene's own speed nothing crosses and nothing is said.
+    calm = diffsoft.Scene.load(REPO / "verification/scenes/ball_on_cloth.json")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        run = calm.simulate(40)
+    assert all(s["pair_crossings"] == 0 for s in run.stats["steps"])

@@ -212,6 +212,13 @@ pub(crate) fn simulate(
             summary.steps
         );
     }
+    if summary.steps_with_pair_crossings > 0 {
+        say!(
+            "warning     {} of {} steps ended with bodies passing through each other (surface edges of one body crossing faces of another: contacts the run missed; pair_crossings in the step log): lower the time step or the speed, or raise the contact rounds",
+            summary.steps_with_pair_crossings,
+            summary.steps
+        );
+    }
     if let Some(d) = run_dir.as_mut() {
         if let Err(e) = d.write_log(&log) {
             let e = anyhow::Error::from(e).context("writing the final run log");

@@ -173,6 +173,11 @@ pub(crate) struct Forward {
     pub capped: usize,
     /// Steps unconverged or with such a solve.
     pub flagged: usize,
+    /// Steps that ended with the surfaces of two bodies crossing, and the first of them
+    /// (1-based) with its crossing edges.
+    pub crossed: usize,
+    /// `(step, crossing edges)` of the first such step.
+    pub first_crossed: Option<(usize, usize)>,
     /// Steps that met the tolerance in their first iteration.
     pub one_iteration: usize,
     /// Steps that ended with a joint at one of its limits (a kink of the loss).
@@ -344,6 +349,8 @@ pub(crate) fn forward(
         unconverged: 0,
         capped: 0,
         flagged: 0,
+        crossed: 0,
+        first_crossed: None,
         one_iteration: 0,
         at_limit: 0,
     };
@@ -370,6 +377,10 @@ pub(crate) fn forward(
         f.unconverged += usize::from(!st.converged);
         f.capped += usize::from(st.capped_solves > 0);
         f.flagged += usize::from(!st.converged || st.capped_solves > 0);
+        if st.pair_crossings > 0 {
+            f.crossed += 1;
+            f.first_crossed.get_or_insert((k + 1, st.pair_crossings));
+        }
         f.one_iteration += usize::from(st.converged && st.iterations == 1 && settings.tolerance > 0.0);
         if let Some(sk) = sim.skeleton() {
             joints.iter_mut().for_each(|j| *j = 0.0);

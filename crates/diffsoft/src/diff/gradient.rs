@@ -332,6 +332,14 @@ pub fn gradient_on(
             max_iterations: settings.max_iterations,
         });
     }
+    if let Some((first, edges)) = fwd.first_crossed {
+        return Err(DiffError::Interpenetration {
+            steps: fwd.crossed,
+            of: steps,
+            first,
+            edges,
+        });
+    }
     if !opts.allow_unconverged && fwd.capped > 0 {
         return Err(DiffError::CappedSolves {
             steps: fwd.capped,

@@ -102,6 +102,23 @@ pub enum DiffError {
         /// The inner solves' iteration cap.
         inner_max_iterations: usize,
     },
+    /// Some forward steps ended with the surfaces of two bodies crossing (a contact the step
+    /// missed: a body too fast for the time step, or a contact set the solve could not
+    /// satisfy): the trajectory is not the contact problem's, so no gradient of it is. Not
+    /// waived by [`Options::allow_unconverged`].
+    #[error(
+        "{steps} of {of} forward steps end with bodies passing through each other (from step {first} on, {edges} surface edges of one body cross faces of another there): the simulation missed contacts, so neither its loss nor its gradient is the physics'; lower the time step or the speed, raise the contact rounds, or thicken the contact layer"
+    )]
+    Interpenetration {
+        /// Steps that ended with crossing surfaces.
+        steps: usize,
+        /// Steps simulated.
+        of: usize,
+        /// The first of them (1-based).
+        first: usize,
+        /// Crossing surface edges at the end of that step.
+        edges: usize,
+    },
     /// Unrolled mode: replaying a step from its checkpoint did not reproduce the forward pass
     /// (e.g. an accelerated forward that did not converge), so the backward pass would
     /// differentiate another trajectory.

@@ -38,6 +38,12 @@ impl Rollout {
     pub fn unconverged_steps(&self) -> usize {
         self.stats.iter().filter(|s| !s.converged).count()
     }
+
+    /// Steps that ended with the surfaces of two bodies crossing (contacts the run missed; see
+    /// [`StepStats::pair_crossings`]).
+    pub fn interpenetrating_steps(&self) -> usize {
+        self.stats.iter().filter(|s| s.pair_crossings > 0).count()
+    }
 }
 
 /// Run `steps` steps of `model` with `controls` (initial state, activations and torques per

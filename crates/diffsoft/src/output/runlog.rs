@@ -28,6 +28,9 @@ pub struct RunSummary {
     pub converged_steps: usize,
     /// Steps with a global or contact solve that stopped unconverged (cap or stall).
     pub steps_with_capped_solves: usize,
+    /// Steps that ended with the surfaces of two bodies crossing (`pair_crossings` in the step
+    /// log): contacts the run missed.
+    pub steps_with_pair_crossings: usize,
     /// Deepest penetration over the run (m).
     pub max_penetration: f64,
     /// Largest number of contacts in a step.
@@ -180,6 +183,7 @@ impl RunSummary {
             mean_iterations: steps.iter().map(|s| s.iterations as f64).sum::<f64>() / steps.len().max(1) as f64,
             converged_steps: steps.iter().filter(|s| s.converged).count(),
             steps_with_capped_solves: steps.iter().filter(|s| s.capped_solves > 0).count(),
+            steps_with_pair_crossings: steps.iter().filter(|s| s.pair_crossings > 0).count(),
             max_penetration: steps.iter().map(|s| s.max_penetration).fold(0.0, f64::max),
             max_contacts: steps.iter().map(|s| s.contacts).max().unwrap_or(0),
             max_pair_contacts: steps.iter().map(|s| s.pair_contacts).max().unwrap_or(0),

@@ -87,6 +87,15 @@ impl StepContacts {
         }
     }
 
+    /// Surface edges of one body that cross a face of another at `q`, the end of a step (0
+    /// without collisions between bodies): a contact the step missed.
+    pub(crate) fn crossings_at(&mut self, model: &Model, q: &[Vector3<f64>]) -> usize {
+        model
+            .collision
+            .as_ref()
+            .map_or(0, |col| self.detector.crossing_count(col, q))
+    }
+
     /// An obstacle contact into the free or the bone-vertex list.
     fn sort(&mut self, sys: &GlobalSystem, c: Contact) {
         if sys.index[c.vertex] != usize::MAX {

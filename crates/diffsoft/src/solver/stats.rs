@@ -48,6 +48,11 @@ pub struct StepStats {
     pub bone_length_error: f64,
     /// Contacts between bodies (vertex-face and edge-edge pairs) in the final round.
     pub pair_contacts: usize,
+    /// Surface edges of one body that cross a face of another at the end of the step (0
+    /// without collisions between bodies): the bodies passed through each other, a contact the
+    /// step missed (a body too fast for the time step, or a contact set the solve could not
+    /// satisfy). Gradients refuse such a step ([`crate::diff::DiffError::Interpenetration`]).
+    pub pair_crossings: usize,
     /// Obstacle contacts on bone vertices in the final round (0 without a skeleton; they are
     /// included in `contacts`).
     pub bone_contacts: usize,
@@ -77,6 +82,7 @@ impl StepStats {
             anderson_rejections: 0,
             bone_length_error: 0.0,
             pair_contacts: 0,
+            pair_crossings: 0,
             bone_contacts: 0,
         }
     }

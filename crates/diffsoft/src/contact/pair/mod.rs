@@ -523,7 +523,8 @@ impl Detector {
                 }
             });
         }
-        Self::crossings(&self.grid, col, q, |_, _, depth| {
+        self.triangle_grid(col, q);
+        self.crossings(col, q, |_, _, depth| {
             probe.intersections += 1;
             probe.penetration = probe.penetration.max(depth);
         });
@@ -556,13 +557,9 @@ impl Detector {
     /// `q` (`None`: the surfaces do not interpenetrate). A body wholly inside another, with no
     /// surface crossing, is not found.
     pub fn deepest_crossing(&mut self, col: &Colliders, q: &[Vector3<f64>]) -> Option<Crossing> {
-        self.tri_boxes.clear();
-        for t in &col.triangles {
-            self.tri_boxes.push(swept_box(t, q, q, 0.0));
-        }
-        self.grid.build(col.mean_edge.max(f64::MIN_POSITIVE), &self.tri_boxes);
+        self.triangle_grid(col, q);
         let mut deepest: Option<Crossing> = None;
-        Self::crossings(&self.grid, col, q, |e, t, depth| {
+        self.crossings(col, q, |e, t, depth| {
             if deepest.as_ref().is_none_or(|d| depth > d.depth) {
                 deepest = Some(Crossing {
                     edge: col.edges[e],
@@ -575,18 +572,50 @@ impl Detector {
         deepest
     }
 
-    /// Every surface edge that crosses a triangle of another body at `q` (`grid` built on the
-    /// triangles' boxes): `f(edge, triangle, depth)`, the depth being the smaller distance of
-    /// the edge's two ends to the triangle's plane.
-    fn crossings(grid: &Grid, col: &Colliders, q: &[Vector3<f64>], mut f: impl FnMut(usize, usize, f64)) {
+    /// How many surface edges of one body cross a triangle of another at `q` (0: the surfaces
+    /// do not interpenetrate; a body wholly inside another is not counted).
+    pub fn crossing_count(&mut self, col: &Colliders, q: &[Vector3<f64>]) -> usize {
+        self.triangle_grid(col, q);
+        let mut count = 0;
+        self.crossings(col, q, |_, _, _| count += 1);
+        count
+    }
+
+    /// The grid of the triangles' boxes at `q`, its cell the mean box extent (or the rest mean
+    /// edge, if larger: a stretched surface does not spread each box over many cells).
+    fn triangle_grid(&mut self, col: &Colliders, q: &[Vector3<f64>]) {
+        self.tri_boxes.clear();
+        let mut extent = 0.0;
+        for t in &col.triangles {
+            let b = swept_box(t, q, q, 0.0);
+            extent += (b.1 - b.0).max();
+            self.tri_boxes.push(b);
+        }
+        let cell = (extent / col.triangles.len().max(1) as f64)
+            .max(col.mean_edge)
+            .max(f64::MIN_POSITIVE);
+        self.grid.build(cell, &self.tri_boxes);
+        if self.stamp.len() != col.triangles.len().max(col.edges.len()) {
+            self.stamp = vec![0; col.triangles.len().max(col.edges.len())];
+            self.epoch = 0;
+        }
+    }
+
+    /// Every pair of a surface edge and a triangle of another body that cross at `q`, once
+    /// each (the grid built by [`Detector::triangle_grid`]): `f(edge, triangle, depth)`, the
+    /// depth being the smaller distance of the edge's two ends to the triangle's plane.
+    fn crossings(&mut self, col: &Colliders, q: &[Vector3<f64>], mut f: impl FnMut(usize, usize, f64)) {
         for (ei, e) in col.edges.iter().enumerate() {
             let eb = swept_box(e, q, q, 0.0);
             let body = col.edge_body[ei];
+            self.next_epoch();
+            let (grid, stamp, epoch, boxes) = (&self.grid, &mut self.stamp, self.epoch, &self.tri_boxes);
             grid.query(&eb.0, &eb.1, |t| {
                 let t = t as usize;
-                if col.triangle_body[t] == body {
+                if stamp[t] == epoch || col.triangle_body[t] == body || !overlaps(&eb, &boxes[t]) {
                     return;
                 }
+                stamp[t] = epoch;
                 let tri = col.triangles[t];
                 if tri.contains(&e[0]) || tri.contains(&e[1]) {
                     return;
