@@ -265,9 +265,12 @@ fn gravity_parameters_reach_cloth() {
     );
 }
 
+/// Positions or velocities of every vertex.
+type States = Vec<nalgebra::Vector3<f64>>;
+
 /// The ball on the pinned cloth (`verification/scenes/ball_on_cloth.json`) thrown at the cloth
-/// at `speed` times its scene velocity: the simulator, its state scaled.
-fn ball_thrown_at(speed: f64) -> (diffsoft::Model, diffsoft::Settings, Vec<nalgebra::Vector3<f64>>, Vec<nalgebra::Vector3<f64>>) {
+/// at `speed` times its scene velocity: its model, settings and initial state.
+fn ball_thrown_at(speed: f64) -> (diffsoft::Model, diffsoft::Settings, States, States) {
     let path = crate::common::root().join("verification/scenes/ball_on_cloth.json");
     let sc = diffsoft::scene::load(&path, diffsoft::scene::LoadOptions::default()).unwrap();
     let sim = diffsoft::Simulator::new(sc.model.clone(), sc.settings.clone()).unwrap();

@@ -322,21 +322,7 @@ impl Detector {
         self.best.clear();
         self.best.resize(col.names.len(), None);
         // Triangles, with the largest motion of their corners.
-        self.tri_boxes.clear();
-        let mut extent = 0.0;
-        for t in &col.triangles {
-            let b = swept_box(t, q0, q1, pad);
-            extent += (b.1 - b.0).max();
-            self.tri_boxes.push(b);
-        }
-        let cell = (extent / col.triangles.len().max(1) as f64)
-            .max(col.mean_edge)
-            .max(f64::MIN_POSITIVE);
-        self.grid.build(cell, &self.tri_boxes);
-        if self.stamp.len() != col.triangles.len().max(col.edges.len()) {
-            self.stamp = vec![0; col.triangles.len().max(col.edges.len())];
-            self.epoch = 0;
-        }
+        self.triangle_grid(col, q0, q1, pad);
         let motion = |v: usize| (q1[v] - q0[v]).norm();
         for (vi, &p) in col.vertices.iter().enumerate() {
             let vb = swept_box(&[p], q0, q1, pad);
@@ -523,7 +509,7 @@ impl Detector {
                 }
             });
         }
-        self.triangle_grid(col, q);
+        self.triangle_grid(col, q, q, 0.0);
         self.crossings(col, q, |_, _, depth| {
             probe.intersections += 1;
             probe.penetration = probe.penetration.max(depth);
@@ -557,7 +543,7 @@ impl Detector {
     /// `q` (`None`: the surfaces do not interpenetrate). A body wholly inside another, with no
     /// surface crossing, is not found.
     pub fn deepest_crossing(&mut self, col: &Colliders, q: &[Vector3<f64>]) -> Option<Crossing> {
-        self.triangle_grid(col, q);
+        self.triangle_grid(col, q, q, 0.0);
         let mut deepest: Option<Crossing> = None;
         self.crossings(col, q, |e, t, depth| {
             if deepest.as_ref().is_none_or(|d| depth > d.depth) {
@@ -575,19 +561,20 @@ impl Detector {
     /// How many surface edges of one body cross a triangle of another at `q` (0: the surfaces
     /// do not interpenetrate; a body wholly inside another is not counted).
     pub fn crossing_count(&mut self, col: &Colliders, q: &[Vector3<f64>]) -> usize {
-        self.triangle_grid(col, q);
+        self.triangle_grid(col, q, q, 0.0);
         let mut count = 0;
         self.crossings(col, q, |_, _, _| count += 1);
         count
     }
 
-    /// The grid of the triangles' boxes at `q`, its cell the mean box extent (or the rest mean
-    /// edge, if larger: a stretched surface does not spread each box over many cells).
-    fn triangle_grid(&mut self, col: &Colliders, q: &[Vector3<f64>]) {
+    /// The grid of the triangles' boxes swept from `q0` to `q1` and padded by `pad`, its cell
+    /// the mean box extent (or the rest mean edge, if larger: a stretched or fast surface does
+    /// not spread each box over many cells), and the deduplication stamps sized for `col`.
+    fn triangle_grid(&mut self, col: &Colliders, q0: &[Vector3<f64>], q1: &[Vector3<f64>], pad: f64) {
         self.tri_boxes.clear();
         let mut extent = 0.0;
         for t in &col.triangles {
-            let b = swept_box(t, q, q, 0.0);
+            let b = swept_box(t, q0, q1, pad);
             extent += (b.1 - b.0).max();
             self.tri_boxes.push(b);
         }
