@@ -79,7 +79,7 @@ pub fn simulate_batch<'py>(
 ) -> PyResult<Vec<Run>> {
     let runs = scenes(scene, &values)?;
     let mut unconverged = false;
-    let mut crossed = 0;
+    let mut crossed = false;
     let results = each(py, &runs, |s| s.rollout(steps))?;
     let runs: Vec<Run> = runs
         .iter()
@@ -87,15 +87,15 @@ pub fn simulate_batch<'py>(
         .map(|(s, r)| {
             let r = r?;
             unconverged |= s.inner.settings.tolerance > 0.0 && r.unconverged_steps() > 0;
-            crossed += r.interpenetrating_steps();
+            crossed |= r.interpenetrating_steps() > 0;
             Run::new(py, r, &s.inner.settings)
         })
         .collect::<PyResult<_>>()?;
     if unconverged {
         crate::warn::unconverged(py)?;
     }
-    if crossed > 0 {
-        crate::warn::interpenetration(py, crossed)?;
+    if crossed {
+        crate::warn::interpenetration(py)?;
     }
     Ok(runs)
 }

@@ -194,7 +194,7 @@ impl Scene {
             crate::warn::unconverged(py)?;
         }
         if r.interpenetrating_steps() > 0 {
-            crate::warn::interpenetration(py, r.interpenetrating_steps())?;
+            crate::warn::interpenetration(py)?;
         }
         Run::new(py, r, &s.inner.settings)
     }

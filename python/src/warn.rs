@@ -82,13 +82,11 @@ pub(crate) fn unconverged(py: Python<'_>) -> PyResult<()> {
 }
 
 /// The warning of a run whose steps ended with bodies passing through each other
-/// (`Scene.simulate`, the batches, the wrappers' forward passes): a `UserWarning`, since more
-/// iterations do not mend it.
-pub(crate) fn interpenetration(py: Python<'_>, steps: usize) -> PyResult<()> {
+/// (`Scene.simulate`, `simulate_batch`): a `UserWarning`, since more iterations do not mend it.
+/// No count in the text, as for the other warnings: Python's filter shows it once per call site.
+pub(crate) fn interpenetration(py: Python<'_>) -> PyResult<()> {
     user(
         py,
-        &format!(
-            "diffsoft: {steps} steps of this simulation ended with bodies passing through each other (contacts the run missed; Run.stats['steps'][k]['pair_crossings'] counts the crossing surface edges): lower the time step or the speed, or raise contact_rounds; a gradient through such a run raises SimulationError"
-        ),
+        "diffsoft: steps of this simulation ended with bodies passing through each other (contacts the run missed; Run.stats['summary']['steps_with_pair_crossings'] counts them, each step's 'pair_crossings' its crossing surface edges): lower the time step or the speed, or raise contact_rounds; a gradient through such a run raises SimulationError",
     )
 }
