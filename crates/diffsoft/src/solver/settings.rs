@@ -11,7 +11,7 @@ use crate::analysis::spectral::EigenMethod;
 use crate::model::Model;
 
 /// Solver settings, documented once here: the scene file's `solver` section reads them (every
-/// key optional, unknown keys refused; see [`crate::scene::format::SceneFile`] for the time
+/// key optional, unknown keys refused; the scene format's `SceneFile` also takes the time
 /// step), `diffsoft simulate` and `grad` override them (`--dt`, `--solver`, `--tolerance`, ...)
 /// and Python's `Scene.configure(**settings)` sets them, all by these names and through
 /// [`Settings::set`]; the run log (`run.json`) writes them back.

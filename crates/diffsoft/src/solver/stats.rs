@@ -51,7 +51,7 @@ pub struct StepStats {
     /// Surface edges of one body that cross a face of another at the end of the step (0
     /// without collisions between bodies): the bodies passed through each other, a contact the
     /// step missed (a body too fast for the time step, or a contact set the solve could not
-    /// satisfy). Gradients refuse such a step ([`crate::diff::DiffError::Interpenetration`]).
+    /// satisfy). Gradients refuse such a step (the differentiation's `Interpenetration` error).
     pub pair_crossings: usize,
     /// Obstacle contacts on bone vertices in the final round (0 without a skeleton; they are
     /// included in `contacts`).
