@@ -4,7 +4,7 @@
 //! same matrix ([`Systems`]).
 
 use std::ops::Deref;
-use std::sync::{Arc, Mutex, OnceLock};
+use std::sync::{Arc, Mutex, OnceLock, PoisonError};
 use std::time::Instant;
 
 use super::assembled::GlobalSystem;
@@ -112,21 +112,17 @@ impl System {
     }
 
     /// The smallest and largest eigenvalue of `G21` with eigensolver `method`, computed once
-    /// per eigensolver and kept with the system.
+    /// per eigensolver and kept with the system. The computation holds the system's lock, so
+    /// runs that ask at once wait for one computation instead of each repeating it (on a
+    /// 52 728-tet mesh it takes about 5 s).
     pub(crate) fn split_extremes(&self, method: EigenMethod) -> Result<(f64, f64), SolverError> {
-        let known = self
-            .extremes
-            .lock()
-            .ok()
-            .and_then(|e| e.iter().find(|(m, _)| *m == method).map(|(_, p)| *p));
-        if let Some(p) = known {
+        let mut known = self.extremes.lock().unwrap_or_else(PoisonError::into_inner);
+        if let Some(&(_, p)) = known.iter().find(|(m, _)| *m == method) {
             return Ok(p);
         }
         let pair = split_extremes(&self.iteration_system()?, self.h, method)
             .map_err(|e| SolverError::Certification(e.to_string()))?;
-        if let Ok(mut e) = self.extremes.lock() {
-            e.push((method, pair));
-        }
+        known.push((method, pair));
         Ok(pair)
     }
 }

@@ -414,13 +414,23 @@ pub fn run_shard(
             }
         }
     }
+    // One run's set-up per step size and family, done in the first phase (below).
+    let mut warm: Vec<Setting> = Vec::new();
+    for (_, s) in &owned {
+        if !warm
+            .iter()
+            .any(|w| (w.integrator, w.dt_divisor, w.family) == (s.integrator, s.dt_divisor, s.family))
+        {
+            warm.push(*s);
+        }
+    }
     let model_runs = if shard.index == 0 && !spec.models.is_empty() {
         1 + spec.models.len() * spec.dt_divisors.len()
     } else {
         0
     };
     let bar = progress(
-        divisors.len() + grad_divisors.len() + owned.len() + model_runs,
+        divisors.len() + grad_divisors.len() + warm.len() + owned.len() + model_runs,
         &spec.name,
         show_progress,
     );
@@ -432,6 +442,8 @@ pub fn run_shard(
     enum First {
         Ref(Result<(Reference, RefStates), String>),
         Grad(GradientReference),
+        /// A step size's systems set up (factor, certification), or why not (the rows say).
+        Warm,
     }
     let mut first: Vec<Task<'_, First>> = Vec::new();
     for &d in &grad_divisors {
@@ -442,16 +454,32 @@ pub fn run_shard(
         let ctx = &ctx;
         first.push(Box::new(move || First::Ref(reference_run(ctx, d))));
     }
-    let keys: Vec<(bool, RefKey)> = grad_divisors
+    // Last and alongside the references: one run's set-up per step size and family, so the
+    // shared systems hold every factor and certification (the extremes of G21 take seconds on
+    // a large mesh) before the rows start; rows that started together would otherwise each
+    // wait for, or repeat, the same set-up.
+    for s in &warm {
+        let ctx = &ctx;
+        first.push(Box::new(move || {
+            let _ = Simulator::with_systems(ctx.model.clone(), s.settings(ctx.base, ctx.spec), &ctx.systems);
+            First::Warm
+        }));
+    }
+    let keys: Vec<Option<(bool, RefKey)>> = grad_divisors
         .iter()
-        .map(|&d| (true, d))
-        .chain(divisors.iter().map(|&d| (false, d)))
+        .map(|&d| Some((true, d)))
+        .chain(divisors.iter().map(|&d| Some((false, d))))
+        .chain(warm.iter().map(|_| None))
         .collect();
     let mut refs = HashMap::new();
     let mut reference = None;
     let mut dt_references = Vec::new();
     let mut gradient_references = Vec::new();
-    for (&(is_grad, key), r) in keys.iter().zip(pool::run(first, workers, &bar)) {
+    for (key, r) in keys.iter().zip(pool::run(first, workers, &bar)) {
+        // A set-up that failed or panicked fails again in its rows, which report it.
+        let Some((is_grad, key)) = *key else {
+            continue;
+        };
         match (r, is_grad) {
             (Ok(First::Grad(g)), _) => gradient_references.push(g),
             (Err(panic), true) => gradient_references.push(GradientReference {
@@ -466,7 +494,7 @@ pub fn run_shard(
             (r, _) => {
                 let r = match r {
                     Ok(First::Ref(x)) => x,
-                    Ok(First::Grad(_)) => Err("a gradient task in a reference slot".into()),
+                    Ok(First::Grad(_) | First::Warm) => Err("another task in a reference slot".into()),
                     Err(panic) => Err(panic),
                 };
                 let (info, states) = r.map_err(|message| TradeoffError::Reference {
