@@ -18,7 +18,7 @@ pub struct Prismatic {
 }
 
 impl Prismatic {
-    /// A joint along `axis` (normalised here by [`super::joint::unit_axis`], which no finite axis
+    /// A joint along `axis` (normalised here by [`crate::base::unit_vector`], which no finite axis
     /// over- or underflows; a zero or non-finite axis, which the scene loaders refuse, gives the
     /// zero axis) at extension 0.
     ///

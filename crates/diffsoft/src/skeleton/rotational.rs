@@ -36,7 +36,7 @@ pub fn rodrigues_derivative<T: RealField + Copy>(n: &Vector3<T>, t: T) -> Matrix
 }
 
 impl Rotational {
-    /// A joint at `position` about `axis` (normalised here by [`super::joint::unit_axis`], which no
+    /// A joint at `position` about `axis` (normalised here by [`crate::base::unit_vector`], which no
     /// finite axis over- or underflows; a zero or non-finite axis, which the scene loaders refuse,
     /// gives the zero axis) at angle 0.
     ///

@@ -31,6 +31,9 @@ pub(crate) struct System {
     extremes: Mutex<Vec<(EigenMethod, (f64, f64))>>,
     /// The certificates issued on this system, by what they read besides it.
     certificates: Mutex<Vec<(CertKey, Certificate)>>,
+    /// How many times the extremes of `G21` were computed (tests).
+    #[cfg(test)]
+    extremes_computed: std::sync::atomic::AtomicUsize,
 }
 
 /// What certifying a solver reads besides the system: the request, how it is checked, and the
@@ -78,6 +81,8 @@ impl System {
             factor: OnceLock::new(),
             extremes: Mutex::new(Vec::new()),
             certificates: Mutex::new(Vec::new()),
+            #[cfg(test)]
+            extremes_computed: std::sync::atomic::AtomicUsize::new(0),
         }
     }
 
@@ -122,6 +127,9 @@ impl System {
         }
         let pair = split_extremes(&self.iteration_system()?, self.h, method)
             .map_err(|e| SolverError::Certification(e.to_string()))?;
+        #[cfg(test)]
+        self.extremes_computed
+            .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         known.push((method, pair));
         Ok(pair)
     }
@@ -205,5 +213,49 @@ impl Systems {
         }
         entries.push(Arc::clone(&s));
         Ok(s)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::generate::BoxSpec;
+    use crate::model::{BodySpec, MassSpec, ModelBuilder};
+    use crate::Material;
+
+    /// Runs that ask a shared system for the extremes of `G21` at once get the same pair from
+    /// one computation (the trade-off sweep starts several runs per step size together).
+    #[test]
+    fn concurrent_requests_for_the_extremes_compute_them_once() {
+        let mesh = BoxSpec::new([4, 2, 2], [0.4, 0.1, 0.1]).build().unwrap();
+        let m = Material {
+            youngs_modulus: 1e5,
+            poisson_ratio: 0.3,
+        };
+        let model = ModelBuilder::new()
+            .body(BodySpec::new("box", mesh, m, MassSpec::Density(1000.0)))
+            .build()
+            .unwrap();
+        let systems = Systems::new();
+        let sys = systems.get(&model, 1e-2).unwrap();
+        let start = std::sync::Barrier::new(4);
+        let pairs: Vec<(f64, f64)> = std::thread::scope(|s| {
+            let handles: Vec<_> = (0..4)
+                .map(|_| {
+                    s.spawn(|| {
+                        start.wait();
+                        sys.split_extremes(EigenMethod::Dense).unwrap()
+                    })
+                })
+                .collect();
+            handles.into_iter().map(|h| h.join().unwrap()).collect()
+        });
+        assert!(pairs.iter().all(|p| p == &pairs[0]), "{pairs:?}");
+        assert!(pairs[0].0 < pairs[0].1 && pairs[0].1 < 1.0, "{pairs:?}");
+        assert_eq!(sys.extremes_computed.load(std::sync::atomic::Ordering::Relaxed), 1);
+        // A later run on the same system (through the set) reads the kept pair.
+        let again = systems.get(&model, 1e-2).unwrap();
+        assert_eq!(again.split_extremes(EigenMethod::Dense).unwrap(), pairs[0]);
+        assert_eq!(sys.extremes_computed.load(std::sync::atomic::Ordering::Relaxed), 1);
     }
 }
