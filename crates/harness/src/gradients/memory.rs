@@ -24,7 +24,9 @@ pub struct MemoryPoint {
     pub stored_bytes: usize,
     /// Bytes of checkpoints.
     pub checkpoint_bytes: usize,
-    /// Peak heap growth during the gradient evaluation (bytes; `null` without the counting
+    /// Peak heap growth during the gradient evaluation, which runs on one thread (bytes,
+    /// counted on that thread, so other work running meanwhile does not show, and after the
+    /// thread's lifetime buffers of the dense kernels are reserved; `null` without the counting
     /// allocator of the `diffsoft` binary).
     pub peak_heap_bytes: Option<usize>,
     /// Forward (ms).
@@ -35,31 +37,32 @@ pub struct MemoryPoint {
     pub ratio: f64,
 }
 
-/// Memory of the backward pass on `case` for each horizon.
-pub fn memory(case: &Case, horizons: &[usize], opts: Options) -> Result<Vec<MemoryPoint>, DiffError> {
-    let mut out = Vec::new();
-    for &steps in horizons {
-        diffsoft::alloc::reset_peak();
-        let mut controls = case.controls.clone();
-        if let Some(t) = controls.torques.as_mut() {
-            // Hold the last torques for longer horizons.
-            let last = t.last().cloned().unwrap_or_default();
-            t.resize(steps, last);
-        }
-        let g = diff::gradient(&case.model, &case.settings, steps, &controls, case.loss.as_ref(), opts)?;
-        out.push(MemoryPoint {
-            scene: case.name.clone(),
-            steps,
-            mode: opts.mode,
-            store_budget_bytes: opts.store_bytes,
-            stored_steps: g.stats.stored_steps,
-            stored_bytes: g.stats.stored_bytes,
-            checkpoint_bytes: g.stats.checkpoint_bytes,
-            peak_heap_bytes: diffsoft::alloc::peak_since_reset(),
-            forward_ms: g.stats.forward_ms,
-            backward_ms: g.stats.backward_ms,
-            ratio: g.stats.backward_ms / g.stats.forward_ms,
-        });
+/// Memory and time of the backward pass on `case` over `steps` steps, measured on the calling
+/// thread ([`diffsoft::alloc::thread_peak`]): run it single-threaded (a [`crate::pool`] task).
+pub fn memory_point(case: &Case, steps: usize, opts: Options) -> Result<MemoryPoint, DiffError> {
+    let mut controls = case.controls.clone();
+    if let Some(t) = controls.torques.as_mut() {
+        // Hold the last torques for longer horizons.
+        let last = t.last().cloned().unwrap_or_default();
+        t.resize(steps, last);
     }
-    Ok(out)
+    // The thread's lifetime buffers of the dense kernels first: they are not the gradient's.
+    diffsoft::alloc::reserve_thread_buffers();
+    let (g, peak) = diffsoft::alloc::thread_peak(|| {
+        diff::gradient(&case.model, &case.settings, steps, &controls, case.loss.as_ref(), opts)
+    });
+    let g = g?;
+    Ok(MemoryPoint {
+        scene: case.name.clone(),
+        steps,
+        mode: opts.mode,
+        store_budget_bytes: opts.store_bytes,
+        stored_steps: g.stats.stored_steps,
+        stored_bytes: g.stats.stored_bytes,
+        checkpoint_bytes: g.stats.checkpoint_bytes,
+        peak_heap_bytes: peak,
+        forward_ms: g.stats.forward_ms,
+        backward_ms: g.stats.backward_ms,
+        ratio: g.stats.backward_ms / g.stats.forward_ms,
+    })
 }

@@ -11,7 +11,7 @@ use serde::Serialize;
 use super::check::{check_all, steps_sweep, CaseCheck};
 use super::cost::write_cost_svg;
 use super::cost::{accuracy_vs_cost, CostReport};
-use super::memory::{memory, MemoryPoint};
+use super::memory::{memory_point, MemoryPoint};
 use super::sysid::{sysid, SysId};
 use super::{ATOL, GRADCHECK_SCHEMA, GRADIENTS_SCHEMA, RTOL, STORE_BUDGET};
 use crate::pool;
@@ -193,27 +193,52 @@ pub fn study(inp: &Inputs<'_>, out: &Path) -> Result<GradientsReport> {
         controls: Controls::default(),
         groups: Vec::new(),
     };
-    let mut mem = memory(&mem_case, inp.memory_steps, Options::mode(Mode::Unrolled))?;
-    mem.extend(memory(
-        &mem_case,
-        inp.memory_steps,
-        Options {
-            store_bytes: STORE_BUDGET,
-            ..Options::mode(Mode::Unrolled)
-        },
-    )?);
-    mem.extend(memory(&mem_case, inp.memory_steps, Options::mode(Mode::Implicit))?);
     // Baymax with its skeleton (no ground), the paper's skeleton scene, as in the check.
     let mut sk_case = baymax_torques(inp.baymax_skeleton, 100)?;
     sk_case.name = "baymax_skeleton".into();
     sk_case.settings = scene::load(inp.baymax_skeleton, LoadOptions::default())?.settings;
     sk_case.settings.anderson = 0;
-    mem.extend(memory(&sk_case, inp.memory_steps, Options::mode(Mode::Unrolled))?);
     // The same on the ground (paper Fig. 5b's scene): contacts on free and bone vertices.
     let mut skg_case = baymax_ground(inp.baymax_skeleton, 100)?;
     skg_case.controls.initial = None;
     skg_case.settings = sk_case.settings.clone();
-    mem.extend(memory(&skg_case, inp.memory_steps, Options::mode(Mode::Unrolled))?);
+    let runs: [(&Case, Options); 5] = [
+        (&mem_case, Options::mode(Mode::Unrolled)),
+        (
+            &mem_case,
+            Options {
+                store_bytes: STORE_BUDGET,
+                ..Options::mode(Mode::Unrolled)
+            },
+        ),
+        (&mem_case, Options::mode(Mode::Implicit)),
+        (&sk_case, Options::mode(Mode::Unrolled)),
+        (&skg_case, Options::mode(Mode::Unrolled)),
+    ];
+    // Every point is one gradient on one thread, its heap counted on that thread, so the
+    // points run side by side; the longest horizons (and the skeleton's, the slowest) first.
+    let mut points: Vec<(usize, &Case, usize, Options)> = Vec::new();
+    for (c, opts) in runs {
+        for &steps in inp.memory_steps {
+            points.push((points.len(), c, steps, opts));
+        }
+    }
+    let mut order: Vec<usize> = (0..points.len()).collect();
+    order.sort_by_key(|&i| (std::cmp::Reverse(points[i].2), std::cmp::Reverse(i)));
+    let tasks: Vec<pool::Task<'_, Result<MemoryPoint, diffsoft::diff::DiffError>>> = order
+        .iter()
+        .map(|&i| -> pool::Task<'_, Result<MemoryPoint, diffsoft::diff::DiffError>> {
+            let (_, c, steps, opts) = points[i];
+            Box::new(move || memory_point(c, steps, opts))
+        })
+        .collect();
+    let results = pool::run(tasks, rayon::current_num_threads(), &indicatif::ProgressBar::hidden());
+    let mut by_index: Vec<Option<MemoryPoint>> = (0..points.len()).map(|_| None).collect();
+    for (&i, r) in order.iter().zip(results) {
+        let p = r.map_err(|panic| anyhow::anyhow!("memory study panicked: {panic}"))??;
+        by_index[i] = Some(p);
+    }
+    let mem: Vec<MemoryPoint> = by_index.into_iter().flatten().collect();
     for m in &mem {
         crate::say!(
             "  backward {:<16} {:>5} steps {:?}{}: forward {:.0} ms, backward {:.0} ms ({:.2}x), peak heap {:.1} MB",
