@@ -219,9 +219,9 @@ impl Systems {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::base::Material;
     use crate::mesh::generate::BoxSpec;
     use crate::model::{BodySpec, MassSpec, ModelBuilder};
-    use crate::Material;
 
     /// Runs that ask a shared system for the extremes of `G21` at once get the same pair from
     /// one computation (the trade-off sweep starts several runs per step size together).
