@@ -22,6 +22,7 @@ use super::assembled::GlobalSystem;
 use super::contact_space::{ContactSpace, Problem};
 use super::free_contact::{FreeContact, Stencil};
 use super::global::{GlobalSolver, GlobalStats, InnerControl, SolverKind};
+use super::tree_solve::{TreePlan, TreeWork};
 use super::SolverError;
 
 /// Free vertices from which the three axes are solved concurrently (below it, a one-column
@@ -34,6 +35,8 @@ const AXIS_PARALLEL_MIN: usize = 4000;
 pub(crate) struct CholeskyFactor {
     symbolic: SymbolicCholesky<usize>,
     numeric: Vec<f64>,
+    /// The supernodal tree for solves on several threads (`None` for a simplicial factor).
+    plan: Option<TreePlan>,
 }
 
 impl CholeskyFactor {
@@ -71,7 +74,12 @@ impl CholeskyFactor {
                     "M/h^2 + L is not positive definite ({e:?}): check masses, stiffness and time step"
                 ))
             })?;
-        Ok(Self { symbolic, numeric })
+        let plan = TreePlan::new(&symbolic);
+        Ok(Self {
+            symbolic,
+            numeric,
+            plan,
+        })
     }
 
     fn llt(&self) -> LltRef<'_, usize, f64> {
@@ -88,6 +96,9 @@ pub(crate) struct Direct {
     /// How the three axes are solved: 1 (together, on this thread), 2 (two on this thread,
     /// one on another) or 3 (each on its own thread): large systems with several worker threads.
     axis_split: usize,
+    /// Buffers of the tree-parallel solve, used instead of the axis split when the factor is
+    /// supernodal, the system large and the pool has several threads.
+    tree_work: Option<TreeWork>,
     rhs: Mat<f64>,
     /// Columns of `A^-1` at contact vertices (free index -> column).
     delassus: HashMap<usize, Vec<f64>>,
@@ -124,11 +135,16 @@ impl Direct {
         } else {
             rayon::current_num_threads().clamp(1, 3)
         };
+        let tree_work = match &factor.plan {
+            Some(plan) if n >= AXIS_PARALLEL_MIN && rayon::current_num_threads() > 1 => Some(plan.work(3)),
+            _ => None,
+        };
         Self {
             factor,
             solve_mem,
             axis_mem,
             axis_split,
+            tree_work,
             rhs: Mat::zeros(n, 3),
             delassus: HashMap::new(),
             control,
@@ -142,6 +158,10 @@ impl Direct {
     }
 
     fn solve_rhs(&mut self) {
+        if let (Some(plan), Some(work)) = (&self.factor.plan, &mut self.tree_work) {
+            plan.solve(&self.factor.numeric, self.rhs.as_mut(), work);
+            return;
+        }
         let llt = self.factor.llt();
         let [m2, m1, m0] = &mut self.axis_mem;
         if self.axis_split == 2 {
@@ -394,6 +414,6 @@ impl GlobalSolver for Direct {
     }
 
     fn parallel_inside(&self) -> bool {
-        self.axis_split > 1
+        self.axis_split > 1 || self.tree_work.is_some()
     }
 }

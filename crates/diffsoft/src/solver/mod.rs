@@ -27,8 +27,10 @@
 //!   certificates (`system.rs`); certification (`certificate.rs`, `certify.rs`) and the default
 //!   solver's choice (`choose.rs`);
 //! * linear solves: the global solvers behind one trait (`global.rs`: `direct.rs`,
-//!   `stationary.rs`), the skeleton's reduced step (`skeletal.rs`), small dense Cholesky and LU
-//!   (`cholesky.rs`, `dense_lu.rs`);
+//!   `stationary.rs`), the direct solve's tree-parallel supernodal solve on several threads
+//!   (`tree_solve.rs`) and its dense kernels for three right-hand sides (`few_rhs.rs`), the
+//!   skeleton's reduced step (`skeletal.rs`), small dense Cholesky and LU (`cholesky.rs`,
+//!   `dense_lu.rs`);
 //! * contacts: the contact phase (`contacts.rs`), contacts on free vertices (`free_contact.rs`),
 //!   the contact-space solve (`contact_space.rs`);
 //! * the problem and its iterations: the step's energy, gradient and Hessian (`problem.rs`,
@@ -47,6 +49,7 @@ pub(crate) mod contacts;
 mod dense_lu;
 pub(crate) mod direct;
 mod error;
+mod few_rhs;
 pub(crate) mod free_contact;
 pub(crate) mod global;
 pub(crate) mod hessian;
@@ -61,6 +64,7 @@ pub(crate) mod stationary;
 mod stats;
 mod step;
 pub(crate) mod system;
+pub(crate) mod tree_solve;
 mod warm;
 pub(crate) mod work;
 
