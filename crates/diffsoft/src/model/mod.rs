@@ -7,6 +7,8 @@
 mod attachment;
 mod builder;
 mod cloth;
+#[cfg(feature = "testing")]
+pub(crate) mod fixtures;
 mod hyper;
 mod vertex_tets;
 

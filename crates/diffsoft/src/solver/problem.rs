@@ -219,7 +219,7 @@ pub(crate) fn step_objective(
 mod tests {
     use super::*;
     use crate::base::MaterialModel;
-    use crate::testing::actuated_beam;
+    use crate::model::fixtures::{actuated_beam, ground_box};
 
     /// A deterministic pseudo-random number in `[-1, 1)`.
     fn noise(k: usize) -> f64 {
@@ -246,7 +246,7 @@ mod tests {
             let name = hyper.bodies[0].name.clone();
             hyper.set_material_model(&name, m).unwrap();
             check_terms(&hyper, &["hyperelastic", "pneumatic", "muscle", "attachment"]);
-            let mut plain = crate::testing::ground_box(0.5).unwrap();
+            let mut plain = ground_box(0.5).unwrap();
             let name = plain.bodies[0].name.clone();
             plain.set_material_model(&name, m).unwrap();
             check_terms(&plain, &["hyperelastic"]);

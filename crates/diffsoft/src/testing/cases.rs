@@ -11,10 +11,10 @@ use rand_chacha::ChaCha8Rng;
 
 use super::fixtures::{actuated_beam, ActuatedBeam};
 use crate::base::Material;
-use crate::contact::Obstacle;
 use crate::diff::loss::{CenterOfMass, JointAngle, Loss, Sum, VertexPositions};
 use crate::diff::{self, Controls, DiffError, Gradient, Param};
 use crate::mesh::generate::BoxSpec;
+pub use crate::model::fixtures::ground_box;
 use crate::model::{BodySpec, MassSpec, Model, ModelBuilder};
 use crate::scene::{self, LoadOptions};
 use crate::solver::{Settings, SolverKind};
@@ -384,31 +384,6 @@ pub fn bridgesus(scene_path: &Path, steps: usize) -> Result<Case> {
             Group::YoungsPerTet,
         ],
     })
-}
-
-/// The ground-contact case's model: a jittered soft box (60 tets) thrown at (0.5, -1, 0.2) m/s
-/// onto ground with friction `mu`.
-pub fn ground_box(mu: f64) -> Result<Model> {
-    let mesh = BoxSpec::new([3, 2, 2], [0.3, 0.2, 0.2])
-        .jitter(0.1, 5)
-        .origin([0.0, 0.02, 0.0])
-        .build()?;
-    let mut body = BodySpec::new(
-        "box",
-        mesh,
-        Material {
-            youngs_modulus: 2e4,
-            poisson_ratio: 0.3,
-        },
-        MassSpec::Density(1000.0),
-    );
-    body.initial_velocity = Vector3::new(0.5, -1.0, 0.2);
-    let model = ModelBuilder::new()
-        .gravity(Vector3::new(0.0, -9.81, 0.0))
-        .body(body)
-        .obstacle(Obstacle::plane("ground", Vector3::zeros(), Vector3::y(), mu))
-        .build()?;
-    Ok(model)
 }
 
 /// A soft box thrown onto frictional ground (mu 0.5): it lands, slides and sticks.

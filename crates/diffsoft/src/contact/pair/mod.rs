@@ -301,6 +301,29 @@ fn swept_box(verts: &[usize], q0: &[Vector3<f64>], q1: &[Vector3<f64>], pad: f64
     (lo.add_scalar(-pad), hi.add_scalar(pad))
 }
 
+/// The padded boxes swept by `items` (edges or triangles) from `q0` to `q1`, into `boxes`, and
+/// the grid cell for them: the mean box extent, or the rest mean edge if larger (a stretched
+/// or fast surface does not spread each box over many cells).
+fn swept_boxes<const N: usize>(
+    items: &[[usize; N]],
+    q0: &[Vector3<f64>],
+    q1: &[Vector3<f64>],
+    pad: f64,
+    mean_edge: f64,
+    boxes: &mut Vec<(Vector3<f64>, Vector3<f64>)>,
+) -> f64 {
+    boxes.clear();
+    let mut extent = 0.0;
+    for item in items {
+        let b = swept_box(item, q0, q1, pad);
+        extent += (b.1 - b.0).max();
+        boxes.push(b);
+    }
+    (extent / items.len().max(1) as f64)
+        .max(mean_edge)
+        .max(f64::MIN_POSITIVE)
+}
+
 impl Detector {
     /// Find pairs between bodies moving from `q0` to `q1` (see [`Query`]); with
     /// [`Query::Violations`], pairs already in `known` (from [`Detector::remember`]) are skipped.
@@ -360,16 +383,7 @@ impl Detector {
         if matches!(query, Query::Candidates { .. }) {
             return;
         }
-        self.edge_boxes.clear();
-        let mut extent = 0.0;
-        for e in &col.edges {
-            let b = swept_box(e, q0, q1, pad);
-            extent += (b.1 - b.0).max();
-            self.edge_boxes.push(b);
-        }
-        let cell = (extent / col.edges.len().max(1) as f64)
-            .max(col.mean_edge)
-            .max(f64::MIN_POSITIVE);
+        let cell = swept_boxes(&col.edges, q0, q1, pad, col.mean_edge, &mut self.edge_boxes);
         self.grid.build(cell, &self.edge_boxes);
         for (ei, e) in col.edges.iter().enumerate() {
             let eb = self.edge_boxes[ei];
@@ -571,16 +585,7 @@ impl Detector {
     /// the mean box extent (or the rest mean edge, if larger: a stretched or fast surface does
     /// not spread each box over many cells), and the deduplication stamps sized for `col`.
     fn triangle_grid(&mut self, col: &Colliders, q0: &[Vector3<f64>], q1: &[Vector3<f64>], pad: f64) {
-        self.tri_boxes.clear();
-        let mut extent = 0.0;
-        for t in &col.triangles {
-            let b = swept_box(t, q0, q1, pad);
-            extent += (b.1 - b.0).max();
-            self.tri_boxes.push(b);
-        }
-        let cell = (extent / col.triangles.len().max(1) as f64)
-            .max(col.mean_edge)
-            .max(f64::MIN_POSITIVE);
+        let cell = swept_boxes(&col.triangles, q0, q1, pad, col.mean_edge, &mut self.tri_boxes);
         self.grid.build(cell, &self.tri_boxes);
         if self.stamp.len() != col.triangles.len().max(col.edges.len()) {
             self.stamp = vec![0; col.triangles.len().max(col.edges.len())];
