@@ -238,12 +238,7 @@ impl ContactAdjoint {
                 direct.inverse_column(i);
             }
         }
-        self.delta.clear();
-        for ci in contacts {
-            for cj in contacts {
-                self.delta.push(direct.stencil_inverse(&ci.stencil, &cj.stencil));
-            }
-        }
+        direct.delassus_matrix(contacts.iter().map(|c| &c.stencil), &mut self.delta);
         self.d.clear();
         self.g.clear();
         self.distances.clear();

@@ -9,7 +9,7 @@
 //! ([`super::contact_space`]: projected Gauss-Seidel with the same Coulomb cone projection as
 //! the iterative solvers, effective weight `1 / (A^-1)_{cc}`, finished by an active-set method).
 
-use std::collections::HashMap;
+use rustc_hash::FxHashMap;
 use std::sync::Arc;
 
 use faer::dyn_stack::{MemBuffer, MemStack};
@@ -35,7 +35,7 @@ const AXIS_PARALLEL_MIN: usize = 4000;
 pub(crate) struct CholeskyFactor {
     symbolic: SymbolicCholesky<usize>,
     numeric: Vec<f64>,
-    /// The supernodal tree for solves on several threads (`None` for a simplicial factor).
+    /// The supernodal tree of the tree solve (`None` for a simplicial factor).
     plan: Option<TreePlan>,
 }
 
@@ -96,12 +96,13 @@ pub(crate) struct Direct {
     /// How the three axes are solved: 1 (together, on this thread), 2 (two on this thread,
     /// one on another) or 3 (each on its own thread): large systems with several worker threads.
     axis_split: usize,
-    /// Buffers of the tree-parallel solve, used instead of the axis split when the factor is
-    /// supernodal, the system large and the pool has several threads.
+    /// Buffers of the tree solve, used instead of faer's solve (and the axis split) when the
+    /// factor is supernodal and the system large: on several threads it runs subtrees and
+    /// large fronts in parallel; on one its kernels for three right-hand sides are faster.
     tree_work: Option<TreeWork>,
     rhs: Mat<f64>,
     /// Columns of `A^-1` at contact vertices (free index -> column).
-    delassus: HashMap<usize, Vec<f64>>,
+    delassus: FxHashMap<usize, Vec<f64>>,
     control: InnerControl,
     lambda: Vec<Vector3<f64>>,
     // Contact buffers, reused across solves.
@@ -110,7 +111,7 @@ pub(crate) struct Direct {
     x_free: Vec<Vector3<f64>>,
     space: ContactSpace,
     /// The previous solve's impulses by contact vertices (warm starts).
-    previous: HashMap<(u8, [usize; 4]), Vector3<f64>>,
+    previous: FxHashMap<(u8, [usize; 4]), Vector3<f64>>,
 }
 
 impl std::fmt::Debug for Direct {
@@ -136,7 +137,7 @@ impl Direct {
             rayon::current_num_threads().clamp(1, 3)
         };
         let tree_work = match &factor.plan {
-            Some(plan) if n >= AXIS_PARALLEL_MIN && rayon::current_num_threads() > 1 => Some(plan.work(3)),
+            Some(plan) if n >= AXIS_PARALLEL_MIN => Some(plan.work(3)),
             _ => None,
         };
         Self {
@@ -146,14 +147,14 @@ impl Direct {
             axis_split,
             tree_work,
             rhs: Mat::zeros(n, 3),
-            delassus: HashMap::new(),
+            delassus: FxHashMap::default(),
             control,
             lambda: Vec::new(),
             stencils: Vec::new(),
             dmat: Vec::new(),
             x_free: Vec::new(),
             space: ContactSpace::default(),
-            previous: HashMap::new(),
+            previous: FxHashMap::default(),
         }
     }
 
@@ -284,17 +285,28 @@ impl Direct {
             .zip(self.lambda.iter().copied())
     }
 
-    /// `(A^-1)` between two contacts' stencils: `sum_a sum_b c_a c_b (A^-1)_{i_a i_b}` (the
-    /// columns must be cached).
-    pub(crate) fn stencil_inverse(&self, a: &Stencil, b: &Stencil) -> f64 {
-        let mut d = 0.0;
-        for (i, ci) in a.entries() {
-            let col = &self.delassus[&i];
-            for (k, ck) in b.entries() {
-                d += ci * ck * col[k];
+    /// The Delassus matrix of contacts with these stencils, row-major into `out`: entry
+    /// `(j, k)` is `sum_a sum_b c_a c_b (A^-1)_{i_a i_b}` over stencil `j`'s entries `a` and
+    /// stencil `k`'s entries `b` (the columns must be cached). Each row looks its columns up
+    /// once.
+    pub(crate) fn delassus_matrix<'s>(&self, stencils: impl Iterator<Item = &'s Stencil> + Clone, out: &mut Vec<f64>) {
+        out.clear();
+        for a in stencils.clone() {
+            let mut cols: [(&[f64], f64); 4] = [(&[], 0.0); 4];
+            for (slot, (i, c)) in cols.iter_mut().zip(a.entries()) {
+                *slot = (&self.delassus[&i], c);
             }
+            let cols = &cols[..a.len as usize];
+            out.extend(stencils.clone().map(|b| {
+                let mut d = 0.0;
+                for &(col, ci) in cols {
+                    for (k, ck) in b.entries() {
+                        d += ci * ck * col[k];
+                    }
+                }
+                d
+            }));
         }
-        d
     }
 
     /// `x += sum_k c_k (A^-1)_{:, i_k} l` for a contact's stencil (columns cached on demand).
@@ -355,11 +367,7 @@ impl Direct {
                     dmat.extend(self.stencils.iter().map(|s| col[s.index[0]]));
                 }
             } else {
-                for j in 0..m {
-                    for k in 0..m {
-                        dmat.push(self.stencil_inverse(&self.stencils[j], &self.stencils[k]));
-                    }
-                }
+                self.delassus_matrix(self.stencils.iter(), &mut dmat);
             }
             self.dmat = dmat;
         }
@@ -414,6 +422,6 @@ impl GlobalSolver for Direct {
     }
 
     fn parallel_inside(&self) -> bool {
-        self.axis_split > 1 || self.tree_work.is_some()
+        self.axis_split > 1 || (self.tree_work.is_some() && rayon::current_num_threads() > 1)
     }
 }

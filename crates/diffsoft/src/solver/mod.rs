@@ -27,7 +27,7 @@
 //!   certificates (`system.rs`); certification (`certificate.rs`, `certify.rs`) and the default
 //!   solver's choice (`choose.rs`);
 //! * linear solves: the global solvers behind one trait (`global.rs`: `direct.rs`,
-//!   `stationary.rs`), the direct solve's tree-parallel supernodal solve on several threads
+//!   `stationary.rs`), the direct solve's tree-parallel supernodal solve of large systems
 //!   (`tree_solve.rs`) and its dense kernels for three right-hand sides (`few_rhs.rs`), the
 //!   skeleton's reduced step (`skeletal.rs`), small dense Cholesky and LU (`cholesky.rs`,
 //!   `dense_lu.rs`);

@@ -1,6 +1,8 @@
-//! Solves with a supernodal sparse Cholesky factor `L L^T` on several threads: independent
-//! subtrees of the supernodal elimination tree run concurrently, and inside the large dense
-//! fronts at the top of the tree the triangular solves and products are split by rows.
+//! Solves with a supernodal sparse Cholesky factor `L L^T` on one or several threads:
+//! independent subtrees of the supernodal elimination tree run concurrently, and inside the
+//! large dense fronts at the top of the tree the triangular solves and products are split by
+//! rows. On one thread the same code runs in order; its kernels for one to three right-hand
+//! sides (`few_rhs`) make it faster than faer's general solve there too.
 //!
 //! faer's own supernodal solve visits the supernodes in order, pushing each supernode's update
 //! `L_bot x_top` into the rows of its ancestors; two subtrees doing that at once would race on

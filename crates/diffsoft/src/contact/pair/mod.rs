@@ -284,7 +284,7 @@ pub struct Detector {
     edge_boxes: Vec<(Vector3<f64>, Vector3<f64>)>,
     stamp: Vec<u32>,
     epoch: u32,
-    known: std::collections::HashSet<(bool, [usize; 4])>,
+    known: rustc_hash::FxHashSet<(bool, [usize; 4])>,
     /// The closest pair found so far per other body (one query primitive at a time).
     best: Vec<Option<PairContact>>,
     /// Candidate pairs tested exactly in the last pass (for the cost study).
@@ -454,7 +454,7 @@ fn accept(
     d0: f64,
     moved: f64,
     query: Query,
-    known: &std::collections::HashSet<(bool, [usize; 4])>,
+    known: &rustc_hash::FxHashSet<(bool, [usize; 4])>,
 ) -> Option<PairContact> {
     let th = col.settings.thickness;
     if let Query::Candidates { margin } = query {
