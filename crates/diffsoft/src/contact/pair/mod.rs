@@ -301,9 +301,18 @@ fn swept_box(verts: &[usize], q0: &[Vector3<f64>], q1: &[Vector3<f64>], pad: f64
     (lo.add_scalar(-pad), hi.add_scalar(pad))
 }
 
+/// Grid entries per box above which [`swept_boxes`] doubles the cell (a box straddling two
+/// cells along each axis makes 8).
+const ENTRIES_PER_BOX: usize = 8;
+
 /// The padded boxes swept by `items` (edges or triangles) from `q0` to `q1`, into `boxes`, and
 /// the grid cell for them: the mean box extent, or the rest mean edge if larger (a stretched
-/// or fast surface does not spread each box over many cells).
+/// or fast surface does not spread each box over many cells), doubled up to twice while the
+/// boxes would make more than [`ENTRIES_PER_BOX`] grid entries each on average. Boxes of very
+/// different sizes (the paper's cloth_ball: a cloth wrapped around a collapsed ball) made about
+/// 41 entries per box at the mean extent, and the detection took about 40% of a step with
+/// contacts; a regular cloth's boxes make fewer than 8 and keep the mean extent, which suits
+/// them better (docs/performance.md).
 fn swept_boxes<const N: usize>(
     items: &[[usize; N]],
     q0: &[Vector3<f64>],
@@ -319,9 +328,31 @@ fn swept_boxes<const N: usize>(
         extent += (b.1 - b.0).max();
         boxes.push(b);
     }
-    (extent / items.len().max(1) as f64)
+    let mut cell = (extent / items.len().max(1) as f64)
         .max(mean_edge)
-        .max(f64::MIN_POSITIVE)
+        .max(f64::MIN_POSITIVE);
+    let limit = ENTRIES_PER_BOX * boxes.len();
+    for _ in 0..2 {
+        if grid_entries(boxes, cell, limit) <= limit {
+            break;
+        }
+        cell *= 2.0;
+    }
+    cell
+}
+
+/// The grid entries `boxes` make with cells of size `cell`, counted up to just past `limit`.
+fn grid_entries(boxes: &[(Vector3<f64>, Vector3<f64>)], cell: f64, limit: usize) -> usize {
+    let inv = 1.0 / cell;
+    let span = |lo: f64, hi: f64| ((hi * inv).floor() - (lo * inv).floor() + 1.0).max(1.0);
+    let mut entries = 0.0;
+    for (lo, hi) in boxes {
+        entries += span(lo.x, hi.x) * span(lo.y, hi.y) * span(lo.z, hi.z);
+        if entries > limit as f64 {
+            return limit + 1;
+        }
+    }
+    entries as usize
 }
 
 impl Detector {
@@ -436,10 +467,15 @@ impl Detector {
     }
 }
 
-/// Keep `c` if it is closer than the pair kept for its body.
+/// Keep `c` if it is closer than the pair kept for its body; of two at the same distance (a
+/// vertex nearest an edge is as near both faces on it), the one with the smaller vertex
+/// indices, so that the choice does not depend on the order the grid visits them in.
 fn keep_closest(best: &mut [Option<PairContact>], body: u32, c: PairContact) {
     let slot = &mut best[body as usize];
-    if slot.as_ref().is_none_or(|b| c.distance < b.distance) {
+    if slot
+        .as_ref()
+        .is_none_or(|b| c.distance < b.distance || (c.distance == b.distance && c.vertices < b.vertices))
+    {
         *slot = Some(c);
     }
 }
@@ -582,8 +618,7 @@ impl Detector {
     }
 
     /// The grid of the triangles' boxes swept from `q0` to `q1` and padded by `pad`, its cell
-    /// the mean box extent (or the rest mean edge, if larger: a stretched or fast surface does
-    /// not spread each box over many cells), and the deduplication stamps sized for `col`.
+    /// as [`swept_boxes`] chooses it, and the deduplication stamps sized for `col`.
     fn triangle_grid(&mut self, col: &Colliders, q0: &[Vector3<f64>], q1: &[Vector3<f64>], pad: f64) {
         let cell = swept_boxes(&col.triangles, q0, q1, pad, col.mean_edge, &mut self.tri_boxes);
         self.grid.build(cell, &self.tri_boxes);
@@ -639,6 +674,61 @@ pub struct Crossing {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn of_two_pairs_at_the_same_distance_the_smaller_vertices_are_kept_in_either_order() {
+        let pair = |vertices: [usize; 4], distance: f64| PairContact {
+            vertices,
+            coefs: [1.0, -1.0, 0.0, 0.0],
+            normal: Vector3::y(),
+            distance,
+            regime: Regime::Edge(0),
+        };
+        // A vertex nearest an edge is as near both faces on it.
+        let (a, b) = (pair([0, 3, 4, 5], 0.25), pair([0, 4, 3, 6], 0.25));
+        for order in [[a, b], [b, a]] {
+            let mut best = vec![None];
+            for c in order {
+                keep_closest(&mut best, 0, c);
+            }
+            assert_eq!(best[0].map(|c| c.vertices), Some([0, 3, 4, 5]));
+        }
+        // A nearer pair still wins whatever its vertices.
+        let mut best = vec![Some(a)];
+        keep_closest(&mut best, 0, pair([0, 9, 10, 11], 0.125));
+        assert_eq!(best[0].map(|c| c.vertices), Some([0, 9, 10, 11]));
+    }
+
+    #[test]
+    fn the_grid_cell_grows_only_for_boxes_of_very_different_sizes() {
+        // Segments along x, each 0.1 long, in a row: about 2 x 1 x 1 entries each at the mean
+        // extent, which stays the cell.
+        let n = 50;
+        let q: Vec<Vector3<f64>> = (0..=n).map(|i| Vector3::new(0.1 * i as f64, 0.0, 0.0)).collect();
+        let items: Vec<[usize; 2]> = (0..n).map(|i| [i, i + 1]).collect();
+        let mut boxes = Vec::new();
+        let cell = swept_boxes(&items, &q, &q, 0.0, 0.0, &mut boxes);
+        assert!((cell - 0.1).abs() < 1e-12, "cell {cell}");
+        assert!(grid_entries(&boxes, cell, usize::MAX) <= ENTRIES_PER_BOX * boxes.len());
+        // Many tiny boxes and a few spanning the whole region: far more than 8 entries per
+        // box at the mean extent, so the cell doubles (at most twice).
+        let mut q: Vec<Vector3<f64>> = (0..200).map(|i| Vector3::repeat(0.001 * i as f64)).collect();
+        let mut items: Vec<[usize; 2]> = (0..199).map(|i| [i, i + 1]).collect();
+        for k in 0..20 {
+            let s = k as f64 * 1e-3;
+            q.push(Vector3::new(-1.0 + s, -1.0, -1.0));
+            q.push(Vector3::new(1.0, 1.0 - s, 1.0));
+            items.push([q.len() - 2, q.len() - 1]);
+        }
+        let cell = swept_boxes(&items, &q, &q, 0.0, 0.0, &mut boxes);
+        let mean = boxes.iter().map(|b| (b.1 - b.0).max()).sum::<f64>() / boxes.len() as f64;
+        assert!(grid_entries(&boxes, mean, usize::MAX) > ENTRIES_PER_BOX * boxes.len());
+        assert!(
+            cell > 1.5 * mean && cell < 4.5 * mean,
+            "cell {cell}, mean extent {mean}"
+        );
+        assert!(grid_entries(&boxes, cell, usize::MAX) < grid_entries(&boxes, mean, usize::MAX));
+    }
 
     #[test]
     fn boundary_of_two_tets_has_six_faces() {
