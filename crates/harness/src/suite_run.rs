@@ -2,8 +2,10 @@
 //! `T` scaling and the paper's arithmetic, Jacobian checks, physics checks, the skeleton,
 //! actuator and gradient studies, the trade-off study, extremes, cloth and the validation
 //! against closed forms), writes their reports
-//! and plots and prints their summaries and the wall time per section, and last writes the
-//! report page (`index.html`, [`crate::page`]) of everything in the output directory.
+//! and plots and prints their summaries and the wall and CPU time per section (the CPU time
+//! of every thread of the process, so `CPU / wall` says how many cores a section kept busy),
+//! and last writes the report page (`index.html`, [`crate::page`]) of everything in the
+//! output directory.
 
 use std::path::Path;
 use std::time::Instant;
@@ -20,6 +22,7 @@ use diffsoft::analysis::appendix;
 /// Run the suite at `suite_path` and write reports into `out`.
 pub fn run_suite(suite_path: &Path, out: &Path) -> Result<SuiteBoundsReport> {
     let t0 = Instant::now();
+    let cpu0 = process_cpu_s();
     let suite = Suite::load(suite_path)?;
     let base = suite_path.parent().unwrap_or(Path::new("."));
     std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
@@ -36,11 +39,16 @@ pub fn run_suite(suite_path: &Path, out: &Path) -> Result<SuiteBoundsReport> {
         );
         meshes.push(r);
     }
-    let mut sections = vec![("bounds and sweeps", t0.elapsed().as_secs_f64())];
-    let mut lap = Instant::now();
-    let mut section = |name: &'static str, lap: &mut Instant| {
-        sections.push((name, lap.elapsed().as_secs_f64()));
-        *lap = Instant::now();
+    let mut sections = vec![(
+        "bounds and sweeps",
+        t0.elapsed().as_secs_f64(),
+        cpu0.zip(process_cpu_s()).map(|(a, b)| b - a),
+    )];
+    let mut lap = (Instant::now(), process_cpu_s());
+    let mut section = |name: &'static str, lap: &mut (Instant, Option<f64>)| {
+        let cpu = process_cpu_s();
+        sections.push((name, lap.0.elapsed().as_secs_f64(), lap.1.zip(cpu).map(|(a, b)| b - a)));
+        *lap = (Instant::now(), cpu);
     };
     let paper_arithmetic = appendix::paper_arithmetic()?;
     let ts = &suite.t_scaling;
@@ -175,9 +183,20 @@ pub fn run_suite(suite_path: &Path, out: &Path) -> Result<SuiteBoundsReport> {
         crate::say_raw!("{}", validation::table(&val));
     }
     section("validation", &mut lap);
-    crate::say!("\nwall time per section:");
-    for (name, s) in &sections {
-        crate::say!("  {name:<32} {s:>7.1} s");
+    crate::say!("\nwall and CPU time per section:");
+    for (name, wall, cpu) in &sections {
+        match cpu {
+            Some(c) if *wall > 0.0 => crate::say!("  {name:<32} {wall:>7.1} s {c:>8.1} CPU-s ({:.2} cores)", c / wall),
+            _ => crate::say!("  {name:<32} {wall:>7.1} s"),
+        }
+    }
+    if let Some(c) = cpu0.zip(process_cpu_s()).map(|(a, b)| b - a) {
+        let wall = t0.elapsed().as_secs_f64();
+        crate::say!(
+            "  {:<32} {wall:>7.1} s {c:>8.1} CPU-s ({:.2} cores)",
+            "all sections",
+            c / wall
+        );
     }
     crate::say!(
         "wrote {}, {}, {}, {}, {}, gradients.json, tradeoff.json, extremes.json, cloth.json, validation.json, t_scaling.svg, cantilever.svg, skeleton_*.svg, gradient_cost.svg, tradeoff_*.svg, cloth_*.svg, actuator and cloth frames and {} sweep plots in {:.1} s",
@@ -199,4 +218,56 @@ pub fn run_suite(suite_path: &Path, out: &Path) -> Result<SuiteBoundsReport> {
         page.plots
     );
     Ok(report)
+}
+
+/// CPU time of the whole process so far (s: user plus system, every thread, those that have
+/// ended included), from `/proc/self/stat` in its clock ticks of 1/100 s (Linux's fixed
+/// `USER_HZ`); `None` where that file is not there (not Linux) or not as expected.
+fn process_cpu_s() -> Option<f64> {
+    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+    parse_stat_cpu_s(&stat)
+}
+
+/// `utime + stime` of a `/proc/PID/stat` line, in seconds. The command name (field 2) is in
+/// parentheses and may hold spaces or parentheses itself, so fields are counted after the last
+/// `)`: the state is the first, `utime` and `stime` (fields 14 and 15) the twelfth and
+/// thirteenth.
+fn parse_stat_cpu_s(stat: &str) -> Option<f64> {
+    let rest = &stat[stat.rfind(')')? + 1..];
+    let mut fields = rest.split_whitespace().skip(11);
+    let utime: u64 = fields.next()?.parse().ok()?;
+    let stime: u64 = fields.next()?.parse().ok()?;
+    Some((utime + stime) as f64 / 100.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cpu_time_is_read_after_the_command_name_whatever_it_holds() {
+        let line = "4242 (a (weird) name) R 1 4242 4242 0 -1 4194304 500 0 0 0 1234 56 0 0 20 0 3 0 100 0 0";
+        assert_eq!(parse_stat_cpu_s(line), Some(12.90));
+        assert_eq!(parse_stat_cpu_s("4242 (cut short) R 1 2"), None);
+        assert_eq!(parse_stat_cpu_s("no parenthesis at all"), None);
+    }
+
+    #[test]
+    fn the_process_cpu_clock_advances_with_work() {
+        let Some(a) = process_cpu_s() else {
+            return; // not Linux
+        };
+        // Busy until the clock has moved by a few ticks (or a generous bound on a loaded
+        // machine): a clock that never advances fails.
+        let t = Instant::now();
+        let mut x = 0.0f64;
+        let mut b = a;
+        while b - a < 0.05 && t.elapsed().as_secs_f64() < 30.0 {
+            for _ in 0..100_000 {
+                x = std::hint::black_box(x + 1.0);
+            }
+            b = process_cpu_s().expect("read once already");
+        }
+        assert!(b - a >= 0.05, "{a} -> {b} after {:.1} s", t.elapsed().as_secs_f64());
+    }
 }
