@@ -324,20 +324,22 @@ pub fn gradient_on(
         progress,
     )?;
     let forward_ms = t0.elapsed().as_secs_f64() * 1e3;
-    if !opts.allow_unconverged && settings.tolerance > 0.0 && fwd.unconverged > 0 {
-        return Err(DiffError::Unconverged {
-            steps: fwd.unconverged,
-            of: steps,
-            tolerance: settings.tolerance,
-            max_iterations: settings.max_iterations,
-        });
-    }
+    // Crossed surfaces first: no option waives them, so a run with both faults names the one
+    // that allowing unconverged steps would not get past.
     if let Some((first, edges)) = fwd.first_crossed {
         return Err(DiffError::Interpenetration {
             steps: fwd.crossed,
             of: steps,
             first,
             edges,
+        });
+    }
+    if !opts.allow_unconverged && settings.tolerance > 0.0 && fwd.unconverged > 0 {
+        return Err(DiffError::Unconverged {
+            steps: fwd.unconverged,
+            of: steps,
+            tolerance: settings.tolerance,
+            max_iterations: settings.max_iterations,
         });
     }
     if !opts.allow_unconverged && fwd.capped > 0 {
