@@ -556,6 +556,11 @@ mod tests {
         )
     }
 
+    /// The unit normal tilted `deg` degrees from `+y` towards `+x`.
+    fn tilt(deg: f64) -> Vector3<f64> {
+        Vector3::new(deg.to_radians().sin(), deg.to_radians().cos(), 0.0)
+    }
+
     /// Every contact at `lambda` is not penetrating (to 1e-11 m) and its impulse lies in its
     /// friction cone (so it does not pull).
     fn assert_feasible(p: &Problem<'_>, lambda: &[Vector3<f64>]) {
@@ -633,7 +638,6 @@ mod tests {
     /// the active-set method converges within a few sweeps to a point every contact accepts.
     #[test]
     fn near_duplicate_contacts_with_different_planes_converge_quickly() {
-        let tilt = |deg: f64| Vector3::new(deg.to_radians().sin(), deg.to_radians().cos(), 0.0);
         let contacts = [
             ground(0, tilt(0.0), 0.1),
             ground(1, tilt(40.0), 0.1),
@@ -664,7 +668,6 @@ mod tests {
     /// and a point every contact accepts.
     #[test]
     fn holding_slip_directions_while_the_states_change_reaches_the_same_solution() {
-        let tilt = |deg: f64| Vector3::new(deg.to_radians().sin(), deg.to_radians().cos(), 0.0);
         let contacts = [
             ground(0, tilt(0.0), 0.3),
             ground(1, tilt(10.0), 0.2),
