@@ -39,16 +39,11 @@ pub fn run_suite(suite_path: &Path, out: &Path) -> Result<SuiteBoundsReport> {
         );
         meshes.push(r);
     }
-    let mut sections = vec![(
-        "bounds and sweeps",
-        t0.elapsed().as_secs_f64(),
-        cpu0.zip(process_cpu_s()).map(|(a, b)| b - a),
-    )];
+    let mut sections = vec![("bounds and sweeps", t0.elapsed().as_secs_f64(), cpu_since(cpu0))];
     let mut lap = (Instant::now(), process_cpu_s());
     let mut section = |name: &'static str, lap: &mut (Instant, Option<f64>)| {
-        let cpu = process_cpu_s();
-        sections.push((name, lap.0.elapsed().as_secs_f64(), lap.1.zip(cpu).map(|(a, b)| b - a)));
-        *lap = (Instant::now(), cpu);
+        sections.push((name, lap.0.elapsed().as_secs_f64(), cpu_since(lap.1)));
+        *lap = (Instant::now(), process_cpu_s());
     };
     let paper_arithmetic = appendix::paper_arithmetic()?;
     let ts = &suite.t_scaling;
@@ -190,7 +185,7 @@ pub fn run_suite(suite_path: &Path, out: &Path) -> Result<SuiteBoundsReport> {
             _ => crate::say!("  {name:<32} {wall:>7.1} s"),
         }
     }
-    if let Some(c) = cpu0.zip(process_cpu_s()).map(|(a, b)| b - a) {
+    if let Some(c) = cpu_since(cpu0) {
         let wall = t0.elapsed().as_secs_f64();
         crate::say!(
             "  {:<32} {wall:>7.1} s {c:>8.1} CPU-s ({:.2} cores)",
@@ -226,6 +221,11 @@ pub fn run_suite(suite_path: &Path, out: &Path) -> Result<SuiteBoundsReport> {
 fn process_cpu_s() -> Option<f64> {
     let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
     parse_stat_cpu_s(&stat)
+}
+
+/// Process CPU seconds since a reading `start` of [`process_cpu_s`] (`None` if either is).
+fn cpu_since(start: Option<f64>) -> Option<f64> {
+    start.zip(process_cpu_s()).map(|(a, b)| b - a)
 }
 
 /// `utime + stime` of a `/proc/PID/stat` line, in seconds. The command name (field 2) is in

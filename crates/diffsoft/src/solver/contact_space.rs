@@ -126,8 +126,8 @@ pub(crate) struct ContactSpace {
     lu: DenseLu,
     /// Work of the current solve's dense steps, in multiply-adds (LU and residuals).
     dense_work: f64,
-    /// The states of the previous Newton step (0 separate, 1 stick, 2 slide).
-    previous_states: Vec<u8>,
+    /// The kinds of the previous Newton step's states (separate, stick or slide).
+    previous_states: Vec<std::mem::Discriminant<State>>,
     /// Whether the current Newton step fixes the slip directions below [`DIRECTION_GAIN`].
     fix_directions: bool,
     /// Linearize every slip direction in every step (the method before
@@ -397,14 +397,10 @@ impl ContactSpace {
     /// directions ([`DIRECTION_GAIN`]): it does unless the states equal the previous step's
     /// (`first`: there is no previous step in this attempt).
     fn note_states(&mut self, first: bool) {
-        let code = |s: &State| match s {
-            State::Separate => 0u8,
-            State::Stick => 1,
-            State::Slide { .. } => 2,
-        };
-        let settled = !first && self.previous_states.iter().copied().eq(self.state.iter().map(code));
+        let kinds = self.state.iter().map(std::mem::discriminant);
+        let settled = !first && self.previous_states.iter().copied().eq(kinds.clone());
         self.previous_states.clear();
-        self.previous_states.extend(self.state.iter().map(code));
+        self.previous_states.extend(kinds);
         self.fix_directions = !settled;
         #[cfg(test)]
         if self.always_linearize {
