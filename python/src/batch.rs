@@ -80,6 +80,7 @@ pub fn simulate_batch<'py>(
     let runs = scenes(scene, &values)?;
     let mut unconverged = false;
     let mut crossed = false;
+    let mut inverted = false;
     let results = each(py, &runs, |s| s.rollout(steps))?;
     let runs: Vec<Run> = runs
         .iter()
@@ -88,6 +89,7 @@ pub fn simulate_batch<'py>(
             let r = r?;
             unconverged |= s.inner.settings.tolerance > 0.0 && r.unconverged_steps() > 0;
             crossed |= r.interpenetrating_steps() > 0;
+            inverted |= r.inverted_steps() > 0;
             Run::new(py, r, &s.inner.settings)
         })
         .collect::<PyResult<_>>()?;
@@ -96,6 +98,9 @@ pub fn simulate_batch<'py>(
     }
     if crossed {
         crate::warn::interpenetration(py)?;
+    }
+    if inverted {
+        crate::warn::inversion(py)?;
     }
     Ok(runs)
 }

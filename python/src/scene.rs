@@ -185,7 +185,7 @@ impl Scene {
     /// Simulate `steps` steps: positions and velocities of every state and the run log. Steps
     /// that stopped at `max_iterations` before meeting a positive tolerance raise a
     /// `ConvergenceWarning` at the caller's line; steps that ended with bodies passing through
-    /// each other a `UserWarning`.
+    /// each other, or with inverted tets, a `UserWarning`.
     fn simulate(slf: PyRef<'_, Self>, steps: usize) -> PyResult<Run> {
         let (py, s) = snapshot(slf);
         let r = interrupt::run(py, || s.rollout(steps))??;
@@ -195,6 +195,9 @@ impl Scene {
         }
         if r.interpenetrating_steps() > 0 {
             crate::warn::interpenetration(py)?;
+        }
+        if r.inverted_steps() > 0 {
+            crate::warn::inversion(py)?;
         }
         Run::new(py, r, &s.inner.settings)
     }

@@ -90,3 +90,12 @@ pub(crate) fn interpenetration(py: Python<'_>) -> PyResult<()> {
         "diffsoft: steps of this simulation ended with bodies passing through each other (contacts the run missed; Run.stats['summary']['steps_with_pair_crossings'] counts them, each step's 'pair_crossings' its crossing surface edges): lower the time step or the speed, or raise contact_rounds; a gradient through such a run raises SimulationError",
     )
 }
+
+/// The warning of a run whose steps ended with inverted tets (`Scene.simulate`,
+/// `simulate_batch`): a `UserWarning`, since more iterations do not mend it.
+pub(crate) fn inversion(py: Python<'_>) -> PyResult<()> {
+    user(
+        py,
+        "diffsoft: steps of this simulation ended with inverted tets, a body folded through itself (Run.stats['summary']['steps_with_inverted_tets'] counts them, each step's 'inverted_tets' its inverted tets): its material is too soft for its load or the time step too long, and its contacts cannot keep it apart from other bodies",
+    )
+}

@@ -219,3 +219,21 @@ def test_bodies_passing_through_each_other_warn_and_refuse_gradients():
         warnings.simplefilter("error")
         run = calm.simulate(40)
     assert all(s["pair_crossings"] == 0 for s in run.stats["steps"])
+    assert run.stats["summary"]["steps_with_inverted_tets"] == 0
+
+
+def test_a_body_folded_through_itself_warns():
+    """The paper's cloth_ball: its ball (E = 2e-5 Pa) is far too soft to carry itself on the
+    cloth, and its tets fold through themselves from step 103 on (the crossings with the cloth
+    follow a step later): the run says so with a ``UserWarning`` at the caller's line, and the
+    step log and summary count the inverted tets."""
+    scene = diffsoft.Scene.load(REPO / "verification/paper/cloth_ball/cloth_ball.json")
+    with pytest.warns(UserWarning, match="inverted tets") as caught:
+        line = _line() + 1
+        run = scene.simulate(110)
+    folded = [w for w in caught if "inverted tets" in str(w.message)]
+    assert folded[0].lineno == line and folded[0].filename == __file__
+    counts = [s["inverted_tets"] for s in run.stats["steps"]]
+    assert counts[0] == 0 and 0 < max(counts) <= 80  # of the ball's 80 tets
+    assert run.stats["summary"]["steps_with_inverted_tets"] == sum(c > 0 for c in counts)
+    assert run.stats["summary"]["max_inverted_tets"] == max(counts)

@@ -219,6 +219,15 @@ pub(crate) fn simulate(
             summary.steps
         );
     }
+    if summary.steps_with_inverted_tets > 0 {
+        say!(
+            "warning     {} of {} steps ended with inverted tets (at most {} of {}; inverted_tets in the step log): a body folded through itself, under a load its material is too soft for or in too long a time step; its contacts cannot keep it apart from other bodies",
+            summary.steps_with_inverted_tets,
+            summary.steps,
+            summary.max_inverted_tets,
+            model_size.tets
+        );
+    }
     if let Some(d) = run_dir.as_mut() {
         if let Err(e) = d.write_log(&log) {
             let e = anyhow::Error::from(e).context("writing the final run log");

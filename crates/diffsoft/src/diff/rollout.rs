@@ -44,6 +44,12 @@ impl Rollout {
     pub fn interpenetrating_steps(&self) -> usize {
         self.stats.iter().filter(|s| s.pair_crossings > 0).count()
     }
+
+    /// Steps that ended with inverted tets (a body folded through itself; see
+    /// [`StepStats::inverted_tets`]).
+    pub fn inverted_steps(&self) -> usize {
+        self.stats.iter().filter(|s| s.inverted_tets > 0).count()
+    }
 }
 
 /// Run `steps` steps of `model` with `controls` (initial state, activations and torques per

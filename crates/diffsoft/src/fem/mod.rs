@@ -316,3 +316,24 @@ pub fn sign_pattern(l: &SymCsc) -> SignPattern {
         is_m_matrix: positive == 0,
     }
 }
+
+/// Tets whose signed volume at positions `x` is zero or negative: folded through themselves.
+/// Every tet of a model has a positive rest volume ([`TetGeometry::from_edge_matrix`] refuses
+/// others), so this counts the tets a deformation inverted or flattened.
+///
+/// ```
+/// use diffsoft::fem::inverted_tets;
+/// use nalgebra::Vector3;
+///
+/// let mut x = vec![Vector3::zeros(), Vector3::x(), Vector3::y(), Vector3::z()];
+/// assert_eq!(inverted_tets(&[[0, 1, 2, 3]], &x), 0);
+/// x[3].z = -0.5; // the apex pushed through the opposite face
+/// assert_eq!(inverted_tets(&[[0, 1, 2, 3]], &x), 1);
+/// ```
+pub fn inverted_tets(tets: &[[usize; 4]], x: &[Vector3<f64>]) -> usize {
+    let inverted = |t: &[usize; 4]| {
+        let o = x[t[0]];
+        (x[t[1]] - o).cross(&(x[t[2]] - o)).dot(&(x[t[3]] - o)) <= 0.0
+    };
+    tets.par_iter().with_min_len(4096).filter(|t| inverted(t)).count()
+}

@@ -31,6 +31,11 @@ pub struct RunSummary {
     /// Steps that ended with the surfaces of two bodies crossing (`pair_crossings` in the step
     /// log): contacts the run missed.
     pub steps_with_pair_crossings: usize,
+    /// Steps that ended with inverted tets (`inverted_tets` in the step log): a body folded
+    /// through itself.
+    pub steps_with_inverted_tets: usize,
+    /// Most inverted tets at the end of a step.
+    pub max_inverted_tets: usize,
     /// Deepest penetration over the run (m).
     pub max_penetration: f64,
     /// Largest number of contacts in a step.
@@ -184,6 +189,8 @@ impl RunSummary {
             converged_steps: steps.iter().filter(|s| s.converged).count(),
             steps_with_capped_solves: steps.iter().filter(|s| s.capped_solves > 0).count(),
             steps_with_pair_crossings: steps.iter().filter(|s| s.pair_crossings > 0).count(),
+            steps_with_inverted_tets: steps.iter().filter(|s| s.inverted_tets > 0).count(),
+            max_inverted_tets: steps.iter().map(|s| s.inverted_tets).max().unwrap_or(0),
             max_penetration: steps.iter().map(|s| s.max_penetration).fold(0.0, f64::max),
             max_contacts: steps.iter().map(|s| s.contacts).max().unwrap_or(0),
             max_pair_contacts: steps.iter().map(|s| s.pair_contacts).max().unwrap_or(0),

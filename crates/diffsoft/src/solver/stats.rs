@@ -53,6 +53,12 @@ pub struct StepStats {
     /// step missed (a body too fast for the time step, or a contact set the solve could not
     /// satisfy). Gradients refuse such a step (the differentiation's `Interpenetration` error).
     pub pair_crossings: usize,
+    /// Tets with a zero or negative volume at the end of the step (0 without tets): a body
+    /// folded through itself, under a load its material is too soft for or in a step too long
+    /// for it. The projective and corotated models pull such a tet back only weakly, and
+    /// contacts with a surface that has turned inside out cannot keep the bodies apart (the
+    /// paper's cloth_ball, docs/performance.md).
+    pub inverted_tets: usize,
     /// Obstacle contacts on bone vertices in the final round (0 without a skeleton; they are
     /// included in `contacts`).
     pub bone_contacts: usize,
@@ -83,6 +89,7 @@ impl StepStats {
             bone_length_error: 0.0,
             pair_contacts: 0,
             pair_crossings: 0,
+            inverted_tets: 0,
             bone_contacts: 0,
         }
     }

@@ -124,6 +124,7 @@ impl Simulator {
     fn finish(&mut self, stats: &mut StepStats, t0: Instant) -> Result<(), SolverError> {
         self.scatter_iterate();
         stats.pair_crossings = self.contacts.crossings_at(&self.model, &self.work.full);
+        stats.inverted_tets = crate::fem::inverted_tets(&self.model.tets, &self.work.full);
         let (model, w, st) = (&self.model, &self.work, &mut self.state);
         if !model.obstacles.is_empty() {
             stats.max_penetration = contact::max_penetration(&model.obstacles, &w.q_start, &w.full).0;
