@@ -18,7 +18,8 @@ const A: f64 = 0.1;
 const RHO: f64 = 1000.0;
 const G: f64 = 9.81;
 
-fn bar(model: MaterialModel, e: f64, nu: f64) -> Model {
+/// The bar clamped at x = 0 (its material model the default until set).
+fn bar_spec(e: f64, nu: f64) -> BodySpec {
     let mesh = beam(L, A, A, 20, 2).build().unwrap();
     let fixed: Vec<usize> = (0..mesh.num_vertices())
         .filter(|&i| mesh.vertices[i].x.abs() < 1e-12)
@@ -33,6 +34,11 @@ fn bar(model: MaterialModel, e: f64, nu: f64) -> Model {
         MassSpec::Density(RHO),
     );
     spec.fixed = fixed;
+    spec
+}
+
+fn bar(model: MaterialModel, e: f64, nu: f64) -> Model {
+    let mut spec = bar_spec(e, nu);
     spec.model = model;
     ModelBuilder::new()
         .gravity(Vector3::new(G, 0.0, 0.0))
@@ -151,20 +157,7 @@ fn neo_hookean_survives_strong_compression() {
 #[test]
 fn tets_folded_through_themselves_are_counted() {
     for (e, speed, folds) in [(1.0, 20.0, true), (1e7, 0.1, false)] {
-        let mesh = beam(L, A, A, 20, 2).build().unwrap();
-        let fixed: Vec<usize> = (0..mesh.num_vertices())
-            .filter(|&i| mesh.vertices[i].x.abs() < 1e-12)
-            .collect();
-        let mut spec = BodySpec::new(
-            "bar",
-            mesh,
-            Material {
-                youngs_modulus: e,
-                poisson_ratio: 0.3,
-            },
-            MassSpec::Density(RHO),
-        );
-        spec.fixed = fixed;
+        let mut spec = bar_spec(e, 0.3);
         spec.initial_velocity = Vector3::new(-speed, 0.0, 0.0);
         let model = ModelBuilder::new().body(spec).build().unwrap();
         let tets = model.tets().len();
