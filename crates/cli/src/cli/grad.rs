@@ -144,7 +144,13 @@ pub(crate) fn grad(a: GradArgs) -> Result<()> {
         .model
         .bodies()
         .iter()
-        .filter_map(diffsoft::output::BodyLog::material_note)
+        .flat_map(|b| {
+            [
+                diffsoft::output::BodyLog::material_note(b),
+                diffsoft::output::BodyLog::weight_note(&sc.model, b),
+            ]
+        })
+        .flatten()
     {
         say!("note {n}");
     }

@@ -74,7 +74,13 @@ pub(crate) fn simulate(
         .model
         .bodies()
         .iter()
-        .filter_map(diffsoft::output::BodyLog::material_note)
+        .flat_map(|b| {
+            [
+                diffsoft::output::BodyLog::material_note(b),
+                diffsoft::output::BodyLog::weight_note(&sc.model, b),
+            ]
+        })
+        .flatten()
     {
         say!("note        {n}");
     }

@@ -5,6 +5,7 @@ use serde::Serialize;
 
 use crate::base::{Body, MaterialModel};
 use crate::cloth::ClothBody;
+use crate::model::Model;
 use crate::report::{Header, ModelSize};
 use crate::solver::{Certificate, Settings, StepStats};
 
@@ -120,7 +121,64 @@ impl BodyLog {
             b.name, b.material.youngs_modulus, b.material.poisson_ratio, r.youngs_modulus, r.poisson_ratio
         ))
     }
+
+    /// The one-line note for a body of `model` too soft to hold its shape under its own
+    /// weight (`None` otherwise): the strain `rho g H / E` at the foot of a column of the body's
+    /// height `H` along gravity (the stress there is `rho g H`), with the modulus the body
+    /// responds with (`E_eff` for the projective model), at or above [`WEIGHT_STRAIN`]. Such a
+    /// body folds through itself once it rests on something (`inverted_tets` in the step log).
+    ///
+    /// ```
+    /// use diffsoft::mesh::generate::BoxSpec;
+    /// use diffsoft::output::BodyLog;
+    /// use diffsoft::{BodySpec, MassSpec, Material, ModelBuilder};
+    /// use nalgebra::Vector3;
+    ///
+    /// let cube = |e: f64| -> Result<_, Box<dyn std::error::Error>> {
+    ///     let mesh = BoxSpec::new([2, 2, 2], [0.5, 0.5, 0.5]).build()?;
+    ///     let m = Material { youngs_modulus: e, poisson_ratio: 0.0 };
+    ///     let body = BodySpec::new("cube", mesh, m, MassSpec::Density(1000.0));
+    ///     Ok(ModelBuilder::new().gravity(Vector3::new(0.0, -9.81, 0.0)).body(body).build()?)
+    /// };
+    /// // A cube 0.5 m high: 1000 kg/m^3 x 9.81 m/s^2 x 0.5 m over E: 4.9 at E = 1000 Pa
+    /// // (nu = 0: the projective response is E itself), 4.9e-3 at 1 MPa.
+    /// let soft = cube(1e3)?;
+    /// let note = BodyLog::weight_note(&soft, &soft.bodies()[0]).ok_or("no note")?;
+    /// assert!(note.contains("4.91e0") && note.contains("(0.500 m)"), "{note}");
+    /// let stiff = cube(1e6)?;
+    /// assert!(BodyLog::weight_note(&stiff, &stiff.bodies()[0]).is_none());
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
+    pub fn weight_note(model: &Model, b: &Body) -> Option<String> {
+        let g = *model.accel.get(b.vertices.start)?;
+        let gn = g.norm();
+        if !b.gravity || gn == 0.0 {
+            return None;
+        }
+        let down = g / gn;
+        let heights = model.rest[b.vertices.clone()].iter().map(|x| x.dot(&down));
+        let (lo, hi) = heights.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), h| (lo.min(h), hi.max(h)));
+        let e = match b.model {
+            MaterialModel::Projective => b.material.projective_response().youngs_modulus,
+            _ => b.material.youngs_modulus,
+        };
+        let strain = b.density * gn * (hi - lo) / e;
+        (strain >= WEIGHT_STRAIN).then(|| {
+            format!(
+                "body '{}': too soft to carry its own weight: a column of its height ({:.3} m) would be strained by rho g H / E = {:.2e} at its foot (E = {:e} Pa{}); expect it to fold through itself once it rests on something (inverted_tets in the step log)",
+                b.name,
+                hi - lo,
+                strain,
+                e,
+                if b.model == MaterialModel::Projective { ", the projective response" } else { "" }
+            )
+        })
+    }
 }
+
+/// Strain under the body's own weight ([`BodyLog::weight_note`]) from which a body is noted
+/// as too soft to carry itself: linear elasticity has long stopped describing it there.
+pub const WEIGHT_STRAIN: f64 = 1.0;
 
 /// The run log.
 #[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
