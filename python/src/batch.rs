@@ -89,7 +89,7 @@ pub fn simulate_batch<'py>(
             let r = r?;
             unconverged |= s.inner.settings.tolerance > 0.0 && r.unconverged_steps() > 0;
             crossed |= r.interpenetrating_steps() > 0;
-            inverted |= r.inverted_steps() > 0;
+            inverted |= diffsoft::output::folded(r.max_inverted_tets(), s.inner.model.tets().len());
             Run::new(py, r, &s.inner.settings)
         })
         .collect::<PyResult<_>>()?;

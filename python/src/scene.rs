@@ -196,7 +196,7 @@ impl Scene {
         if r.interpenetrating_steps() > 0 {
             crate::warn::interpenetration(py)?;
         }
-        if r.inverted_steps() > 0 {
+        if diffsoft::output::folded(r.max_inverted_tets(), s.inner.model.tets().len()) {
             crate::warn::inversion(py)?;
         }
         Run::new(py, r, &s.inner.settings)

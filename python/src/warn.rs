@@ -91,11 +91,12 @@ pub(crate) fn interpenetration(py: Python<'_>) -> PyResult<()> {
     )
 }
 
-/// The warning of a run whose steps ended with inverted tets (`Scene.simulate`,
-/// `simulate_batch`): a `UserWarning`, since more iterations do not mend it.
+/// The warning of a run that folded a body through itself (`Scene.simulate`,
+/// `simulate_batch`; `diffsoft::output::folded`: a tenth of the tets inverted at the end of
+/// some step): a `UserWarning`, since more iterations do not mend it.
 pub(crate) fn inversion(py: Python<'_>) -> PyResult<()> {
     user(
         py,
-        "diffsoft: steps of this simulation ended with inverted tets, a body folded through itself (Run.stats['summary']['steps_with_inverted_tets'] counts them, each step's 'inverted_tets' its inverted tets): its material is too soft for its load or the time step too long, and its contacts cannot keep it apart from other bodies",
+        "diffsoft: steps of this simulation ended with a tenth or more of the tets inverted, a body folded through itself (Run.stats['summary']['steps_with_inverted_tets'] counts the steps with any, each step's 'inverted_tets' its inverted tets): its material is too soft for its load or the time step too long, and its contacts cannot keep it apart from other bodies",
     )
 }

@@ -228,10 +228,10 @@ def test_a_body_folded_through_itself_warns():
     follow a step later): the run says so with a ``UserWarning`` at the caller's line, and the
     step log and summary count the inverted tets."""
     scene = diffsoft.Scene.load(REPO / "verification/paper/cloth_ball/cloth_ball.json")
-    with pytest.warns(UserWarning, match="inverted tets") as caught:
+    with pytest.warns(UserWarning, match="folded through itself") as caught:
         line = _line() + 1
         run = scene.simulate(110)
-    folded = [w for w in caught if "inverted tets" in str(w.message)]
+    folded = [w for w in caught if "folded through itself" in str(w.message)]
     assert folded[0].lineno == line and folded[0].filename == __file__
     counts = [s["inverted_tets"] for s in run.stats["steps"]]
     assert counts[0] == 0 and 0 < max(counts) <= 80  # of the ball's 80 tets

@@ -225,7 +225,7 @@ pub(crate) fn simulate(
             summary.steps
         );
     }
-    if summary.steps_with_inverted_tets > 0 {
+    if diffsoft::output::folded(summary.max_inverted_tets, model_size.tets) {
         say!(
             "warning     {} of {} steps ended with inverted tets (at most {} of {}; inverted_tets in the step log): a body folded through itself, under a load its material is too soft for or in too long a time step; its contacts cannot keep it apart from other bodies",
             summary.steps_with_inverted_tets,

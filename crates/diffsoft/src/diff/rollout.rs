@@ -45,10 +45,9 @@ impl Rollout {
         self.stats.iter().filter(|s| s.pair_crossings > 0).count()
     }
 
-    /// Steps that ended with inverted tets (a body folded through itself; see
-    /// [`StepStats::inverted_tets`]).
-    pub fn inverted_steps(&self) -> usize {
-        self.stats.iter().filter(|s| s.inverted_tets > 0).count()
+    /// Most tets a step ended with inverted ([`StepStats::inverted_tets`]; 0: none).
+    pub fn max_inverted_tets(&self) -> usize {
+        self.stats.iter().map(|s| s.inverted_tets).max().unwrap_or(0)
     }
 }
 

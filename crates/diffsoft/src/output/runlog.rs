@@ -176,6 +176,25 @@ impl BodyLog {
     }
 }
 
+/// Share of a model's tets inverted at the end of some step from which a run is said to have
+/// folded a body through itself ([`folded`]): a few inverted tets (the paper's bridgesus: up to
+/// 4 of 668 while it sags) are counted in the step log but not warned about.
+pub const FOLDED_SHARE: f64 = 0.1;
+
+/// Whether a run whose worst step ended with `max_inverted` of the model's `tets` tets inverted
+/// folded a body through itself ([`FOLDED_SHARE`]): what `simulate` and the Python package warn
+/// about.
+///
+/// ```
+/// use diffsoft::output::folded;
+/// assert!(folded(58, 80)); // the paper's cloth_ball
+/// assert!(!folded(4, 668)); // the paper's bridgesus while it sags
+/// assert!(!folded(0, 0));
+/// ```
+pub fn folded(max_inverted: usize, tets: usize) -> bool {
+    max_inverted > 0 && max_inverted as f64 >= FOLDED_SHARE * tets as f64
+}
+
 /// Strain under the body's own weight ([`BodyLog::weight_note`]) from which a body is noted
 /// as too soft to carry itself: linear elasticity has long stopped describing it there.
 pub const WEIGHT_STRAIN: f64 = 1.0;
