@@ -158,10 +158,7 @@ impl BodyLog {
         let down = g / gn;
         let heights = model.rest[b.vertices.clone()].iter().map(|x| x.dot(&down));
         let (lo, hi) = heights.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), h| (lo.min(h), hi.max(h)));
-        let e = match b.model {
-            MaterialModel::Projective => b.material.projective_response().youngs_modulus,
-            _ => b.material.youngs_modulus,
-        };
+        let e = b.model.small_strain_response(b.material).youngs_modulus;
         let strain = b.density * gn * (hi - lo) / e;
         (strain >= WEIGHT_STRAIN).then(|| {
             format!(
