@@ -85,7 +85,10 @@ class Scene:
     @property
     def path(self) -> str: ...
     @property
-    def notes(self) -> list[str]: ...
+    def notes(self) -> list[str]:
+        """The importer's notes, then each body's material notes (projective response, a body
+        too soft to carry its own weight) from the scene's current parameters."""
+        ...
     @property
     def materials(self) -> list[dict[str, Any]]:
         """Every body's material: name, model, youngs_modulus, poisson_ratio and, for the

@@ -81,6 +81,7 @@ pub fn simulate_batch<'py>(
     let mut unconverged = false;
     let mut crossed = false;
     let mut inverted = false;
+    let mut soft: Vec<String> = Vec::new();
     let results = each(py, &runs, |s| s.rollout(steps))?;
     let runs: Vec<Run> = runs
         .iter()
@@ -89,7 +90,14 @@ pub fn simulate_batch<'py>(
             let r = r?;
             unconverged |= s.inner.settings.tolerance > 0.0 && r.unconverged_steps() > 0;
             crossed |= r.interpenetrating_steps() > 0;
-            inverted |= diffsoft::output::folded(r.max_inverted_tets(), s.inner.model.tets().len());
+            if diffsoft::output::folded(r.max_inverted_tets(), s.inner.model.tets().len()) {
+                inverted = true;
+                for name in crate::warn::soft_bodies(&s.inner.model) {
+                    if !soft.contains(&name) {
+                        soft.push(name);
+                    }
+                }
+            }
             Run::new(py, r, &s.inner.settings)
         })
         .collect::<PyResult<_>>()?;
@@ -100,7 +108,7 @@ pub fn simulate_batch<'py>(
         crate::warn::interpenetration(py)?;
     }
     if inverted {
-        crate::warn::inversion(py)?;
+        crate::warn::inversion(py, &soft)?;
     }
     Ok(runs)
 }

@@ -129,10 +129,15 @@ impl Scene {
         self.inner.path.display().to_string()
     }
 
-    /// What the importer noted (defaults applied, keys not simulated).
+    /// What the importer noted (defaults applied, keys not simulated), then each body's
+    /// material notes as `diffsoft simulate` prints them (the projective response differing
+    /// from the moduli given, a body too soft to carry its own weight), from the scene's
+    /// current parameters.
     #[getter]
     fn notes(&self) -> Vec<String> {
-        self.inner.notes.clone()
+        let mut notes = self.inner.notes.clone();
+        notes.extend(diffsoft::output::body_notes(&self.inner.model));
+        notes
     }
 
     /// Every body's material: `name`, `model` (`projective`, `corotated`, `neo_hookean`),
@@ -197,7 +202,7 @@ impl Scene {
             crate::warn::interpenetration(py)?;
         }
         if diffsoft::output::folded(r.max_inverted_tets(), s.inner.model.tets().len()) {
-            crate::warn::inversion(py)?;
+            crate::warn::inversion(py, &crate::warn::soft_bodies(&s.inner.model))?;
         }
         Run::new(py, r, &s.inner.settings)
     }

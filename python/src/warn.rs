@@ -93,10 +93,35 @@ pub(crate) fn interpenetration(py: Python<'_>) -> PyResult<()> {
 
 /// The warning of a run that folded a body through itself (`Scene.simulate`,
 /// `simulate_batch`; `diffsoft::output::folded`: a tenth of the tets inverted at the end of
-/// some step): a `UserWarning`, since more iterations do not mend it.
-pub(crate) fn inversion(py: Python<'_>) -> PyResult<()> {
+/// some step): a `UserWarning`, since more iterations do not mend it. `soft` names the bodies
+/// noted as too soft to carry their own weight ([`soft_bodies`]), the usual culprits; the step
+/// log counts inverted tets per model, not per body.
+pub(crate) fn inversion(py: Python<'_>, soft: &[String]) -> PyResult<()> {
+    let culprits = match soft {
+        [] => String::new(),
+        names => format!(
+            " ({} too soft to carry {} own weight: Scene.notes)",
+            names
+                .iter()
+                .map(|n| format!("body '{n}'"))
+                .collect::<Vec<_>>()
+                .join(", "),
+            if names.len() == 1 { "its" } else { "their" }
+        ),
+    };
     user(
         py,
-        "diffsoft: steps of this simulation ended with a tenth or more of the tets inverted, a body folded through itself (Run.stats['summary']['steps_with_inverted_tets'] counts the steps with any, each step's 'inverted_tets' its inverted tets): its material is too soft for its load or the time step too long, and its contacts cannot keep it apart from other bodies",
+        &format!("diffsoft: steps of this simulation ended with a tenth or more of the tets inverted, a body folded through itself{culprits} (Run.stats['summary']['steps_with_inverted_tets'] counts the steps with any, each step's 'inverted_tets' its inverted tets): its material is too soft for its load or the time step too long, and its contacts cannot keep it apart from other bodies"),
     )
+}
+
+/// The names of the bodies of `model` too soft to carry their own weight
+/// (`diffsoft::output::BodyLog::weight_note`), for [`inversion`].
+pub(crate) fn soft_bodies(model: &diffsoft::Model) -> Vec<String> {
+    model
+        .bodies()
+        .iter()
+        .filter(|b| diffsoft::output::BodyLog::weight_note(model, b).is_some())
+        .map(|b| b.name.clone())
+        .collect()
 }

@@ -220,6 +220,7 @@ def test_bodies_passing_through_each_other_warn_and_refuse_gradients():
         run = calm.simulate(40)
     assert all(s["pair_crossings"] == 0 for s in run.stats["steps"])
     assert run.stats["summary"]["steps_with_inverted_tets"] == 0
+    assert not any("too soft to carry its own weight" in n for n in calm.notes)
 
 
 def test_a_body_folded_through_itself_warns():
@@ -233,6 +234,14 @@ def test_a_body_folded_through_itself_warns():
         run = scene.simulate(110)
     folded = [w for w in caught if "folded through itself" in str(w.message)]
     assert folded[0].lineno == line and folded[0].filename == __file__
+    # The warning names the body the notes said was too soft, and Scene.notes says it first.
+    assert "body 'ball_tet' too soft to carry its own weight" in str(folded[0].message)
+    weight = [n for n in scene.notes if "too soft to carry its own weight" in n]
+    assert len(weight) == 1 and weight[0].startswith("body 'ball_tet'") and "3.77e7" in weight[0]
+    assert any(n.startswith("body 'ball_tet': the projective material") for n in scene.notes)
+    # The notes follow the scene's parameters: at 2 kPa the ball carries itself.
+    scene.set("youngs_modulus", 2000.0)
+    assert not any("too soft to carry its own weight" in n for n in scene.notes)
     counts = [s["inverted_tets"] for s in run.stats["steps"]]
     assert counts[0] == 0 and 0 < max(counts) <= 80  # of the ball's 80 tets
     assert run.stats["summary"]["steps_with_inverted_tets"] == sum(c > 0 for c in counts)

@@ -140,18 +140,7 @@ pub(crate) fn grad(a: GradArgs) -> Result<()> {
     })?;
     let mut gradient = std::collections::BTreeMap::new();
     let mut values = std::collections::BTreeMap::new();
-    for n in sc
-        .model
-        .bodies()
-        .iter()
-        .flat_map(|b| {
-            [
-                diffsoft::output::BodyLog::material_note(b),
-                diffsoft::output::BodyLog::weight_note(&sc.model, b),
-            ]
-        })
-        .flatten()
-    {
+    for n in diffsoft::output::body_notes(&sc.model) {
         say!("note {n}");
     }
     if let Some(k) = g.stats.solver {

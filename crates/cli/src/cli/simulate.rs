@@ -70,18 +70,7 @@ pub(crate) fn simulate(
     for n in &sc.notes {
         say!("note        {n}");
     }
-    for n in sc
-        .model
-        .bodies()
-        .iter()
-        .flat_map(|b| {
-            [
-                diffsoft::output::BodyLog::material_note(b),
-                diffsoft::output::BodyLog::weight_note(&sc.model, b),
-            ]
-        })
-        .flatten()
-    {
+    for n in diffsoft::output::body_notes(&sc.model) {
         say!("note        {n}");
     }
     // Set-up errors from here on are recorded in the run log before they are returned.

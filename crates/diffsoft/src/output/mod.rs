@@ -13,7 +13,9 @@ pub use file::{check_writable, distinct_outputs, input_family, refuse_input};
 pub use grad::{GradReport, GRAD_SCHEMA};
 pub use run_dir::{RunDir, RunStatus, COLLECTION, RUN_LOG};
 
-pub use runlog::{folded, BodyLog, MaterialLog, RunLog, RunSummary, FOLDED_SHARE, RUN_SCHEMA, WEIGHT_STRAIN};
+pub use runlog::{
+    body_notes, folded, BodyLog, MaterialLog, RunLog, RunSummary, FOLDED_SHARE, RUN_SCHEMA, WEIGHT_STRAIN,
+};
 pub use vtk::FrameWriter;
 
 /// Standard base64 (RFC 4648, with padding) of `bytes`: the encoding of the VTK frames' binary

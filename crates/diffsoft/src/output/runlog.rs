@@ -173,6 +173,36 @@ impl BodyLog {
     }
 }
 
+/// Every body's notes about its material, in body order: the projective response differing
+/// from the moduli given ([`BodyLog::material_note`]) and a body too soft to carry its own
+/// weight ([`BodyLog::weight_note`]). What `simulate` and `grad` print before a run and what
+/// the Python package's `Scene.notes` adds to the importer's notes; computed from the model as
+/// it is, so a changed modulus changes them.
+///
+/// ```
+/// use diffsoft::mesh::generate::BoxSpec;
+/// use diffsoft::output::body_notes;
+/// use diffsoft::{BodySpec, MassSpec, Material, ModelBuilder};
+/// use nalgebra::Vector3;
+///
+/// let mesh = BoxSpec::new([2, 2, 2], [0.5, 0.5, 0.5]).build()?;
+/// let m = Material { youngs_modulus: 1e3, poisson_ratio: 0.3 };
+/// let body = BodySpec::new("cube", mesh, m, MassSpec::Density(1000.0));
+/// let model = ModelBuilder::new().gravity(Vector3::new(0.0, -9.81, 0.0)).body(body).build()?;
+/// let notes = body_notes(&model);
+/// assert_eq!(notes.len(), 2, "{notes:?}");
+/// assert!(notes[0].contains("E_eff") && notes[1].contains("too soft to carry its own weight"));
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+pub fn body_notes(model: &Model) -> Vec<String> {
+    model
+        .bodies()
+        .iter()
+        .flat_map(|b| [BodyLog::material_note(b), BodyLog::weight_note(model, b)])
+        .flatten()
+        .collect()
+}
+
 /// Share of a model's tets inverted at the end of some step from which a run is said to have
 /// folded a body through itself ([`folded`]): a few inverted tets (the paper's bridgesus: up to
 /// 4 of 668 while it sags) are counted in the step log but not warned about.
