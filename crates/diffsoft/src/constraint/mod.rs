@@ -31,7 +31,7 @@ mod sets;
 
 pub use elasticity::TetSvd;
 pub use error::{ConstraintError, NotDifferentiable};
-pub(crate) use sets::{gather_tets, Constraints};
+pub(crate) use sets::{sum_corners, Constraints};
 
 use nalgebra::{Matrix3, Vector3};
 

@@ -21,7 +21,7 @@
 use nalgebra::{Matrix3, SymmetricEigen, Vector3};
 use rayon::prelude::*;
 
-use crate::constraint::{gather_tets, Constraints, HessianTerm, Linearize, ParamGrads, TetSvd};
+use crate::constraint::{sum_corners, Constraints, HessianTerm, Linearize, ParamGrads, TetSvd};
 use crate::kernel::linearization::TetLinearization;
 use crate::model::Model;
 
@@ -61,8 +61,9 @@ pub(crate) struct ElasticHessian {
     lins: Vec<TetLinearization>,
     /// Clamped modes per tet at the last build (summed afterwards).
     clamped: Vec<u8>,
-    /// `K~_t F_t(y)` per tet (the gather's input).
-    per_tet: Vec<Matrix3<f64>>,
+    /// `K~_t F_t(y) a_{t,i}` for the four corners of every tet (the gather's input,
+    /// `constraint::sum_corners`).
+    corners: Vec<[Vector3<f64>; 4]>,
 }
 
 impl ElasticHessian {
@@ -72,7 +73,7 @@ impl ElasticHessian {
         Self {
             lins: vec![TetLinearization::zero(); n],
             clamped: vec![0; n],
-            per_tet: vec![Matrix3::zeros(); n],
+            corners: vec![[Vector3::zeros(); 4]; n],
         }
     }
 
@@ -106,13 +107,18 @@ impl ElasticHessian {
 
     /// `out = J K~ J^T y` on every vertex (`y` given on every vertex, zero at fixed ones).
     pub(crate) fn apply(&mut self, model: &Model, y: &[Vector3<f64>], out: &mut [Vector3<f64>]) {
-        let lins = &self.lins;
-        self.per_tet
+        let (lins, geo) = (&self.lins, &model.fem.geometry);
+        self.corners
             .par_iter_mut()
             .enumerate()
             .with_min_len(128)
-            .for_each(|(t, k)| *k = lins[t].apply(&model.tet_deformation(t, y)));
-        gather_tets(model, &self.per_tet, out);
+            .for_each(|(t, c)| {
+                let k = lins[t].apply(&model.tet_deformation(t, y));
+                for (ci, a) in c.iter_mut().zip(&geo[t].grads) {
+                    *ci = k * a;
+                }
+            });
+        sum_corners(model, &self.corners, out);
     }
 }
 

@@ -72,7 +72,7 @@ impl StepProblem<'_> {
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn gradient(
         &self,
-        constraints: &Constraints,
+        constraints: &mut Constraints,
         x: &[Vector3<f64>],
         q_r: &[Vector3<f64>],
         base_r: &[Vector3<f64>],

@@ -177,7 +177,13 @@ impl Newton {
     /// `grad E = A x - b - J p` at `x` (Eq. S3) from the last local step, gathered into
     /// `gathered` (every vertex); with contacts, their impulses are recorded and the gradient
     /// becomes the held problem's, `P (grad E - f)` (Eq. S6).
-    fn gradient(&mut self, cx: &Ctx<'_>, constraints: &Constraints, x: &[Vector3<f64>], gathered: &mut [Vector3<f64>]) {
+    fn gradient(
+        &mut self,
+        cx: &Ctx<'_>,
+        constraints: &mut Constraints,
+        x: &[Vector3<f64>],
+        gathered: &mut [Vector3<f64>],
+    ) {
         cx.p.gradient(constraints, x, &[], &[], gathered, &mut self.grad, &mut []);
         if !cx.contacts.is_empty() {
             self.contacts.constrain_gradient(cx.contacts, &mut self.grad);

@@ -286,7 +286,7 @@ impl NewtonSkeletal {
     fn gradient(
         &mut self,
         cx: &StepProblem<'_>,
-        constraints: &Constraints,
+        constraints: &mut Constraints,
         sk: &Skeleton,
         x: &[Vector3<f64>],
         gathered: &mut [Vector3<f64>],
