@@ -256,25 +256,13 @@ pub(crate) fn gather_tets(model: &Model, per_tet: &[Matrix3<f64>], out: &mut [Ve
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::base::Material;
-    use crate::model::{BodySpec, MassSpec, ModelBuilder};
 
     /// The staged gather sums the same products in the same order as the one-pass gather:
     /// equal to the bit, on one thread and on several (the forward and adjoint local steps use
     /// it, so trajectories and gradients do not move).
     #[test]
     fn staged_gather_is_bit_identical_to_the_one_pass_gather() {
-        let mesh = crate::mesh::generate::BoxSpec::new([9, 5, 4], [1.0, 0.5, 0.4])
-            .build()
-            .unwrap();
-        let m = Material {
-            youngs_modulus: 1e5,
-            poisson_ratio: 0.3,
-        };
-        let model = ModelBuilder::new()
-            .body(BodySpec::new("box", mesh, m, MassSpec::Density(1000.0)))
-            .build()
-            .unwrap();
+        let model = crate::model::fixtures::free_box([9, 5, 4], [1.0, 0.5, 0.4]).unwrap();
         let n = model.tets.len();
         let per_tet: Vec<Matrix3<f64>> = (0..n)
             .map(|t| Matrix3::from_fn(|i, j| (((t * 7 + i * 3 + j) % 13) as f64 - 6.0) * 0.1f64.powi((t % 5) as i32)))

@@ -85,3 +85,19 @@ pub fn ground_box(mu: f64) -> Result<Model, InputError> {
         .obstacle(Obstacle::plane("ground", Vector3::zeros(), Vector3::y(), mu))
         .build()
 }
+
+/// A free box of `cells` cells spanning `size` metres (E = 1e5, nu = 0.3, 1000 kg/m^3), no
+/// gravity, nothing fixed: the plainest model, for tests of operators on a mesh.
+#[cfg(test)]
+pub(crate) fn free_box(cells: [usize; 3], size: [f64; 3]) -> Result<Model, InputError> {
+    let mesh = BoxSpec::new(cells, size)
+        .build()
+        .map_err(|e| InputError::new(format!("free box: {e}")))?;
+    let m = Material {
+        youngs_modulus: 1e5,
+        poisson_ratio: 0.3,
+    };
+    ModelBuilder::new()
+        .body(BodySpec::new("box", mesh, m, MassSpec::Density(1000.0)))
+        .build()
+}

@@ -219,23 +219,12 @@ impl Systems {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::base::Material;
-    use crate::mesh::generate::BoxSpec;
-    use crate::model::{BodySpec, MassSpec, ModelBuilder};
 
     /// Runs that ask a shared system for the extremes of `G21` at once get the same pair from
     /// one computation (the trade-off sweep starts several runs per step size together).
     #[test]
     fn concurrent_requests_for_the_extremes_compute_them_once() {
-        let mesh = BoxSpec::new([4, 2, 2], [0.4, 0.1, 0.1]).build().unwrap();
-        let m = Material {
-            youngs_modulus: 1e5,
-            poisson_ratio: 0.3,
-        };
-        let model = ModelBuilder::new()
-            .body(BodySpec::new("box", mesh, m, MassSpec::Density(1000.0)))
-            .build()
-            .unwrap();
+        let model = crate::model::fixtures::free_box([4, 2, 2], [0.4, 0.1, 0.1]).unwrap();
         let systems = Systems::new();
         let sys = systems.get(&model, 1e-2).unwrap();
         let start = std::sync::Barrier::new(4);
