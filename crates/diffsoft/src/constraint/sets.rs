@@ -239,7 +239,8 @@ pub(crate) fn sum_corners(model: &Model, corners: &[[Vector3<f64>; 4]], out: &mu
     });
 }
 
-/// `out[v] = sum over tets t of v: m_t a_{t, corner(v)}` (`J` applied per tet).
+/// `out[v] = sum over tets t of v: m_t a_{t, corner(v)}` (`J` applied per tet) in one pass:
+/// the form [`gather_tets_staged`] replaced, kept as the reference its test compares with.
 #[cfg(test)]
 pub(crate) fn gather_tets(model: &Model, per_tet: &[Matrix3<f64>], out: &mut [Vector3<f64>]) {
     let geo = &model.fem.geometry;
