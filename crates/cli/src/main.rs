@@ -56,6 +56,7 @@ mod cli;
 use cli::choice::choice;
 use cli::files::{emit, find_data, preflight, save, write_mesh};
 use cli::grad::{grad, GradArgs};
+use cli::numbers::{at_least_one, non_negative, positive};
 use cli::overrides::SolverOverrides;
 use cli::simulate::{simulate, RunOutput};
 use cli::tradeoff::{tradeoff, TradeoffArgs};
@@ -82,7 +83,7 @@ enum Command {
         #[command(flatten)]
         input: MeshArgs,
         /// Time step (s).
-        #[arg(long)]
+        #[arg(long, value_parser = positive)]
         dt: f64,
         /// Also run both iterations and compare observed and predicted contraction.
         #[arg(long)]
@@ -97,16 +98,16 @@ enum Command {
         #[command(flatten)]
         input: MeshArgs,
         /// Smallest time step (default: h*_19 / 100).
-        #[arg(long)]
+        #[arg(long, value_parser = positive)]
         dt_min: Option<f64>,
         /// Largest time step (default: 100 x the larger critical step).
-        #[arg(long)]
+        #[arg(long, value_parser = positive)]
         dt_max: Option<f64>,
         /// Number of time steps.
         #[arg(long, default_value_t = 41)]
         points: usize,
         /// Mark this time step on the plot (e.g. the scene's).
-        #[arg(long)]
+        #[arg(long, value_parser = positive)]
         mark_dt: Option<f64>,
         /// Write the JSON here (`-`: standard output).
         #[arg(long)]
@@ -131,13 +132,13 @@ enum Command {
         #[arg(long, value_delimiter = ',', required = true)]
         cells: Vec<usize>,
         /// Box size per axis, e.g. 1,1,2.
-        #[arg(long, value_delimiter = ',', default_values_t = [1.0, 1.0, 1.0])]
+        #[arg(long, value_delimiter = ',', default_values_t = [1.0, 1.0, 1.0], value_parser = positive)]
         size: Vec<f64>,
         /// Cell split.
         #[arg(long, value_enum, default_value_t = Split::Kuhn)]
         split: Split,
         /// Random vertex displacement as a fraction of the cell size.
-        #[arg(long, default_value_t = 0.0)]
+        #[arg(long, default_value_t = 0.0, value_parser = non_negative)]
         jitter: f64,
         /// Seed for the jitter.
         #[arg(long, default_value_t = 0)]
@@ -155,7 +156,7 @@ enum Command {
         /// Scene file (.json, diffsoft.scene/1 or a paper scene).
         scene: PathBuf,
         /// Steps to take.
-        #[arg(long, default_value_t = 100)]
+        #[arg(long, default_value_t = 100, value_parser = at_least_one)]
         steps: usize,
         /// Output directory for frames and the run log.
         #[arg(long)]
@@ -184,7 +185,7 @@ enum Command {
     /// cases, writing gradients.json.
     Gradcheck {
         /// Steps per case.
-        #[arg(long, default_value_t = 20)]
+        #[arg(long, default_value_t = 20, value_parser = at_least_one)]
         steps: usize,
         /// Time integrator of every case (default: each case's own, implicit Euler).
         #[arg(long, value_parser = choice::<diffsoft::solver::Integrator>())]
@@ -227,7 +228,7 @@ enum Command {
         #[arg(long, default_value = "verification/paper/cloth_ball/cloth_ball.json")]
         scene: Vec<PathBuf>,
         /// Steps to run.
-        #[arg(long, default_value_t = 100)]
+        #[arg(long, default_value_t = 100, value_parser = at_least_one)]
         steps: usize,
         /// Cloth cells per side of the detection-cost meshes.
         #[arg(long, value_delimiter = ',', default_value = "16,32,64,128")]
@@ -302,19 +303,19 @@ struct MeshArgs {
     #[arg(long)]
     mesh: PathBuf,
     /// Density rho (kg/m^3).
-    #[arg(long)]
+    #[arg(long, value_parser = positive)]
     rho: f64,
     /// Stiffness coefficient mu of L = sum mu V A^T A (Pa).
-    #[arg(long)]
+    #[arg(long, value_parser = positive)]
     mu: f64,
     /// Multiply vertex positions by this factor first (the paper's "Scale").
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, value_parser = positive)]
     scale: f64,
     /// Eigensolver: dense (exact), krylov (Lanczos), auto (dense up to 1500 vertices).
     #[arg(long, value_parser = choice::<EigenMethod>(), default_value = "auto")]
     method: EigenMethod,
     /// Reject tets whose normalised volume 6 sqrt(2) V / l_rms^3 is below this.
-    #[arg(long, default_value_t = 1e-9)]
+    #[arg(long, default_value_t = 1e-9, value_parser = non_negative)]
     min_tet_quality: f64,
 }
 
@@ -348,7 +349,15 @@ impl MeshArgs {
 static ALLOC: diffsoft::alloc::Counting = diffsoft::alloc::Counting;
 
 fn main() {
-    let cli = Cli::parse();
+    // A value a flag cannot take (checked by its parser, `cli::numbers`) is bad input like any
+    // other: exit status 1. A malformed command line (unknown flag, missing value) stays 2.
+    let cli = Cli::try_parse().unwrap_or_else(|e| {
+        if e.kind() == clap::error::ErrorKind::ValueValidation {
+            let _ = e.print();
+            std::process::exit(1);
+        }
+        e.exit()
+    });
     let args: Vec<String> = std::env::args().collect();
     let stdout_json = args.windows(2).any(|w| w[0] == "--json" && w[1] == "-") || args.iter().any(|a| a == "--json=-");
     JSON_ON_STDOUT.store(stdout_json, std::sync::atomic::Ordering::Relaxed);
@@ -632,6 +641,14 @@ fn run(command: Command) -> Result<()> {
         }
         Command::Validate { subset, study, json } => {
             use diffsoft_harness::validation;
+            let empty = validation::empty_studies(subset, &study);
+            if !empty.is_empty() {
+                bail!(
+                    "--study {}: no case in --subset {} (these studies run only in the full subset); pass --subset full",
+                    empty.join(","),
+                    diffsoft::base::Choice::name(subset)
+                );
+            }
             preflight(Some(&json), &[])?;
             let r = validation::run(subset, &study);
             say_raw!("{}", validation::table(&r));

@@ -15,7 +15,7 @@ pub(crate) struct GradArgs {
     #[arg(long = "scene", value_name = "SCENE", hide = true)]
     scene_flag: Option<PathBuf>,
     /// Steps to simulate.
-    #[arg(long, default_value_t = 100)]
+    #[arg(long, default_value_t = 100, value_parser = super::numbers::at_least_one)]
     steps: usize,
     /// Loss: final_com.x|y|z, mean_com.x|y|z, joint_angle.BONE or mean_joint_angle.BONE.
     #[arg(long, default_value = "final_com.y")]
@@ -36,7 +36,7 @@ pub(crate) struct GradArgs {
     json: Option<PathBuf>,
     /// Unrolled mode: keep whole steps' recordings from the forward pass up to this many MB
     /// instead of replaying them from checkpoints (0: pure checkpointing).
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, default_value_t = 0.0, value_parser = super::numbers::non_negative)]
     store_mb: f64,
     /// Return the loss and gradient even if forward steps miss the tolerance or a replay
     /// deviates from the forward pass (otherwise an error; the counts are printed).
@@ -45,7 +45,7 @@ pub(crate) struct GradArgs {
     /// Implicit mode: relative residual at which the adjoint solve of each step stops (default:
     /// matched to the forward's tolerance, within [1e-12, 1e-5]; 1e-12 for a fixed iteration
     /// count)
-    #[arg(long)]
+    #[arg(long, value_parser = super::numbers::positive)]
     implicit_tolerance: Option<f64>,
 }
 

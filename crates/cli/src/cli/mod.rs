@@ -4,6 +4,7 @@
 pub(crate) mod choice;
 pub(crate) mod files;
 pub(crate) mod grad;
+pub(crate) mod numbers;
 pub(crate) mod overrides;
 pub(crate) mod simulate;
 pub(crate) mod tradeoff;

@@ -44,6 +44,13 @@ impl SolverOverrides {
             ("tolerance", self.tolerance.map(|v| serde_json::json!(v))),
             ("anderson", self.anderson.map(|v| serde_json::json!(v))),
         ];
+        // JSON has no NaN or infinity: such a value is refused here, naming the flag (the
+        // settings' own checks, through `Settings::set`, judge every finite one).
+        for (name, v) in [("dt", self.dt), ("tolerance", self.tolerance)] {
+            if let Some(v) = v.filter(|v| !v.is_finite()) {
+                anyhow::bail!("--{name} {v}: must be a finite number");
+            }
+        }
         for (name, value) in given {
             if let Some(v) = value {
                 settings.set(name, v)?;

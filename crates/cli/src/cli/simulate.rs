@@ -200,6 +200,16 @@ pub(crate) fn simulate(
         summary.max_contacts,
         summary.max_pair_contacts
     );
+    let settings = &log.settings;
+    if settings.tolerance > 0.0 && summary.converged_steps < summary.steps {
+        say!(
+            "warning     {} of {} steps stopped at the iteration cap (max_iterations {}) before meeting the tolerance {:e}: their states carry that error (a stiff or fast scene can gain energy this way); raise --max-iterations, lower --dt or choose --solver newton; a gradient through this run is refused unless --allow-unconverged",
+            summary.steps - summary.converged_steps,
+            summary.steps,
+            settings.max_iterations,
+            settings.tolerance
+        );
+    }
     if summary.steps_with_capped_solves > 0 {
         say!(
             "warning     {} of {} steps had a global or contact solve stop unconverged, at its iteration cap (the scene's solver.inner_max_iterations) or stalled (no progress over a long batch of sweeps: an infeasible or badly conditioned contact set); capped_solves in the step log",

@@ -22,7 +22,7 @@ pub(crate) struct TradeoffArgs {
     #[arg(long)]
     name: Option<String>,
     /// Simulated duration, in steps of the scene's time step h.
-    #[arg(long, default_value_t = 50)]
+    #[arg(long, default_value_t = 50, value_parser = super::numbers::at_least_one)]
     steps: usize,
     /// Grid time steps h/d.
     #[arg(long, value_delimiter = ',', default_values_t = [1, 2, 4, 8])]
@@ -31,7 +31,7 @@ pub(crate) struct TradeoffArgs {
     #[arg(long, default_value_t = 16)]
     reference_divisor: usize,
     /// Tolerance of the reference runs.
-    #[arg(long, default_value_t = 1e-12)]
+    #[arg(long, default_value_t = 1e-12, value_parser = super::numbers::non_negative)]
     reference_tolerance: f64,
     /// Anderson memory of the reference trajectories (0: plain iteration).
     #[arg(long, default_value_t = 0)]
@@ -50,7 +50,7 @@ pub(crate) struct TradeoffArgs {
     #[arg(long, value_parser = choice::<diffsoft::base::MaterialModel>(), value_delimiter = ',')]
     models: Vec<diffsoft::base::MaterialModel>,
     /// Newton tolerance of the model comparison.
-    #[arg(long, default_value_t = 1e-8)]
+    #[arg(long, default_value_t = 1e-8, value_parser = super::numbers::positive)]
     model_tolerance: f64,
     /// Iteration caps of the newton family (default: --caps).
     #[arg(long, value_delimiter = ',')]
@@ -71,13 +71,13 @@ pub(crate) struct TradeoffArgs {
     #[arg(long, default_value = "final_com.y")]
     loss: String,
     /// Target relative errors to recommend a setting for.
-    #[arg(long, value_delimiter = ',', default_values_t = [1e-2, 1e-4, 1e-6])]
+    #[arg(long, value_delimiter = ',', default_values_t = [1e-2, 1e-4, 1e-6], value_parser = super::numbers::positive)]
     targets: Vec<f64>,
     /// Cost axis of the Pareto fronts: cpu (thread CPU time) or iterations (deterministic).
     #[arg(long, value_parser = choice::<diffsoft_harness::tradeoff::TimeAxis>(), default_value = "cpu")]
     time_axis: diffsoft_harness::tradeoff::TimeAxis,
     /// Repeat each forward run until this many CPU seconds are measured.
-    #[arg(long, default_value_t = 0.2)]
+    #[arg(long, default_value_t = 0.2, value_parser = super::numbers::non_negative)]
     min_timing_s: f64,
     /// Run only shard K of N (0 <= K < N): writes a partial report for `diffsoft merge`.
     #[arg(long, value_name = "K/N")]

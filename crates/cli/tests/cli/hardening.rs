@@ -356,6 +356,48 @@ fn counts_and_scales_beyond_reason_are_errors_naming_the_flag() {
             ],
             "--scale",
         ),
+        // Values no flag can take: NaN, negative or zero where a time step, a threshold or a
+        // step count is meant; a study with no case in the subset asked for.
+        (
+            vec!["sweep", "--mesh", m, "--rho", "1000", "--mu", "1e5", "--mark-dt", "nan"],
+            "--mark-dt",
+        ),
+        (
+            vec!["sweep", "--mesh", m, "--rho", "1000", "--mu", "1e5", "--mark-dt", "-5"],
+            "--mark-dt",
+        ),
+        (
+            vec![
+                "bounds",
+                "--mesh",
+                m,
+                "--rho",
+                "1000",
+                "--mu",
+                "1e5",
+                "--dt",
+                "0.01",
+                "--min-tet-quality",
+                "nan",
+            ],
+            "--min-tet-quality",
+        ),
+        (
+            vec!["gradcheck", "--steps", "0", "--json", "/tmp/diffsoft-never.json"],
+            "--steps",
+        ),
+        (
+            vec![
+                "validate",
+                "--study",
+                "hertz",
+                "--subset",
+                "fast",
+                "--json",
+                "/tmp/diffsoft-never.json",
+            ],
+            "--study hertz",
+        ),
     ];
     for (args, flag) in cases {
         let o = diffsoft(&args);
@@ -975,4 +1017,79 @@ fn an_adjoint_stopped_at_its_cap_is_reported() {
     // Two iterations leave the iterates still changing by more than 10%: refused outright.
     let e = run(2).unwrap_err();
     assert!(e.to_string().contains("fixed point diverged"), "{e}");
+}
+
+/// `simulate` says when steps stop at the iteration cap (here a free-falling cube so stiff that
+/// one iteration does not meet the tolerance), unless a fixed count was asked for; refuses zero steps and a NaN time step naming the flag, and
+/// never writes through a link or into a FIFO named like one of its files.
+#[test]
+fn simulate_warns_of_unconverged_steps_and_refuses_special_files() {
+    let dir = tmp_dir("hard-sim-warn");
+    let scene = cube_scene(&dir, r#", "density": 1000"#, "");
+    let text = std::fs::read_to_string(&scene).unwrap().replace("1e5", "1e17");
+    std::fs::write(&scene, text).unwrap();
+    let s = scene.to_str().unwrap();
+    let o = diffsoft(&["simulate", s, "--steps", "5", "--max-iterations", "1"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stdout(&o).contains("steps stopped at the iteration cap (max_iterations 1)"),
+        "{}",
+        stdout(&o)
+    );
+    let o = diffsoft(&[
+        "simulate",
+        s,
+        "--steps",
+        "5",
+        "--max-iterations",
+        "1",
+        "--tolerance",
+        "0",
+    ]);
+    assert!(
+        !stdout(&o).contains("stopped at the iteration cap"),
+        "a fixed count is asked for: {}",
+        stdout(&o)
+    );
+    for (flag, value) in [("--steps", "0"), ("--dt", "nan")] {
+        let o = diffsoft(&["simulate", s, flag, value]);
+        assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+        assert!(stderr(&o).contains(flag), "{}", stderr(&o));
+    }
+    // A link named run.json in --out pointing at the scene: refused, the scene intact.
+    let before = std::fs::read(&scene).unwrap();
+    let out = dir.join("out");
+    std::fs::create_dir_all(&out).unwrap();
+    std::os::unix::fs::symlink(&scene, out.join("run.json")).unwrap();
+    for extra in [&[][..], &["--overwrite"][..]] {
+        let mut args = vec!["simulate", s, "--steps", "2", "--out", out.to_str().unwrap()];
+        args.extend_from_slice(extra);
+        let o = diffsoft(&args);
+        assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+        assert!(stderr(&o).contains("symbolic link"), "{}", stderr(&o));
+    }
+    assert_eq!(std::fs::read(&scene).unwrap(), before);
+    std::fs::remove_file(out.join("run.json")).unwrap();
+    // A FIFO named like a frame: refused at once (it would block the run forever).
+    let made = Command::new("mkfifo")
+        .arg(out.join("frame_00001.vtu"))
+        .status()
+        .unwrap();
+    assert!(made.success());
+    let o = diffsoft(&[
+        "simulate",
+        s,
+        "--steps",
+        "2",
+        "--out",
+        out.to_str().unwrap(),
+        "--overwrite",
+    ]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(stderr(&o).contains("named pipe"), "{}", stderr(&o));
+    assert!(!out.join(".diffsoft-run.lock").exists());
+    // --out naming a file says so.
+    let o = diffsoft(&["simulate", s, "--steps", "2", "--out", s]);
+    assert!(stderr(&o).contains("must name a directory"), "{}", stderr(&o));
+    assert_eq!(std::fs::read(&scene).unwrap(), before);
 }

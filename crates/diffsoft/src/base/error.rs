@@ -75,3 +75,26 @@ impl From<&str> for InputError {
         Self::new(message)
     }
 }
+
+/// A number as an error message quotes it: plain in [1e-4, 1e6) (and 0), in exponent form
+/// otherwise, so `1e300` is not printed as three hundred digits.
+pub(crate) fn number(v: f64) -> String {
+    if v == 0.0 || (1e-4..1e6).contains(&v.abs()) || !v.is_finite() {
+        format!("{v}")
+    } else {
+        format!("{v:e}")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn numbers_in_messages_stay_short() {
+        use super::number;
+        assert_eq!(number(2.0), "2");
+        assert_eq!(number(-0.5), "-0.5");
+        assert_eq!(number(1e300), "1e300");
+        assert_eq!(number(-2.5e-9), "-2.5e-9");
+        assert_eq!(number(f64::NAN), "NaN");
+    }
+}

@@ -49,8 +49,8 @@ pub enum MeshErrorKind {
     IndexOutOfRange {
         /// 0-based tet number in file order.
         tet: usize,
-        /// The index as written in the file.
-        index: i64,
+        /// The index as written in the file (wide enough for any `i64` or `u64` one).
+        index: i128,
         /// The valid range, in the file's numbering.
         valid: String,
     },

@@ -282,7 +282,7 @@ fn push_tet(
                 line,
                 MeshErrorKind::IndexOutOfRange {
                     tet: t,
-                    index: tag,
+                    index: tag.into(),
                     valid: "must be a node tag defined in $Nodes".into(),
                 },
             )

@@ -162,7 +162,7 @@ impl TetMesh {
                         path,
                         MeshErrorKind::IndexOutOfRange {
                             tet: t,
-                            index: i as i64,
+                            index: i as i128,
                             valid: format!("0..{n}"),
                         },
                     ));

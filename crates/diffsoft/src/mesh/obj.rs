@@ -107,7 +107,7 @@ pub(crate) fn parse(path: &str, text: &str) -> Result<RawMesh, MeshError> {
                     line,
                     MeshErrorKind::IndexOutOfRange {
                         tet: t,
-                        index: idx[k],
+                        index: idx[k].into(),
                         valid: format!("0..={} for {n} vertices{hint}", n - 1),
                     },
                 ));

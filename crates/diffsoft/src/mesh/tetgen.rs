@@ -89,7 +89,7 @@ pub(crate) fn parse(node_path: &str, node_text: &str, ele_path: &str, ele_text: 
                     line,
                     MeshErrorKind::IndexOutOfRange {
                         tet: t,
-                        index: id,
+                        index: id.into(),
                         valid: format!(
                             "{first_id}..={} for {n_points} nodes in the .node file",
                             first_id + n - 1

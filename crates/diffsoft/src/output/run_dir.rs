@@ -66,6 +66,28 @@ fn lock(dir: &Path) -> std::io::Result<PathBuf> {
     )))
 }
 
+/// What a non-regular file is, in words, for error messages.
+fn kind_of(t: &std::fs::FileType) -> &'static str {
+    use std::os::unix::fs::FileTypeExt as _;
+    if t.is_file() {
+        "a regular file"
+    } else if t.is_dir() {
+        "a directory"
+    } else if t.is_symlink() {
+        "a symbolic link"
+    } else if t.is_fifo() {
+        "a named pipe (FIFO)"
+    } else if t.is_char_device() {
+        "a character device"
+    } else if t.is_block_device() {
+        "a block device"
+    } else if t.is_socket() {
+        "a socket"
+    } else {
+        "not a regular file"
+    }
+}
+
 /// The directory of one run.
 #[derive(Debug)]
 pub struct RunDir {
@@ -104,6 +126,20 @@ impl RunDir {
     /// ```
     pub fn prepare(dir: &Path, inputs: &[&Path], overwrite: bool) -> std::io::Result<Self> {
         let named = |e: std::io::Error, p: &Path| std::io::Error::new(e.kind(), format!("{}: {e}", p.display()));
+        // An existing path that is not a directory (a file, a device, a FIFO) is named as such,
+        // not reported as the bare "File exists" of the failed creation.
+        if let Ok(meta) = std::fs::metadata(dir) {
+            if !meta.is_dir() {
+                return Err(std::io::Error::new(
+                    std::io::ErrorKind::AlreadyExists,
+                    format!(
+                        "{}: --out must name a directory, and this is {}",
+                        dir.display(),
+                        kind_of(&meta.file_type())
+                    ),
+                ));
+            }
+        }
         std::fs::create_dir_all(dir).map_err(|e| named(e, dir))?;
         let canonical_dir = dir.canonicalize().map_err(|e| named(e, dir))?;
         let family: Vec<PathBuf> = inputs.iter().flat_map(|p| super::input_family(p)).collect();
@@ -145,9 +181,27 @@ impl RunDir {
         for entry in std::fs::read_dir(dir).map_err(|e| named(e, dir))? {
             let entry = entry.map_err(|e| named(e, dir))?;
             let name = entry.file_name().to_string_lossy().into_owned();
-            if is_run_output(&name) && entry.file_type().is_ok_and(|t| t.is_file()) {
-                earlier.push(entry.path());
+            if !is_run_output(&name) {
+                continue;
             }
+            // Not following links: a run writes only regular files of its own, so a link, a
+            // FIFO, a device or a directory under one of its names is never written through
+            // (it could be an input, or block the run forever), with or without --overwrite.
+            let kind = entry.file_type().map_err(|e| named(e, &entry.path()))?;
+            if !kind.is_file() {
+                let what = match std::fs::read_link(entry.path()) {
+                    Ok(to) => format!("a symbolic link to {}", to.display()),
+                    Err(_) => kind_of(&kind).to_string(),
+                };
+                return Err(std::io::Error::new(
+                    std::io::ErrorKind::AlreadyExists,
+                    format!(
+                        "{}: is {what}, where the run writes its own {name}; a run replaces only the regular files of an earlier run: remove it or choose another --out",
+                        entry.path().display()
+                    ),
+                ));
+            }
+            earlier.push(entry.path());
         }
         if !earlier.is_empty() {
             if !overwrite {
@@ -312,6 +366,42 @@ mod tests {
         assert!(log["error"].as_str().unwrap().contains("No space left"), "{log}");
         drop(run);
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// A link, a FIFO or a directory under a run's file name is never written through or
+    /// removed, with or without `overwrite`: the error names it (a link to the scene would
+    /// otherwise be replaced by the run log; a FIFO would block the run forever).
+    #[test]
+    fn never_writes_through_a_link_or_into_a_special_file() {
+        let d = tmp("special");
+        std::fs::create_dir_all(&d).unwrap();
+        let scene = d.join("in.json");
+        std::fs::write(&scene, "{}").unwrap();
+        std::os::unix::fs::symlink("in.json", d.join(RUN_LOG)).unwrap();
+        for overwrite in [false, true] {
+            let e = RunDir::prepare(&d, &[], overwrite).unwrap_err();
+            assert!(e.to_string().contains("symbolic link to in.json"), "{e}");
+        }
+        assert_eq!(std::fs::read_to_string(&scene).unwrap(), "{}");
+        assert!(!d.join(LOCK).exists(), "lock released");
+        std::fs::remove_file(d.join(RUN_LOG)).unwrap();
+        let fifo = d.join("frame_00001.vtu");
+        let made = std::process::Command::new("mkfifo").arg(&fifo).status().unwrap();
+        assert!(made.success());
+        let e = RunDir::prepare(&d, &[], true).unwrap_err();
+        assert!(e.to_string().contains("named pipe"), "{e}");
+        std::fs::remove_file(&fifo).unwrap();
+        std::fs::create_dir(d.join(COLLECTION)).unwrap();
+        let e = RunDir::prepare(&d, &[], true).unwrap_err();
+        assert!(e.to_string().contains("a directory"), "{e}");
+        // --out naming a file is named as such.
+        let e = RunDir::prepare(&scene, &[], true).unwrap_err();
+        assert!(
+            e.to_string()
+                .contains("must name a directory, and this is a regular file"),
+            "{e}"
+        );
+        std::fs::remove_dir_all(&d).unwrap();
     }
 
     fn tmp(name: &str) -> PathBuf {

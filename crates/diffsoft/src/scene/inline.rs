@@ -23,7 +23,7 @@ pub(crate) fn tet_mesh(name: &str, a: &TetArrays) -> Result<LoadedMesh, SceneErr
                 name,
                 MeshErrorKind::IndexOutOfRange {
                     tet: t,
-                    index: i as i64,
+                    index: i as i128,
                     valid: format!("0..{n}"),
                 },
             )
@@ -184,4 +184,21 @@ pub fn inline_meshes(scene: &mut Value, dir: &Path, shown: &str) -> Result<(), S
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    /// An index past `i64::MAX` is quoted as written, not wrapped to a negative number.
+    #[test]
+    fn a_huge_index_is_quoted_as_written() {
+        let a = super::TetArrays {
+            vertices: vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+            tets: vec![[0, 1, 2, usize::MAX]],
+        };
+        let e = super::tet_mesh("box", &a).unwrap_err().to_string();
+        assert!(
+            e.contains(&format!("tet 0: vertex index {} out of range (0..4)", usize::MAX)),
+            "{e}"
+        );
+    }
 }

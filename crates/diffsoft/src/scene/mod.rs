@@ -127,8 +127,14 @@ fn cloth_from_file(scene: &str, dir: &Path, c: &format::ClothFile) -> Result<cra
         )));
     }
     let (s, source) = surface_of(scene, dir, &c.mesh, &format!("cloth '{}' mesh", c.name))?;
-    let rot = Rotation3::from_scaled_axis(finite3(scene, "rotate", &c.rotate)?);
-    let t = finite3(scene, "translate", &c.translate)?;
+    let (rot, t) = placement(
+        scene,
+        &format!("cloth '{}'", c.name),
+        c.scale,
+        &c.rotate,
+        &c.translate,
+        &s.vertices,
+    )?;
     let surface = mesh::surface::TriSurface {
         vertices: s.vertices.iter().map(|v| rot * (v * c.scale) + t).collect(),
         triangles: s.triangles,
@@ -350,6 +356,28 @@ fn bones_from_file(
                 None => Ok(None),
             }
         };
+        // The initial coordinate: finite, representable to the solver's precision (beyond 1e6
+        // its float spacing exceeds 1e-10), and inside the joint's limits when it has them
+        // (a joint that starts outside them would be snapped in by the first step).
+        let initial = |what: &str, unit: &str, v: f64, l: Option<(f64, f64)>| -> Result<f64, SceneError> {
+            if !(v.is_finite() && v.abs() <= 1e6) {
+                return Err(invalid(format!(
+                    "bone '{}': initial {what} {} {unit} is not a finite value within +-1e6",
+                    b.name,
+                    crate::base::number(v)
+                )));
+            }
+            match l {
+                Some((lo, hi)) if !(lo..=hi).contains(&v) => Err(invalid(format!(
+                    "bone '{}': initial {what} {} {unit} is outside its limits [{}, {}]",
+                    b.name,
+                    crate::base::number(v),
+                    crate::base::number(lo),
+                    crate::base::number(hi)
+                ))),
+                _ => Ok(v),
+            }
+        };
         let joint: Box<dyn Joint> = match &b.joint {
             JointFile::Free {} => Box::new(Free::default()),
             JointFile::Fixed {} => Box::new(Fixed),
@@ -365,7 +393,7 @@ fn bones_from_file(
                 }
                 let mut r = Rotational::new(finite3(scene, "joint position", position)?, a);
                 r.limits = limits(l)?;
-                r.set_coordinates(&[*angle]);
+                r.set_coordinates(&[initial("angle", "rad", *angle, r.limits)?]);
                 Box::new(r)
             }
             JointFile::Prismatic {
@@ -379,7 +407,7 @@ fn bones_from_file(
                 }
                 let mut p = Prismatic::new(a);
                 p.limits = limits(l)?;
-                p.set_coordinates(&[*extension]);
+                p.set_coordinates(&[initial("extension", "m", *extension, p.limits)?]);
                 Box::new(p)
             }
         };
@@ -511,6 +539,46 @@ fn actuator_from_file(
     }
 }
 
+/// The rotation and translation that place a body or cloth (`who`) whose mesh `vertices` are
+/// scaled by `scale`: finite, a rotation vector of at most 1e6 rad (beyond, its float spacing
+/// exceeds 1e-10 rad) and a translation of at most 1e8 times the scaled mesh's size (beyond,
+/// the placed coordinates keep fewer than about 8 significant digits of the mesh's shape, and
+/// its elements would degenerate). Errors name `who` and the field.
+fn placement(
+    scene: &str,
+    who: &str,
+    scale: f64,
+    rotate: &[f64; 3],
+    translate: &[f64; 3],
+    vertices: &[Vector3<f64>],
+) -> Result<(Rotation3<f64>, Vector3<f64>), SceneError> {
+    let invalid = |message: String| SceneError::Invalid {
+        path: scene.to_string(),
+        message: format!("{who}: {message}"),
+    };
+    let r = finite3(scene, &format!("{who}: rotate"), rotate)?;
+    if r.amax() > 1e6 {
+        return Err(invalid(format!(
+            "rotate component {} rad is beyond 1e6 rad (give the angle modulo 2 pi)",
+            crate::base::number(r.amax())
+        )));
+    }
+    let t = finite3(scene, &format!("{who}: translate"), translate)?;
+    let (lo, hi) = vertices.iter().fold(
+        (Vector3::repeat(f64::INFINITY), Vector3::repeat(f64::NEG_INFINITY)),
+        |(lo, hi), v| (lo.inf(v), hi.sup(v)),
+    );
+    let size = (hi - lo).amax() * scale;
+    if size.is_finite() && size > 0.0 && t.amax() > 1e8 * size {
+        return Err(invalid(format!(
+            "translate {} m is beyond 1e8 times the {} m size of its mesh: the placed coordinates would lose the mesh's shape",
+            crate::base::number(t.amax()),
+            crate::base::number(size)
+        )));
+    }
+    Ok((Rotation3::from_scaled_axis(r), t))
+}
+
 fn finite3(scene: &str, what: &str, v: &[f64; 3]) -> Result<Vector3<f64>, SceneError> {
     if v.iter().all(|x| x.is_finite()) {
         Ok(Vector3::from(*v))
@@ -549,8 +617,14 @@ fn from_diffsoft(path: &Path, file: SceneFile, solver_gives_dt: bool) -> Result<
                 b.name, b.scale
             )));
         }
-        let rot = Rotation3::from_scaled_axis(finite3(&scene, "rotate", &b.rotate)?);
-        let t = finite3(&scene, "translate", &b.translate)?;
+        let (rot, t) = placement(
+            &scene,
+            &format!("body '{}'", b.name),
+            b.scale,
+            &b.rotate,
+            &b.translate,
+            &loaded.mesh.vertices,
+        )?;
         let m = loaded.mesh.map_vertices(|v| rot * (v * b.scale) + t);
         let mass = match (b.density, b.total_mass) {
             (Some(d), None) => MassSpec::Density(d),

@@ -167,6 +167,7 @@ impl Skeleton {
             new_index[i] = k;
         }
         let mut owner = vec![usize::MAX; rest.len()];
+        let names: Vec<String> = specs.iter().map(|s| s.name.clone()).collect();
         let mut slots: Vec<Option<BoneSpec>> = specs.into_iter().map(Some).collect();
         let mut bones = Vec::with_capacity(n);
         let mut rigid = Vec::new();
@@ -183,8 +184,8 @@ impl Skeleton {
                 }
                 if owner[v] != usize::MAX {
                     return Err(InputError::new(format!(
-                        "vertex {v} belongs to two bones ('{}' and another)",
-                        s.name
+                        "vertex {v} belongs to two bones ('{}' and '{}')",
+                        names[owner[v]], s.name
                     )));
                 }
                 owner[v] = i;

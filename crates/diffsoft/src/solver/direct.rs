@@ -55,7 +55,7 @@ impl CholeskyFactor {
         let symbolic_a = SymbolicSparseColMat::new_checked(n, n, sys.l.col_ptr.clone(), None, sys.l.row_idx.clone());
         let a = SparseColMat::new(symbolic_a, values);
         let symbolic = factorize_symbolic_cholesky(a.symbolic(), Side::Lower, Default::default(), Default::default())
-            .map_err(|e| SolverError::Factorization(format!("symbolic analysis failed: {e:?}")))?;
+            .map_err(|e| SolverError::Factorization(format!("symbolic analysis failed: {e}")))?;
         let mut numeric = vec![0.0; symbolic.len_val()];
         let par = Par::Seq;
         let mut mem = MemBuffer::new(symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default()));
@@ -70,8 +70,10 @@ impl CholeskyFactor {
                 Default::default(),
             )
             .map_err(|e| {
+                let faer::linalg::solvers::LltError::NonPositivePivot { index } = e;
+                let why = format!("pivot {index} of {n} in the factor's ordering is not positive");
                 SolverError::Factorization(format!(
-                    "M/h^2 + L is not positive definite ({e:?}): check masses, stiffness and time step"
+                    "M/h^2 + L is not positive definite ({why}): check masses, stiffness and time step"
                 ))
             })?;
         let plan = TreePlan::new(&symbolic);

@@ -114,6 +114,22 @@ fn diffsoft_scenes_reject_unknown_keys_and_meaningless_values() {
             r#", "obstacles": [{"plane": {"point": [0,0,0], "normal": [0,1,0]}, "friction": -1}]"#,
             "friction",
         ),
+        // A placement the mesh cannot survive is named, not blamed on an element it collapses.
+        (
+            r#", "density": 1000, "translate": [1e300, 0, 0]"#,
+            "",
+            "body 'c': translate 1e300 m is beyond 1e8 times the 1 m size of its mesh",
+        ),
+        (
+            r#", "density": 1000, "rotate": [0, -1e300, 0]"#,
+            "",
+            "body 'c': rotate component 1e300 rad is beyond 1e6 rad",
+        ),
+        (
+            r#", "density": 1000, "scale": 1e-3, "translate": [0, 2e5, 0]"#,
+            "",
+            "translate 200000 m is beyond 1e8 times the 0.001 m size",
+        ),
     ] {
         let p = cube_scene(&dir, body, top);
         let e = scene::load(&p, LoadOptions::default()).unwrap_err().to_string();

@@ -213,6 +213,19 @@ fn jobs(study: &str, subset: Subset) -> Vec<Job> {
     out
 }
 
+/// The studies of `studies` that have no case in `subset` (the long ones run only in the full
+/// subset): a selection naming one runs nothing for it, which the command line refuses.
+///
+/// ```
+/// use diffsoft_harness::validation::{empty_studies, Subset};
+///
+/// assert_eq!(empty_studies(Subset::Fast, &["hertz".into(), "patch_test".into()]), ["hertz"]);
+/// assert!(empty_studies(Subset::Full, &["hertz".into()]).is_empty());
+/// ```
+pub fn empty_studies(subset: Subset, studies: &[String]) -> Vec<String> {
+    studies.iter().filter(|s| jobs(s, subset).is_empty()).cloned().collect()
+}
+
 /// Run `studies` (all when empty) of `subset`, in parallel.
 pub fn run(subset: Subset, studies: &[String]) -> ValidationReport {
     let t0 = Instant::now();

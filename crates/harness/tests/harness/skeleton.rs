@@ -348,7 +348,7 @@ fn scene_bones_load_and_bad_bones_are_named() {
         (
             format!(r#"{root_bone}, {{"name": "arm", "parent": "root", "joint": {{"fixed": {{}}}}, "vertices": {{"indices": [1]}}}}"#),
             "",
-            "vertex 1 belongs to two bones",
+            "vertex 1 belongs to two bones ('root' and 'arm')",
         ),
         (root_bone.to_string(), r#", "fixed": {"indices": [0]}"#, "vertex 0 is also a fixed"),
         (
@@ -360,6 +360,21 @@ fn scene_bones_load_and_bad_bones_are_named() {
             format!(r#"{root_bone}, {{"name": "arm", "parent": "root", "joint": {{"prismatic": {{"axis": [1,0,0], "limits": [2, 1]}}}}}}"#),
             "",
             "limits must be finite with min <= max",
+        ),
+        (
+            format!(r#"{root_bone}, {{"name": "arm", "parent": "root", "joint": {{"rotational": {{"position": [0,0,0], "axis": [0,0,1], "angle": 2, "limits": [-1, 1]}}}}}}"#),
+            "",
+            "bone 'arm': initial angle 2 rad is outside its limits [-1, 1]",
+        ),
+        (
+            format!(r#"{root_bone}, {{"name": "arm", "parent": "root", "joint": {{"rotational": {{"position": [0,0,0], "axis": [0,0,1], "angle": 1e300}}}}}}"#),
+            "",
+            "bone 'arm': initial angle 1e300 rad is not a finite value",
+        ),
+        (
+            format!(r#"{root_bone}, {{"name": "arm", "parent": "root", "joint": {{"prismatic": {{"axis": [1,0,0], "extension": -0.5, "limits": [0, 1]}}}}}}"#),
+            "",
+            "initial extension -0.5 m is outside its limits [0, 1]",
         ),
         (
             format!(r#"{root_bone}, {{"name": "arm", "parent": "root", "joint": {{"hinge": {{}}}}}}"#),
