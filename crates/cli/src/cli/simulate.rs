@@ -203,11 +203,14 @@ pub(crate) fn simulate(
     let settings = &log.settings;
     if settings.tolerance > 0.0 && summary.converged_steps < summary.steps {
         say!(
-            "warning     {} of {} steps stopped at the iteration cap (max_iterations {}) before meeting the tolerance {:e}: their states carry that error (a stiff or fast scene can gain energy this way); raise --max-iterations, lower --dt or choose --solver newton; a gradient through this run is refused unless --allow-unconverged",
+            "warning     {} of {} steps stopped at the iteration cap (max_iterations {}) before meeting the tolerance {:e}: their states carry that error (a stiff or fast scene can gain energy this way); raise --max-iterations or lower --dt; a gradient through this run is refused unless --allow-unconverged",
             summary.steps - summary.converged_steps,
             summary.steps,
             settings.max_iterations,
-            settings.tolerance
+            // Four significant digits, shortest form (1e-6, 1.035e-5).
+            format!("{:.3e}", settings.tolerance)
+                .parse::<f64>()
+                .unwrap_or(settings.tolerance)
         );
     }
     if summary.steps_with_capped_solves > 0 {
