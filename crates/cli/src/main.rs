@@ -545,8 +545,15 @@ fn run(command: Command) -> Result<()> {
         Command::Grad(a) => grad(a)?,
         Command::Schemas { out } => {
             let all = diffsoft_harness::schemas();
-            for (file, schema) in &all {
-                write_json(out.join(file), schema)?;
+            diffsoft::output::output_dir(&out, "--out")?;
+            // Every name checked before the first is written: a link or FIFO among them
+            // leaves the directory as it was.
+            let paths = all
+                .iter()
+                .map(|(file, _)| diffsoft::output::own_file(&out, file))
+                .collect::<std::io::Result<Vec<_>>>()?;
+            for (path, (_, schema)) in paths.iter().zip(&all) {
+                write_json(path, schema)?;
             }
             say!("wrote {} schemas in {}", all.len(), out.display());
         }
@@ -618,6 +625,7 @@ fn run(command: Command) -> Result<()> {
                     let Some(path) = json else {
                         bail!("--shard needs --json (where the partial report goes)");
                     };
+                    diffsoft_harness::shard::check_items(k, extremes::select(subset).len(), "cases")?;
                     let part = extremes::run_shard(subset, k, true);
                     save(&path, &part, &[])?;
                     say!(

@@ -48,8 +48,22 @@ const PALETTE: [RGBColor; 6] = [
     RGBColor(127, 127, 127),
 ];
 
-fn ok(v: f64) -> bool {
-    v.is_finite() && v > 0.0
+/// Write a rendered SVG to `path` atomically (under a temporary name, then renamed: a plot is
+/// never seen half-written, and one that fails to render leaves the old file).
+pub(crate) fn save_svg(path: &Path, text: &str) -> std::io::Result<()> {
+    diffsoft::output::write_atomic(path, text.as_bytes())
+}
+
+/// Whether `v` can be placed on a log axis: positive, and within [1e-290, 1e290] so that the
+/// axis's padding and its decade ticks stay finite (a value of 1e307 would push them past the
+/// largest double, and the tick search would not end). Other values are left off the plot.
+pub(crate) fn ok(v: f64) -> bool {
+    (1e-290..=1e290).contains(&v)
+}
+
+/// Whether `v` can be placed on a linear axis (its padding stays finite).
+fn linear_ok(v: f64) -> bool {
+    v.abs() <= 1e290
 }
 
 /// Render `chart` to an SVG file.
@@ -81,8 +95,9 @@ pub fn write_svg(path: &Path, chart: &LogLogChart) -> std::io::Result<()> {
     if y1 <= y0 {
         y1 = y0 * 10.0;
     }
-    let render = || -> Result<(), Box<dyn std::error::Error>> {
-        let root = SVGBackend::new(path, (900, 600)).into_drawing_area();
+    let mut text = String::new();
+    let render = |text: &mut String| -> Result<(), Box<dyn std::error::Error>> {
+        let root = SVGBackend::with_string(text, (900, 600)).into_drawing_area();
         root.fill(&WHITE)?;
         let mut c = ChartBuilder::on(&root)
             .caption(&chart.title, ("sans-serif", 20))
@@ -141,7 +156,8 @@ pub fn write_svg(path: &Path, chart: &LogLogChart) -> std::io::Result<()> {
         root.present()?;
         Ok(())
     };
-    render().map_err(|e| std::io::Error::other(format!("{}: {e}", path.display())))
+    render(&mut text).map_err(|e| std::io::Error::other(format!("{}: {e}", path.display())))?;
+    crate::plot::save_svg(path, &text)
 }
 
 /// A line chart with linear axes (time series).
@@ -164,7 +180,7 @@ pub fn write_linear_svg(path: &Path, chart: &LinearChart) -> std::io::Result<()>
             std::fs::create_dir_all(dir)?;
         }
     }
-    let finite = |p: &&(f64, f64)| p.0.is_finite() && p.1.is_finite();
+    let finite = |p: &&(f64, f64)| linear_ok(p.0) && linear_ok(p.1);
     let (mut x0, mut x1, mut y0, mut y1) = (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
     for &(x, y) in chart.series.iter().flat_map(|s| s.points.iter()).filter(finite) {
         x0 = x0.min(x);
@@ -177,8 +193,9 @@ pub fn write_linear_svg(path: &Path, chart: &LinearChart) -> std::io::Result<()>
     }
     let pad = ((y1 - y0) * 0.05).max(1e-12 * y1.abs().max(1.0));
     let (y0, y1) = (y0 - pad, y1 + pad);
-    let render = || -> Result<(), Box<dyn std::error::Error>> {
-        let root = SVGBackend::new(path, (900, 600)).into_drawing_area();
+    let mut text = String::new();
+    let render = |text: &mut String| -> Result<(), Box<dyn std::error::Error>> {
+        let root = SVGBackend::with_string(text, (900, 600)).into_drawing_area();
         root.fill(&WHITE)?;
         let mut c = ChartBuilder::on(&root)
             .caption(&chart.title, ("sans-serif", 20))
@@ -205,7 +222,8 @@ pub fn write_linear_svg(path: &Path, chart: &LinearChart) -> std::io::Result<()>
         root.present()?;
         Ok(())
     };
-    render().map_err(|e| std::io::Error::other(format!("{}: {e}", path.display())))
+    render(&mut text).map_err(|e| std::io::Error::other(format!("{}: {e}", path.display())))?;
+    crate::plot::save_svg(path, &text)
 }
 
 /// One panel of a [`Snapshots`] figure: a title and 2-D points.
@@ -241,9 +259,10 @@ pub fn write_snapshots_svg(path: &Path, s: &Snapshots) -> std::io::Result<()> {
     if nr == 0 || nc == 0 {
         return Err(std::io::Error::other(format!("{}: nothing to plot", path.display())));
     }
-    let render = || -> Result<(), Box<dyn std::error::Error>> {
+    let mut text = String::new();
+    let render = |text: &mut String| -> Result<(), Box<dyn std::error::Error>> {
         let (w, h) = (200 * nc as u32, 230 * nr as u32 + 40);
-        let root = SVGBackend::new(path, (w, h)).into_drawing_area();
+        let root = SVGBackend::with_string(text, (w, h)).into_drawing_area();
         root.fill(&WHITE)?;
         let root = root.titled(&s.title, ("sans-serif", 20))?;
         let cells = root.split_evenly((nr, nc));
@@ -270,5 +289,34 @@ pub fn write_snapshots_svg(path: &Path, s: &Snapshots) -> std::io::Result<()> {
         root.present()?;
         Ok(())
     };
-    render().map_err(|e| std::io::Error::other(format!("{}: {e}", path.display())))
+    render(&mut text).map_err(|e| std::io::Error::other(format!("{}: {e}", path.display())))?;
+    crate::plot::save_svg(path, &text)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Values past what a log axis can pad and tick (1e307, the largest double) are left off
+    /// the plot instead of sending the tick search past the largest double, where it never
+    /// ends; the file is written whole.
+    #[test]
+    fn huge_values_are_left_off_a_log_plot() {
+        let path = std::env::temp_dir().join(format!("diffsoft-plot-huge-{}.svg", std::process::id()));
+        let chart = LogLogChart {
+            title: "t".into(),
+            x_label: "x".into(),
+            y_label: "y".into(),
+            series: vec![Series {
+                label: "s".into(),
+                points: vec![(1.0, 1e-3), (2.0, 1e307), (3.0, f64::MAX), (4.0, 1e-2)],
+            }],
+            vlines: Vec::new(),
+            hlines: Vec::new(),
+        };
+        write_svg(&path, &chart).unwrap();
+        assert!(std::fs::read_to_string(&path).unwrap().trim_end().ends_with("</svg>"));
+        assert!(!ok(1e307) && !ok(f64::MAX) && ok(1e-3) && !ok(0.0) && !ok(f64::NAN));
+        std::fs::remove_file(&path).unwrap();
+    }
 }

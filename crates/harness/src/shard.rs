@@ -51,6 +51,9 @@ pub enum ShardError {
     /// The partial reports do not form one sweep.
     #[error("cannot merge: {0}")]
     Mismatch(String),
+    /// `--shard K/N` with more shards than the sweep has items.
+    #[error("{0}")]
+    TooMany(String),
 }
 
 impl FromStr for Shard {
@@ -68,13 +71,14 @@ impl FromStr for Shard {
 }
 
 /// Check that `shards` (one per partial report, named by `paths`) are exactly the shards
-/// `0/N ... N-1/N` of one sweep, each once.
+/// `0/N ... N-1/N` of one sweep, each once. Works in the number of reports given, whatever `N`
+/// a report claims (a tampered count of 2^64 - 1 is an error, not an allocation).
 pub fn check_cover(shards: &[Shard], paths: &[String]) -> Result<(), ShardError> {
     let Some(first) = shards.first() else {
         return Err(ShardError::Mismatch("no partial reports given".into()));
     };
     let n = first.count;
-    let mut seen: Vec<Option<&str>> = vec![None; n];
+    let mut given: Vec<(usize, &str)> = Vec::with_capacity(shards.len());
     for (s, p) in shards.iter().zip(paths) {
         if s.count != n {
             return Err(ShardError::Mismatch(format!(
@@ -82,17 +86,66 @@ pub fn check_cover(shards: &[Shard], paths: &[String]) -> Result<(), ShardError>
                 paths[0]
             )));
         }
-        if let Some(other) = seen[s.index] {
-            return Err(ShardError::Mismatch(format!("{p} and {other} are both shard {s}")));
+        if s.count == 0 || s.index >= s.count {
+            return Err(ShardError::Mismatch(format!(
+                "{p} claims shard {s}: the index must be below the count"
+            )));
         }
-        seen[s.index] = Some(p);
+        given.push((s.index, p));
     }
-    let missing: Vec<String> = (0..n)
-        .filter(|&k| seen[k].is_none())
-        .map(|k| format!("{k}/{n}"))
-        .collect();
-    if !missing.is_empty() {
-        return Err(ShardError::Mismatch(format!("missing shard(s) {}", missing.join(", "))));
+    given.sort_unstable();
+    for w in given.windows(2) {
+        if w[0].0 == w[1].0 {
+            return Err(ShardError::Mismatch(format!(
+                "{} and {} are both shard {}/{n}",
+                w[1].1, w[0].1, w[0].0
+            )));
+        }
+    }
+    if given.len() < n {
+        // The first few missing indices, found by walking the sorted given ones.
+        let mut missing = Vec::new();
+        let mut next = given.iter().map(|g| g.0).peekable();
+        let mut k = 0;
+        while k < n && missing.len() < 8 {
+            if next.peek() == Some(&k) {
+                next.next();
+            } else {
+                missing.push(format!("{k}/{n}"));
+            }
+            k += 1;
+        }
+        let more = n - given.len() - missing.len();
+        return Err(ShardError::Mismatch(format!(
+            "missing {} of {n} shards: {}{}",
+            n - given.len(),
+            missing.join(", "),
+            if more > 0 {
+                format!(" and {more} more")
+            } else {
+                String::new()
+            }
+        )));
+    }
+    Ok(())
+}
+
+/// Check, before a sharded run, that `shard` has work: a count above the sweep's `items` would
+/// leave shards empty (and a merge would need that many files).
+///
+/// ```
+/// use diffsoft_harness::shard::{check_items, Shard};
+///
+/// assert!(check_items(Shard { index: 0, count: 4 }, 10, "cases").is_ok());
+/// let e = check_items(Shard { index: 0, count: 40 }, 10, "cases").unwrap_err();
+/// assert!(e.to_string().contains("--shard 0/40: more shards than the sweep's 10 cases"));
+/// ```
+pub fn check_items(shard: Shard, items: usize, what: &str) -> Result<(), ShardError> {
+    if shard.count > items.max(1) {
+        return Err(ShardError::TooMany(format!(
+            "--shard {shard}: more shards than the sweep's {items} {what}; use at most {}",
+            items.max(1)
+        )));
     }
     Ok(())
 }
@@ -166,8 +219,25 @@ mod tests {
         let s = |k| Shard { index: k, count: 3 };
         assert!(check_cover(&[s(0), s(1), s(2)], &p).is_ok());
         let e = check_cover(&[s(0), s(2)], &p).unwrap_err().to_string();
-        assert!(e.contains("missing shard(s) 1/3"), "{e}");
+        assert!(e.contains("missing 1 of 3 shards: 1/3"), "{e}");
         let e = check_cover(&[s(0), s(0), s(2)], &p).unwrap_err().to_string();
         assert!(e.contains("both shard 0/3"), "{e}");
+        // Tampered shards: an index past the count, a count no set of files could cover.
+        let e = check_cover(&[s(0), Shard { index: 5, count: 3 }], &p)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("b claims shard 5/3: the index must be below the count"),
+            "{e}"
+        );
+        let huge = |k| Shard {
+            index: k,
+            count: usize::MAX,
+        };
+        let e = check_cover(&[huge(0), huge(1)], &p).unwrap_err().to_string();
+        assert!(
+            e.contains(&format!("missing {} of {} shards: 2/", usize::MAX - 2, usize::MAX)) && e.contains("more"),
+            "{e}"
+        );
     }
 }

@@ -154,7 +154,7 @@ pub(crate) fn grad(a: GradArgs) -> Result<()> {
         let d = p.derivative(&sc.model, &g);
         say!(
             "d loss / d {p} = {d:.17e}   (at {p} = {})",
-            p.get(&sc.model).map_or("-".into(), |v| v.to_string())
+            p.get(&sc.model).map_or("-".into(), diffsoft::base::number)
         );
         gradient.insert(p.to_string(), d);
         if let Ok(v) = p.get(&sc.model) {

@@ -187,6 +187,7 @@ pub(crate) fn tradeoff(args: TradeoffArgs) -> Result<()> {
             let Some(path) = json else {
                 bail!("--shard needs --json (where the partial report goes)");
             };
+            diffsoft_harness::shard::check_items(k, spec.grid().len(), "settings")?;
             let part = tradeoff::run_shard(&spec, &base, k, workers, true)?;
             save(&path, &part, &inputs)?;
             say!(

@@ -398,6 +398,31 @@ fn counts_and_scales_beyond_reason_are_errors_naming_the_flag() {
             ],
             "--study hertz",
         ),
+        // A loss the scene cannot have, refused before the sweep runs; more shards than items.
+        (
+            vec![
+                "tradeoff",
+                "--cantilever",
+                "2,1,1",
+                "--steps",
+                "2",
+                "--loss",
+                "joint_angle.x",
+            ],
+            "joint_angle.x: the model has no skeleton",
+        ),
+        (
+            vec![
+                "extremes",
+                "--subset",
+                "fast",
+                "--shard",
+                "0/100000",
+                "--json",
+                "/tmp/diffsoft-never.json",
+            ],
+            "--shard 0/100000: more shards than",
+        ),
     ];
     for (args, flag) in cases {
         let o = diffsoft(&args);
@@ -1092,4 +1117,35 @@ fn simulate_warns_of_unconverged_steps_and_refuses_special_files() {
     let o = diffsoft(&["simulate", s, "--steps", "2", "--out", s]);
     assert!(stderr(&o).contains("must name a directory"), "{}", stderr(&o));
     assert_eq!(std::fs::read(&scene).unwrap(), before);
+}
+
+/// `schemas --out` writes only regular files of its own names: a link among them (here to a
+/// user's file) or a FIFO is refused before anything is written, and `--out` naming a file
+/// says so.
+#[test]
+fn schemas_never_write_through_links_or_into_fifos() {
+    let dir = tmp_dir("hard-schemas");
+    let precious = write(&dir, "precious.txt", "keep me");
+    let out = dir.join("schemas");
+    std::fs::create_dir_all(&out).unwrap();
+    std::os::unix::fs::symlink(&precious, out.join("scene.schema.json")).unwrap();
+    let o = diffsoft(&["schemas", "--out", out.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("scene.schema.json: is a symbolic link"),
+        "{}",
+        stderr(&o)
+    );
+    assert_eq!(std::fs::read_to_string(&precious).unwrap(), "keep me");
+    assert_eq!(std::fs::read_dir(&out).unwrap().count(), 1, "nothing written");
+    std::fs::remove_file(out.join("scene.schema.json")).unwrap();
+    let made = Command::new("mkfifo")
+        .arg(out.join("run.schema.json"))
+        .status()
+        .unwrap();
+    assert!(made.success());
+    let o = diffsoft(&["schemas", "--out", out.to_str().unwrap()]);
+    assert!(stderr(&o).contains("named pipe"), "{}", stderr(&o));
+    let o = diffsoft(&["schemas", "--out", precious.to_str().unwrap()]);
+    assert!(stderr(&o).contains("--out must name a directory"), "{}", stderr(&o));
 }

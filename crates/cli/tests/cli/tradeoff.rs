@@ -62,7 +62,7 @@ fn cli_shards_and_merge() {
     // Merging one shard alone names the missing one; a bad --shard is refused.
     let out = diffsoft(&["merge", &p("a.json"), "-o", &p("x.json")]);
     assert!(!out.status.success());
-    assert!(String::from_utf8_lossy(&out.stderr).contains("missing shard(s) 1/2"));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("missing 1 of 2 shards: 1/2"));
     let out = diffsoft(&[
         "tradeoff",
         "--cantilever",

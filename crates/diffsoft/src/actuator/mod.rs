@@ -206,11 +206,18 @@ impl Actuators {
                 return bad("duplicate actuator name".into());
             }
             if !(spec.stiffness.is_finite() && spec.stiffness > 0.0) {
-                return bad(format!("stiffness must be finite and positive, got {}", spec.stiffness));
+                return bad(format!(
+                    "stiffness must be finite and positive, got {}",
+                    crate::base::number(spec.stiffness)
+                ));
             }
             spec.activation.validate(&format!("{what} activation"))?;
             if let Some(a) = spec.activation.values.iter().find(|a| !spec.kind.admits(**a)) {
-                return bad(format!("activation {a} out of range ({})", spec.kind.range()));
+                return bad(format!(
+                    "activation {} out of range ({})",
+                    crate::base::number(*a),
+                    spec.kind.range()
+                ));
             }
             if spec.cells.is_empty() {
                 return bad("no tets".into());

@@ -44,7 +44,7 @@ pub enum AnalysisError {
     #[error(transparent)]
     Spectral(#[from] SpectralError),
     /// A physical parameter is meaningless.
-    #[error("{name} must be finite and positive, got {value}")]
+    #[error("{name} must be finite and positive, got {}", crate::base::number(*value))]
     BadParameter {
         /// Parameter name.
         name: &'static str,

@@ -78,7 +78,14 @@ impl From<&str> for InputError {
 
 /// A number as an error message quotes it: plain in [1e-4, 1e6) (and 0), in exponent form
 /// otherwise, so `1e300` is not printed as three hundred digits.
-pub(crate) fn number(v: f64) -> String {
+///
+/// ```
+/// use diffsoft::base::number;
+///
+/// assert_eq!(number(-1.0), "-1");
+/// assert_eq!(number(-1e300), "-1e300");
+/// ```
+pub fn number(v: f64) -> String {
     if v == 0.0 || (1e-4..1e6).contains(&v.abs()) || !v.is_finite() {
         format!("{v}")
     } else {

@@ -37,13 +37,13 @@ impl Material {
         if !(self.youngs_modulus.is_finite() && self.youngs_modulus > 0.0) {
             return Err(InputError::new(format!(
                 "body '{body}': Young's modulus must be finite and positive, got {}",
-                self.youngs_modulus
+                super::number(self.youngs_modulus)
             )));
         }
         if !(0.0..0.5).contains(&self.poisson_ratio) {
             return Err(InputError::new(format!(
                 "body '{body}': Poisson ratio must be in [0, 0.5), got {}",
-                self.poisson_ratio
+                super::number(self.poisson_ratio)
             )));
         }
         Ok(())

@@ -26,7 +26,7 @@ mod vector;
 
 pub use body::Body;
 pub use choice::Choice;
-pub(crate) use error::number;
+pub use error::number;
 pub use error::InputError;
 pub use material::{Material, MaterialModel};
 pub use schedule::Schedule;

@@ -297,13 +297,16 @@ pub(crate) fn prepare(spec: &ClothSpec) -> Result<Prepared, InputError> {
         ("area density", spec.area_density),
     ] {
         if !(v.is_finite() && v > 0.0) {
-            return Err(bad(format!("{name} must be finite and positive, got {v}")));
+            return Err(bad(format!(
+                "{name} must be finite and positive, got {}",
+                crate::base::number(v)
+            )));
         }
     }
     if !(spec.bending.is_finite() && spec.bending >= 0.0) {
         return Err(bad(format!(
             "bending stiffness must be finite and >= 0, got {}",
-            spec.bending
+            crate::base::number(spec.bending)
         )));
     }
     if !spec.initial_velocity.iter().all(|v| v.is_finite()) {

@@ -77,10 +77,16 @@ impl Obstacle {
     pub fn validate(&self) -> Result<(), InputError> {
         let bad = |m: String| Err(InputError::new(format!("obstacle '{}': {m}", self.name)));
         if !(self.friction.is_finite() && self.friction >= 0.0) {
-            return bad(format!("friction must be finite and >= 0, got {}", self.friction));
+            return bad(format!(
+                "friction must be finite and >= 0, got {}",
+                crate::base::number(self.friction)
+            ));
         }
         if !(self.thickness.is_finite() && self.thickness >= 0.0) {
-            return bad(format!("thickness must be finite and >= 0, got {}", self.thickness));
+            return bad(format!(
+                "thickness must be finite and >= 0, got {}",
+                crate::base::number(self.thickness)
+            ));
         }
         self.shape
             .validate()

@@ -397,7 +397,10 @@ impl Param {
     /// Set the parameter in `model` (every body), updating what depends on it.
     pub fn set(&self, model: &mut Model, value: f64) -> Result<(), DiffError> {
         if !value.is_finite() {
-            return Err(DiffError::Input(format!("{self}: value must be finite, got {value}")));
+            return Err(DiffError::Input(format!(
+                "{self}: value must be finite, got {}",
+                crate::base::number(value)
+            )));
         }
         (self.access().1)(model, value)
     }
@@ -566,7 +569,10 @@ fn set_material(
 
 fn set_density(model: &mut Model, value: f64) -> Result<(), DiffError> {
     if value <= 0.0 {
-        return Err(DiffError::Input(format!("density must be positive, got {value}")));
+        return Err(DiffError::Input(format!(
+            "density must be positive, got {}",
+            crate::base::number(value)
+        )));
     }
     for b in &mut model.bodies {
         let scale = value / b.density;

@@ -31,7 +31,7 @@ pub enum FemError {
         volume: f64,
     },
     /// A material coefficient is not a finite positive number.
-    #[error("{name} must be finite and positive, got {value}")]
+    #[error("{name} must be finite and positive, got {}", crate::base::number(*value))]
     BadCoefficient {
         /// Which coefficient.
         name: &'static str,

@@ -322,8 +322,9 @@ impl ModelBuilder {
                 }
                 if !(w.is_finite() && w > 0.0) {
                     return Err(InputError::new(format!(
-                        "body '{}': attachment stiffness must be finite and positive, got {w}",
-                        b.name
+                        "body '{}': attachment stiffness must be finite and positive, got {}",
+                        b.name,
+                        crate::base::number(w)
                     )));
                 }
                 attachments.push(Attachment {

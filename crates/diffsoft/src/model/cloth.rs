@@ -47,7 +47,8 @@ impl ModelBuilder {
                 }
                 if !(w.is_finite() && w > 0.0) {
                     return Err(InputError::new(format!(
-                        "{what}: attachment stiffness must be finite and positive, got {w}"
+                        "{what}: attachment stiffness must be finite and positive, got {}",
+                        crate::base::number(w)
                     )));
                 }
                 attachments.push(Attachment {

@@ -46,6 +46,92 @@ pub fn check_writable(path: &Path) -> std::io::Result<()> {
     std::fs::remove_file(&probe).map_err(named)
 }
 
+/// What a non-regular file is, in words, for error messages.
+pub(crate) fn kind_of(t: &std::fs::FileType) -> &'static str {
+    use std::os::unix::fs::FileTypeExt as _;
+    if t.is_file() {
+        "a regular file"
+    } else if t.is_dir() {
+        "a directory"
+    } else if t.is_symlink() {
+        "a symbolic link"
+    } else if t.is_fifo() {
+        "a named pipe (FIFO)"
+    } else if t.is_char_device() {
+        "a character device"
+    } else if t.is_block_device() {
+        "a block device"
+    } else if t.is_socket() {
+        "a socket"
+    } else {
+        "not a regular file"
+    }
+}
+
+/// Make `dir` a directory for outputs the command names itself (a run's frames, the schemas):
+/// created if missing; an existing path that is not a directory (a file, a device, a FIFO) is
+/// refused as such, naming `flag`.
+///
+/// ```
+/// let dir = std::env::temp_dir().join(format!("diffsoft-doc-outdir-{}", std::process::id()));
+/// diffsoft::output::output_dir(&dir, "--out")?;
+/// assert!(dir.is_dir());
+/// std::fs::write(dir.join("f"), "x")?;
+/// let e = diffsoft::output::output_dir(&dir.join("f"), "--out").unwrap_err();
+/// assert!(e.to_string().contains("--out must name a directory, and this is a regular file"));
+/// std::fs::remove_dir_all(&dir)?;
+/// # Ok::<(), std::io::Error>(())
+/// ```
+pub fn output_dir(dir: &Path, flag: &str) -> std::io::Result<()> {
+    if let Ok(meta) = std::fs::metadata(dir) {
+        if !meta.is_dir() {
+            return Err(std::io::Error::new(
+                std::io::ErrorKind::AlreadyExists,
+                format!(
+                    "{}: {flag} must name a directory, and this is {}",
+                    dir.display(),
+                    kind_of(&meta.file_type())
+                ),
+            ));
+        }
+    }
+    std::fs::create_dir_all(dir).map_err(|e| std::io::Error::new(e.kind(), format!("{}: {e}", dir.display())))
+}
+
+/// The path of a file the command names itself inside an output directory (`dir/name`),
+/// checked not to be a link, FIFO, device or directory: such an entry is never written
+/// through (a link could point at an input; a FIFO would block), and the error names it.
+///
+/// ```
+/// let dir = std::env::temp_dir().join(format!("diffsoft-doc-own-{}", std::process::id()));
+/// std::fs::create_dir_all(&dir)?;
+/// assert_eq!(diffsoft::output::own_file(&dir, "a.json")?, dir.join("a.json"));
+/// std::os::unix::fs::symlink("/etc/hostname", dir.join("b.json"))?;
+/// let e = diffsoft::output::own_file(&dir, "b.json").unwrap_err();
+/// assert!(e.to_string().contains("is a symbolic link to /etc/hostname"));
+/// std::fs::remove_dir_all(&dir)?;
+/// # Ok::<(), std::io::Error>(())
+/// ```
+pub fn own_file(dir: &Path, name: &str) -> std::io::Result<PathBuf> {
+    let path = dir.join(name);
+    match std::fs::symlink_metadata(&path) {
+        Ok(meta) if !meta.file_type().is_file() => {
+            let what = match std::fs::read_link(&path) {
+                Ok(to) => format!("a symbolic link to {}", to.display()),
+                Err(_) => kind_of(&meta.file_type()).to_string(),
+            };
+            Err(std::io::Error::new(
+                std::io::ErrorKind::AlreadyExists,
+                format!(
+                    "{}: is {what}, where the command writes its own {name}; only a regular file is replaced: remove it or choose another directory",
+                    path.display()
+                ),
+            ))
+        }
+        _ => Ok(path),
+    }
+}
+
 /// Refuse to write `out` when it is one of `inputs` or a file they bring with them (the same
 /// file, however named): an output never replaces what the command read. The error names both.
 ///

@@ -9,7 +9,7 @@ mod runlog;
 mod vtk;
 
 pub use crate::report::{write_atomic, write_json, Header, ModelSize, Provenance, Verdict};
-pub use file::{check_writable, distinct_outputs, input_family, refuse_input};
+pub use file::{check_writable, distinct_outputs, input_family, output_dir, own_file, refuse_input};
 pub use grad::{GradReport, GRAD_SCHEMA};
 pub use run_dir::{RunDir, RunStatus, COLLECTION, RUN_LOG};
 

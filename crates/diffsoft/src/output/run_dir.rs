@@ -66,28 +66,6 @@ fn lock(dir: &Path) -> std::io::Result<PathBuf> {
     )))
 }
 
-/// What a non-regular file is, in words, for error messages.
-fn kind_of(t: &std::fs::FileType) -> &'static str {
-    use std::os::unix::fs::FileTypeExt as _;
-    if t.is_file() {
-        "a regular file"
-    } else if t.is_dir() {
-        "a directory"
-    } else if t.is_symlink() {
-        "a symbolic link"
-    } else if t.is_fifo() {
-        "a named pipe (FIFO)"
-    } else if t.is_char_device() {
-        "a character device"
-    } else if t.is_block_device() {
-        "a block device"
-    } else if t.is_socket() {
-        "a socket"
-    } else {
-        "not a regular file"
-    }
-}
-
 /// The directory of one run.
 #[derive(Debug)]
 pub struct RunDir {
@@ -128,19 +106,7 @@ impl RunDir {
         let named = |e: std::io::Error, p: &Path| std::io::Error::new(e.kind(), format!("{}: {e}", p.display()));
         // An existing path that is not a directory (a file, a device, a FIFO) is named as such,
         // not reported as the bare "File exists" of the failed creation.
-        if let Ok(meta) = std::fs::metadata(dir) {
-            if !meta.is_dir() {
-                return Err(std::io::Error::new(
-                    std::io::ErrorKind::AlreadyExists,
-                    format!(
-                        "{}: --out must name a directory, and this is {}",
-                        dir.display(),
-                        kind_of(&meta.file_type())
-                    ),
-                ));
-            }
-        }
-        std::fs::create_dir_all(dir).map_err(|e| named(e, dir))?;
+        super::output_dir(dir, "--out")?;
         let canonical_dir = dir.canonicalize().map_err(|e| named(e, dir))?;
         let family: Vec<PathBuf> = inputs.iter().flat_map(|p| super::input_family(p)).collect();
         for input in &family {
@@ -187,20 +153,7 @@ impl RunDir {
             // Not following links: a run writes only regular files of its own, so a link, a
             // FIFO, a device or a directory under one of its names is never written through
             // (it could be an input, or block the run forever), with or without --overwrite.
-            let kind = entry.file_type().map_err(|e| named(e, &entry.path()))?;
-            if !kind.is_file() {
-                let what = match std::fs::read_link(entry.path()) {
-                    Ok(to) => format!("a symbolic link to {}", to.display()),
-                    Err(_) => kind_of(&kind).to_string(),
-                };
-                return Err(std::io::Error::new(
-                    std::io::ErrorKind::AlreadyExists,
-                    format!(
-                        "{}: is {what}, where the run writes its own {name}; a run replaces only the regular files of an earlier run: remove it or choose another --out",
-                        entry.path().display()
-                    ),
-                ));
-            }
+            super::own_file(dir, &name)?;
             earlier.push(entry.path());
         }
         if !earlier.is_empty() {

@@ -513,7 +513,10 @@ fn actuator_from_file(
                 }
                 (None, None, Some(line), Some(r)) => {
                     if !(r.is_finite() && r > 0.0) {
-                        return Err(invalid(format!("radius must be finite and positive, got {r}")));
+                        return Err(invalid(format!(
+                            "radius must be finite and positive, got {}",
+                            crate::base::number(r)
+                        )));
                     }
                     let pts = line
                         .iter()

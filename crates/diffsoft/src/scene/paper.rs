@@ -262,7 +262,10 @@ pub fn import(path: &Path, value: &Value, opts: LoadOptions) -> Result<Scene, Sc
     cx.check_keys("Parameters[0]", params, PARAM_USED, PARAM_IGNORED, &[])?;
     let hz = cx.number(params, "Simulation HZ", 200.0, "Parameters[0]")?;
     if !(hz.is_finite() && hz > 0.0) {
-        return Err(cx.invalid(format!("\"Simulation HZ\" must be positive, got {hz}")));
+        return Err(cx.invalid(format!(
+            "\"Simulation HZ\" must be positive, got {}",
+            crate::base::number(hz)
+        )));
     }
     let underwater = cx.number(params, "Is underwater", 0.0, "Parameters[0]")? != 0.0;
     let gravity = match params.get("Gravity") {
@@ -309,7 +312,10 @@ pub fn import(path: &Path, value: &Value, opts: LoadOptions) -> Result<Scene, Sc
         let loaded = mesh::load(cx.resolve(file)?)?;
         let scale = cx.number(mj, "Scale", 0.05, &w)?;
         if !(scale.is_finite() && scale > 0.0) {
-            return Err(cx.invalid(format!("{w}: \"Scale\" must be positive, got {scale}")));
+            return Err(cx.invalid(format!(
+                "{w}: \"Scale\" must be positive, got {}",
+                crate::base::number(scale)
+            )));
         }
         if mj.get("Scale").is_none() {
             cx.notes
@@ -468,7 +474,10 @@ fn paper_cloth(cx: &mut Ctx<'_>, k: usize, cj: &Value) -> Result<crate::cloth::C
     let path = cx.resolve(file)?;
     let scale = cx.number(cj, "Scale", 1.0, &w)?;
     if !(scale.is_finite() && scale > 0.0) {
-        return Err(cx.invalid(format!("{w}: \"Scale\" must be positive, got {scale}")));
+        return Err(cx.invalid(format!(
+            "{w}: \"Scale\" must be positive, got {}",
+            crate::base::number(scale)
+        )));
     }
     if cj.get("Scale").is_none() {
         cx.notes.push(format!(

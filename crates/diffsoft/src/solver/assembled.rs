@@ -47,7 +47,8 @@ impl GlobalSystem {
     pub fn new(model: &Model, h: f64) -> Result<Self, SolverError> {
         if !(h.is_finite() && h > 0.0) {
             return Err(SolverError::input(format!(
-                "time step must be finite and positive, got {h}"
+                "time step must be finite and positive, got {}",
+                crate::base::number(h)
             )));
         }
         let n = model.n();

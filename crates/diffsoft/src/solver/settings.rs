@@ -89,7 +89,10 @@ impl Settings {
     pub fn validate(&self) -> Result<(), SolverError> {
         let bad = |m: String| Err(SolverError::input(m));
         if !(self.dt.is_finite() && self.dt > 0.0) {
-            return bad(format!("time step must be finite and positive, got {}", self.dt));
+            return bad(format!(
+                "time step must be finite and positive, got {}",
+                crate::base::number(self.dt)
+            ));
         }
         for (name, cap) in [
             ("max_iterations", self.max_iterations),
@@ -105,11 +108,17 @@ impl Settings {
             ("contact_margin", self.contact_margin),
         ] {
             if !(v.is_finite() && v >= 0.0) {
-                return bad(format!("{name} must be finite and >= 0, got {v}"));
+                return bad(format!(
+                    "{name} must be finite and >= 0, got {}",
+                    crate::base::number(v)
+                ));
             }
         }
         if !(self.damping.is_finite() && self.damping > 0.0 && self.damping <= 1.0) {
-            return bad(format!("damping must be in (0, 1], got {}", self.damping));
+            return bad(format!(
+                "damping must be in (0, 1], got {}",
+                crate::base::number(self.damping)
+            ));
         }
         if self.anderson > MAX_ANDERSON {
             return bad(format!(

@@ -430,8 +430,9 @@ impl Simulator {
             .ok_or_else(|| SolverError::input(format!("no actuator group {group}")))?;
         if !g.kind.admits(a) {
             return Err(SolverError::input(format!(
-                "actuator '{}': activation {a} out of range ({})",
+                "actuator '{}': activation {} out of range ({})",
                 g.name,
+                crate::base::number(a),
                 g.kind.range()
             )));
         }

@@ -29,9 +29,7 @@ struct Scatter<'a> {
     front: Vec<(f64, f64)>,
 }
 
-fn ok(v: f64) -> bool {
-    v.is_finite() && v > 0.0
-}
+use crate::plot::ok;
 
 fn render(path: &Path, s: &Scatter<'_>) -> std::io::Result<()> {
     let pts: Vec<_> = s.points.iter().filter(|p| ok(p.3) && ok(p.4)).collect();
@@ -45,8 +43,9 @@ fn render(path: &Path, s: &Scatter<'_>) -> std::io::Result<()> {
         y0 = y0.min(p.4);
         y1 = y1.max(p.4);
     }
-    let draw = || -> Result<(), Box<dyn std::error::Error>> {
-        let root = SVGBackend::new(path, (900, 600)).into_drawing_area();
+    let mut text = String::new();
+    let draw = |text: &mut String| -> Result<(), Box<dyn std::error::Error>> {
+        let root = SVGBackend::with_string(text, (900, 600)).into_drawing_area();
         root.fill(&WHITE)?;
         let mut c = ChartBuilder::on(&root)
             .caption(&s.title, ("sans-serif", 18))
@@ -96,7 +95,8 @@ fn render(path: &Path, s: &Scatter<'_>) -> std::io::Result<()> {
         root.present()?;
         Ok(())
     };
-    draw().map_err(|e| std::io::Error::other(format!("{}: {e}", path.display())))
+    draw(&mut text).map_err(|e| std::io::Error::other(format!("{}: {e}", path.display())))?;
+    crate::plot::save_svg(path, &text)
 }
 
 fn is_cap(r: &Row) -> bool {

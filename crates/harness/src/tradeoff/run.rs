@@ -374,10 +374,14 @@ pub fn run_shard(
     let t0 = Instant::now();
     spec.validate()?;
     let (model, base_settings) = scene::load(&spec.name, &spec.source, base)?;
-    let loss = diff::loss::by_name(&spec.loss).map_err(|e| TradeoffError::Spec {
-        name: spec.name.clone(),
-        message: e.to_string(),
-    })?;
+    // A loss the model cannot have (a joint angle without a skeleton) is refused before any
+    // run, not left in every gradient row.
+    let loss = diff::loss::by_name(&spec.loss)
+        .and_then(|l| l.validate(&model).map(|()| l))
+        .map_err(|e| TradeoffError::Spec {
+            name: spec.name.clone(),
+            message: e.to_string(),
+        })?;
     let ctx = Ctx {
         spec,
         model: &model,

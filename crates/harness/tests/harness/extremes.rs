@@ -99,7 +99,7 @@ fn shards_merge_into_the_unsharded_report() {
     let e = extremes::merge(parts[1..].to_vec(), &names[1..])
         .unwrap_err()
         .to_string();
-    assert!(e.contains("missing shard(s) 0/3"), "{e}");
+    assert!(e.contains("missing 1 of 3 shards: 0/3"), "{e}");
 }
 
 #[test]

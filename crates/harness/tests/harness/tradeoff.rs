@@ -167,7 +167,7 @@ fn shards_merge_into_the_unsharded_report() {
     let e = tradeoff::merge(parts[..2].to_vec(), &names[..2])
         .unwrap_err()
         .to_string();
-    assert!(e.contains("missing shard(s) 2/3"), "{e}");
+    assert!(e.contains("missing 1 of 3 shards: 2/3"), "{e}");
     let dup = vec![parts[0].clone(), parts[0].clone(), parts[2].clone()];
     let e = tradeoff::merge(dup, &names).unwrap_err().to_string();
     assert!(e.contains("both shard 0/3"), "{e}");

@@ -73,13 +73,13 @@ impl BodyCollision {
         if !(self.thickness.is_finite() && self.thickness > 0.0) {
             return Err(InputError::new(format!(
                 "collision thickness must be finite and positive, got {}",
-                self.thickness
+                crate::base::number(self.thickness)
             )));
         }
         if !(self.friction.is_finite() && self.friction >= 0.0) {
             return Err(InputError::new(format!(
                 "collision friction must be finite and >= 0, got {}",
-                self.friction
+                crate::base::number(self.friction)
             )));
         }
         Ok(())
