@@ -375,6 +375,14 @@ pub fn study(scenes: &[(std::path::PathBuf, usize)], sizes: &[usize], out: &Path
     for &n in sizes {
         check_cloth_size(n)?;
     }
+    // The detection cost's exponent is a fit over sizes: it needs two different ones.
+    let mut distinct = sizes.to_vec();
+    distinct.sort_unstable();
+    distinct.dedup();
+    anyhow::ensure!(
+        distinct.len() == sizes.len() && sizes.len() >= 2,
+        "--sizes {sizes:?}: the detection cost's growth is fitted over the sizes, so it needs at least two, each once"
+    );
     let mut runs = Vec::new();
     let mut verdicts = Vec::new();
     // Plot failures are collected, not raised: the data is returned whatever a plot does.

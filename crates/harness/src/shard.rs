@@ -151,17 +151,60 @@ pub fn check_items(shard: Shard, items: usize, what: &str) -> Result<(), ShardEr
 }
 
 /// Check that every partial report has the same value of a field (the sweep's inputs, the crate
-/// version): partial reports of different sweeps or builds do not merge.
-pub fn check_same<T: PartialEq + fmt::Debug>(what: &str, values: &[T], paths: &[String]) -> Result<(), ShardError> {
+/// version): partial reports of different sweeps or builds do not merge. The error names the
+/// first part that differs (`caps: [1,3] in a.json, [1,10] in b.json`), as JSON.
+pub fn check_same<T: PartialEq + Serialize>(what: &str, values: &[T], paths: &[String]) -> Result<(), ShardError> {
     for (v, p) in values.iter().zip(paths).skip(1) {
         if v != &values[0] {
+            let (a, b) = (
+                serde_json::to_value(&values[0]).unwrap_or_default(),
+                serde_json::to_value(v).unwrap_or_default(),
+            );
+            let (at, x, y) = first_difference(&a, &b, "").unwrap_or_else(|| (String::new(), a, b));
+            let short = |v: &serde_json::Value| {
+                let t = v.to_string();
+                if t.chars().count() > 200 {
+                    format!("{}...", t.chars().take(200).collect::<String>())
+                } else {
+                    t
+                }
+            };
+            let field = if at.is_empty() {
+                String::new()
+            } else {
+                format!(" at {}", at.trim_start_matches('.'))
+            };
             return Err(ShardError::Mismatch(format!(
-                "{what} differ: {} has {:?}, {p} has {v:?}",
-                paths[0], values[0]
+                "{what} differ{field}: {} in {}, {} in {p}",
+                short(&x),
+                paths[0],
+                short(&y)
             )));
         }
     }
     Ok(())
+}
+
+/// The first place (a `.key` / `[i]` path) where two JSON values differ, and the two values
+/// there.
+fn first_difference(
+    a: &serde_json::Value,
+    b: &serde_json::Value,
+    path: &str,
+) -> Option<(String, serde_json::Value, serde_json::Value)> {
+    use serde_json::Value;
+    match (a, b) {
+        (Value::Object(x), Value::Object(y)) if x.len() == y.len() && x.keys().all(|k| y.contains_key(k)) => x
+            .iter()
+            .find_map(|(k, u)| first_difference(u, &y[k], &format!("{path}.{k}"))),
+        (Value::Array(x), Value::Array(y)) if x.len() == y.len() => x
+            .iter()
+            .zip(y)
+            .enumerate()
+            .find_map(|(i, (u, v))| first_difference(u, v, &format!("{path}[{i}]"))),
+        _ if a == b => None,
+        _ => Some((path.to_string(), a.clone(), b.clone())),
+    }
 }
 
 /// A partial report written by one shard: what [`check_partials`] compares before a merge.
@@ -211,6 +254,19 @@ mod tests {
             let owners = (0..n).filter(|&k| Shard { index: k, count: n }.owns(i)).count();
             assert_eq!(owners, 1);
         }
+    }
+
+    /// Partial reports of different sweeps are named by the first field that differs, not by
+    /// a dump of both inputs.
+    #[test]
+    fn differing_inputs_name_the_first_field_that_differs() {
+        let p: Vec<String> = ["a.json", "b.json"].iter().map(|s| s.to_string()).collect();
+        let v = |caps: &[u32]| serde_json::json!({"name": "beam", "caps": caps, "steps": 50});
+        check_same("sweep inputs", &[v(&[1, 3]), v(&[1, 3])], &p).unwrap();
+        let e = check_same("sweep inputs", &[v(&[1, 3]), v(&[1, 10])], &p)
+            .unwrap_err()
+            .to_string();
+        assert_eq!(e, "cannot merge: sweep inputs differ at caps[1]: 3 in a.json, 10 in b.json");
     }
 
     #[test]

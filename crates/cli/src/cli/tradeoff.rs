@@ -31,7 +31,7 @@ pub(crate) struct TradeoffArgs {
     #[arg(long, default_value_t = 16)]
     reference_divisor: usize,
     /// Tolerance of the reference runs.
-    #[arg(long, default_value_t = 1e-12, value_parser = super::numbers::non_negative)]
+    #[arg(long, default_value_t = 1e-12, value_parser = super::numbers::positive)]
     reference_tolerance: f64,
     /// Anderson memory of the reference trajectories (0: plain iteration).
     #[arg(long, default_value_t = 0)]

@@ -423,6 +423,30 @@ fn counts_and_scales_beyond_reason_are_errors_naming_the_flag() {
             ],
             "--shard 0/100000: more shards than",
         ),
+        (
+            vec![
+                "cloth",
+                "--sizes",
+                "4,4",
+                "--steps",
+                "1",
+                "--out",
+                "/tmp/diffsoft-never",
+            ],
+            "--sizes [4, 4]",
+        ),
+        (
+            vec![
+                "tradeoff",
+                "--cantilever",
+                "2,1,1",
+                "--steps",
+                "2",
+                "--targets",
+                "0.1,0.1",
+            ],
+            "targets must be distinct",
+        ),
     ];
     for (args, flag) in cases {
         let o = diffsoft(&args);

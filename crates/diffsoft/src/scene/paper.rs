@@ -296,6 +296,13 @@ pub fn import(path: &Path, value: &Value, opts: LoadOptions) -> Result<Scene, Sc
         .and_then(|f| f.get(0))
         .and_then(|f| f.as_f64())
         .unwrap_or(0.1);
+    // Checked even where no contact reads it: a negative coefficient is a broken file.
+    if !(friction.is_finite() && friction >= 0.0) {
+        return Err(cx.invalid(format!(
+            "\"Friction coefficients\" must be finite and >= 0, got {}",
+            crate::base::number(friction)
+        )));
+    }
     let mut builder = ModelBuilder::new().gravity(if underwater { Vector3::zeros() } else { gravity });
     let meshes_json = value
         .get("Meshes")

@@ -157,3 +157,23 @@ fn diffsoft_scenes_reject_unknown_keys_and_meaningless_values() {
         .to_string()
         .contains("not a scene"));
 }
+
+/// A paper scene with a negative friction coefficient is refused, naming the field, even where
+/// no contact reads it (the bridge has no collisions).
+#[test]
+fn paper_scenes_refuse_negative_friction() {
+    let dir = tmp_dir("paper-friction");
+    let src = paper("bridgesus/bridgesus.json");
+    for entry in std::fs::read_dir(src.parent().unwrap()).unwrap() {
+        let p = entry.unwrap().path();
+        std::fs::copy(&p, dir.join(p.file_name().unwrap())).unwrap();
+    }
+    let mut v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&src).unwrap()).unwrap();
+    v["Friction coefficients"] = serde_json::json!([[-0.1]]);
+    let p = write(&dir, "neg.json", &v.to_string());
+    let e = scene::load(&p, LoadOptions::default()).unwrap_err().to_string();
+    assert!(
+        e.contains("\"Friction coefficients\" must be finite and >= 0, got -0.1"),
+        "{e}"
+    );
+}

@@ -358,10 +358,11 @@ impl TradeoffSpec {
         if !distinct(&self.families) || !distinct(&self.caps) || !distinct(&self.tolerances) {
             return bad("families, caps and tolerances must not repeat".into());
         }
+        let names = |v: &[&'static str]| v.join(",");
         if self.integrators.is_empty() || !distinct(&self.integrators) {
             return bad(format!(
-                "integrators must be distinct and at least one, got {:?}",
-                self.integrators
+                "integrators must be distinct and at least one, got '{}'",
+                names(&self.integrators.iter().map(|i| i.name()).collect::<Vec<_>>())
             ));
         }
         if let Some(f) = self.integrator_families.iter().find(|f| !self.families.contains(f)) {
@@ -376,6 +377,9 @@ impl TradeoffSpec {
         if !distinct(&self.newton_caps) {
             return bad("newton_caps must not repeat".into());
         }
+        if !self.newton_caps.is_empty() && !self.families.contains(&Family::Newton) {
+            return bad("newton_caps are given, but newton is not one of families".into());
+        }
         if self.caps.contains(&0)
             || self.newton_caps.contains(&0)
             || self.tolerance_max_iterations == 0
@@ -384,20 +388,38 @@ impl TradeoffSpec {
             return bad("iteration caps must be at least 1".into());
         }
         let positive = |v: f64| v.is_finite() && v > 0.0;
-        if !self.tolerances.iter().all(|&t| positive(t)) || !positive(self.reference_tolerance) {
+        if !self.tolerances.iter().all(|&t| positive(t)) {
             return bad("tolerances must be finite and positive".into());
+        }
+        if !positive(self.reference_tolerance) {
+            return bad(format!(
+                "reference_tolerance must be finite and positive, got {}",
+                diffsoft::base::number(self.reference_tolerance)
+            ));
         }
         if !positive(self.model_tolerance) {
             return bad(format!(
                 "model_tolerance must be finite and positive, got {}",
-                self.model_tolerance
+                diffsoft::base::number(self.model_tolerance)
             ));
         }
         if !distinct(&self.models) {
-            return bad(format!("models must not repeat, got {:?}", self.models));
+            return bad(format!(
+                "models must not repeat, got '{}'",
+                names(&self.models.iter().map(|m| m.name()).collect::<Vec<_>>())
+            ));
         }
-        if !self.targets.iter().all(|&t| positive(t)) {
-            return bad(format!("targets must be finite and positive, got {:?}", self.targets));
+        if !self.targets.iter().all(|&t| positive(t)) || !distinct(&self.targets) {
+            return bad(format!(
+                "targets must be distinct, finite and positive, got {:?}",
+                self.targets
+            ));
+        }
+        if !distinct(&self.gradient_dt_divisors) {
+            return bad(format!(
+                "gradient dt divisors must not repeat, got {:?}",
+                self.gradient_dt_divisors
+            ));
         }
         if let Some(d) = self.gradient_dt_divisors.iter().find(|d| !self.dt_divisors.contains(d)) {
             return bad(format!("gradient dt divisor {d} is not one of dt_divisors"));
