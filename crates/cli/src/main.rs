@@ -68,7 +68,7 @@ use cli::tradeoff::{tradeoff, TradeoffArgs};
     about = "Differentiable soft multi-body simulation and its verification harness"
 )]
 struct Cli {
-    /// Worker threads (default: all cores).
+    /// Worker threads (default, or 0: all cores).
     #[arg(long, global = true)]
     threads: Option<usize>,
     #[command(subcommand)]
@@ -519,7 +519,7 @@ fn run(command: Command) -> Result<()> {
                     .ok_or_else(|| anyhow::anyhow!("--activation {a}: expected NAME=VALUE"))?;
                 let value: f64 = value
                     .parse()
-                    .map_err(|_| anyhow::anyhow!("--activation {a}: {value} is not a number"))?;
+                    .map_err(|_| anyhow::anyhow!("--activation {a}: '{value}' is not a number"))?;
                 held.push((name.to_string(), value));
             }
             let output = RunOutput {

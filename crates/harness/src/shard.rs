@@ -266,7 +266,10 @@ mod tests {
         let e = check_same("sweep inputs", &[v(&[1, 3]), v(&[1, 10])], &p)
             .unwrap_err()
             .to_string();
-        assert_eq!(e, "cannot merge: sweep inputs differ at caps[1]: 3 in a.json, 10 in b.json");
+        assert_eq!(
+            e,
+            "cannot merge: sweep inputs differ at caps[1]: 3 in a.json, 10 in b.json"
+        );
     }
 
     #[test]

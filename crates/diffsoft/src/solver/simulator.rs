@@ -411,9 +411,15 @@ impl Simulator {
             .actuators
             .as_ref()
             .ok_or_else(|| SolverError::input("the model has no actuators"))?;
-        let g = act
-            .group(name)
-            .ok_or_else(|| SolverError::input(format!("no actuator group named '{name}'")))?;
+        let g = act.group(name).ok_or_else(|| {
+            let names: Vec<&str> = act.groups.iter().map(|g| g.name.as_str()).collect();
+            let shown = if names.len() > 12 {
+                format!("{}, ... ({} groups)", names[..12].join(", "), names.len())
+            } else {
+                names.join(", ")
+            };
+            SolverError::input(format!("no actuator group named '{name}' (the groups: {shown})"))
+        })?;
         self.set_activation_of(g, a)
     }
 

@@ -61,7 +61,16 @@ pub fn finalize(parts: Vec<TradeoffPartial>, paths: &[String]) -> Result<SceneTr
     let scene = first.scene.clone();
     let reference = first.reference.clone();
     let gradient_parameters = first.gradient_parameters.clone();
-    let total = first.total_rows;
+    // The grid follows from the inputs (checked equal above): each shard's rows are checked
+    // against it, not trusted.
+    let grid = spec.grid();
+    let total = grid.len();
+    if let Some((p, path)) = parts.iter().zip(paths).find(|(p, _)| p.total_rows != total) {
+        return Err(ShardError::Mismatch(format!(
+            "{path} says its sweep has {} rows, but its inputs give a grid of {total}",
+            p.total_rows
+        )));
+    }
     let dt_references = union_by_divisor(
         "the reference trajectory",
         parts
@@ -82,14 +91,49 @@ pub fn finalize(parts: Vec<TradeoffPartial>, paths: &[String]) -> Result<SceneTr
         |r| (r.integrator, r.dt_divisor),
         |a, b| a.gradient.values == b.gradient.values && a.gradient.message == b.gradient.message,
     )?;
-    let mut rows: Vec<Row> = parts.iter().flat_map(|p| p.rows.iter().cloned()).collect();
-    rows.sort_by_key(|r| r.index);
-    if rows.len() != total || rows.iter().enumerate().any(|(i, r)| r.index != i) {
+    let mut owned: Vec<(Row, &String)> = parts
+        .iter()
+        .zip(paths)
+        .flat_map(|(p, path)| p.rows.iter().cloned().map(move |r| (r, path)))
+        .collect();
+    owned.sort_by_key(|(r, _)| r.index);
+    for w in owned.windows(2) {
+        if w[0].0.index == w[1].0.index {
+            return Err(ShardError::Mismatch(format!(
+                "row {} is in both {} and {}",
+                w[0].0.index, w[0].1, w[1].1
+            )));
+        }
+    }
+    for (r, path) in &owned {
+        let Some(setting) = grid.get(r.index) else {
+            return Err(ShardError::Mismatch(format!(
+                "{path}: row index {} is past the grid's {total} rows",
+                r.index
+            )));
+        };
+        if r.id != setting.id() {
+            return Err(ShardError::Mismatch(format!(
+                "{path}: row {} is '{}', where the grid has '{}'",
+                r.index,
+                r.id,
+                setting.id()
+            )));
+        }
+        if r.setting != *setting {
+            return Err(ShardError::Mismatch(format!(
+                "{path}: row {} ('{}') holds a setting that is not the grid's (its family, knob, time step or integrator differs)",
+                r.index, r.id
+            )));
+        }
+    }
+    if owned.len() != total {
         return Err(ShardError::Mismatch(format!(
-            "the shards hold {} rows, the grid has {total}",
-            rows.len()
+            "the shards hold {} of the grid's {total} rows",
+            owned.len()
         )));
     }
+    let mut rows: Vec<Row> = owned.into_iter().map(|(r, _)| r).collect();
     let models = parts.iter().find_map(|p| p.models.clone());
     if !spec.models.is_empty() && models.is_none() {
         return Err(ShardError::Mismatch(

@@ -175,6 +175,20 @@ fn shards_merge_into_the_unsharded_report() {
     other[1].spec.steps = 5;
     let e = tradeoff::merge(other, &names).unwrap_err().to_string();
     assert!(e.contains("sweep inputs differ") && e.contains("part1.json"), "{e}");
+    // Tampered shards: rows are checked against the grid the inputs give, not trusted.
+    let mut other = parts.clone();
+    other[1].total_rows = 99;
+    let e = tradeoff::merge(other, &names).unwrap_err().to_string();
+    assert!(e.contains("part1.json says its sweep has 99 rows"), "{e}");
+    let mut other = parts.clone();
+    let stolen = other[0].rows[0].clone();
+    other[1].rows.push(stolen);
+    let e = tradeoff::merge(other, &names).unwrap_err().to_string();
+    assert!(e.contains("row 0 is in both part0.json and part1.json"), "{e}");
+    let mut other = parts.clone();
+    other[2].rows[0].id = "direct/cap=999/h".into();
+    let e = tradeoff::merge(other, &names).unwrap_err().to_string();
+    assert!(e.contains("part2.json: row") && e.contains("where the grid has"), "{e}");
 }
 
 /// The material model as a knob: against a refined Neo-Hookean reference, the Neo-Hookean rows
