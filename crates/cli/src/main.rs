@@ -520,6 +520,9 @@ fn run(command: Command) -> Result<()> {
                 let value: f64 = value
                     .parse()
                     .map_err(|_| anyhow::anyhow!("--activation {a}: '{value}' is not a number"))?;
+                if held.iter().any(|(n, _)| n == name) {
+                    bail!("--activation {name}: given twice; give each group once");
+                }
                 held.push((name.to_string(), value));
             }
             let output = RunOutput {

@@ -109,6 +109,9 @@ pub(crate) fn grad(a: GradArgs) -> Result<()> {
         p.set(&mut sc.model, v)?;
     }
     let params: Vec<Param> = a.param.iter().map(|p| p.parse()).collect::<Result<_, _>>()?;
+    if let Some(k) = (1..a.param.len()).find(|&k| a.param[..k].contains(&a.param[k])) {
+        bail!("--param {}: given twice; give each parameter once", a.param[k]);
+    }
     let loss = diff::loss::by_name(&a.loss)?;
     let g = diff::gradient(
         &sc.model,

@@ -316,6 +316,10 @@ fn counts_and_scales_beyond_reason_are_errors_naming_the_flag() {
     let mesh = root().join("python/tests/data/beam.obj");
     let m = mesh.to_str().unwrap();
     let max = u64::MAX.to_string();
+    let beam = root()
+        .join("python/tests/data/beam.json")
+        .to_string_lossy()
+        .into_owned();
     let cases: Vec<(Vec<&str>, &str)> = vec![
         (
             vec!["sweep", "--mesh", m, "--rho", "1000", "--mu", "1e5", "--points", &max],
@@ -434,6 +438,12 @@ fn counts_and_scales_beyond_reason_are_errors_naming_the_flag() {
                 "/tmp/diffsoft-never",
             ],
             "--sizes [4, 4]",
+        ),
+        (
+            vec![
+                "grad", &beam, "--steps", "2", "--param", "density", "--param", "density",
+            ],
+            "--param density: given twice",
         ),
         (
             vec![
