@@ -52,9 +52,9 @@ pub(crate) struct TradeoffArgs {
     /// Newton tolerance of the model comparison.
     #[arg(long, default_value_t = 1e-8, value_parser = super::numbers::positive)]
     model_tolerance: f64,
-    /// Iteration caps of the newton family (default: --caps).
-    #[arg(long, value_delimiter = ',')]
-    newton_caps: Vec<usize>,
+    /// Iteration caps of the newton family (default, or `''`: --caps).
+    #[arg(long, default_value = "")]
+    newton_caps: List<usize>,
     /// Integrator of the h/R reference run (the total error of every setting).
     #[arg(long, value_parser = choice::<diffsoft::solver::Integrator>(), default_value = "implicit_euler")]
     reference_integrator: diffsoft::solver::Integrator,
@@ -167,7 +167,7 @@ pub(crate) fn tradeoff(args: TradeoffArgs) -> Result<()> {
             s.integrators = integrators;
             s.integrator_families = integrator_families;
             s.reference_integrator = reference_integrator;
-            s.newton_caps = newton_caps;
+            s.newton_caps = newton_caps.0;
             s.models = models;
             s.model_tolerance = model_tolerance;
             s.caps = caps.0;
@@ -231,8 +231,14 @@ impl<T: std::str::FromStr> std::str::FromStr for List<T> {
             .map(str::trim)
             .filter(|t| !t.is_empty())
             .map(|t| {
-                t.parse()
-                    .map_err(|_| format!("'{t}' is not a valid entry of the list '{s}'"))
+                t.parse().map_err(|_| {
+                    let expected = match std::any::type_name::<T>() {
+                        "usize" => "a whole number of at least 0",
+                        "f64" => "a number",
+                        other => other,
+                    };
+                    format!("'{t}' is not a valid entry of the list '{s}': expected {expected}")
+                })
             })
             .collect::<Result<_, _>>()
             .map(List)

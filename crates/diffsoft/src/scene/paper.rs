@@ -726,6 +726,15 @@ fn paper_muscles(
         }
         let id: i64 = fields[0].parse().map_err(|_| bad())?;
         let sample: i64 = fields[1].parse().map_err(|_| bad())?;
+        if id < 0 || sample < 0 {
+            return Err(SceneError::Invalid {
+                path: shown.clone(),
+                message: format!(
+                    "line {}: muscle and sample numbers count from 0, got {id} and {sample}",
+                    n + 1
+                ),
+            });
+        }
         let mut p = [0.0; 3];
         for (k, f) in fields[2..].iter().enumerate() {
             p[k] = f.parse::<f64>().ok().filter(|v| v.is_finite()).ok_or_else(bad)?;

@@ -177,3 +177,29 @@ fn paper_scenes_refuse_negative_friction() {
         "{e}"
     );
 }
+
+/// A muscle file's negative muscle or sample number is named on its line, not reported later
+/// as a muscle without segments.
+#[test]
+fn paper_muscle_files_refuse_negative_numbers() {
+    let dir = tmp_dir("paper-muscle");
+    let src = paper("octopus/octopus.json");
+    for entry in std::fs::read_dir(src.parent().unwrap()).unwrap() {
+        let p = entry.unwrap().path();
+        std::fs::copy(&p, dir.join(p.file_name().unwrap())).unwrap();
+    }
+    let muscle = dir.join("octopus.muscle");
+    let text = std::fs::read_to_string(&muscle).unwrap();
+    let mut lines: Vec<String> = text.lines().map(String::from).collect();
+    let mut first: Vec<String> = lines[0].split_whitespace().map(String::from).collect();
+    first[0] = "-1".into();
+    lines[0] = first.join(" ");
+    std::fs::write(&muscle, lines.join("\n")).unwrap();
+    let e = scene::load(dir.join("octopus.json"), LoadOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("line 1: muscle and sample numbers count from 0, got -1"),
+        "{e}"
+    );
+}
