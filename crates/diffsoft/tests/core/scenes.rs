@@ -8,6 +8,18 @@ fn paper(name: &str) -> std::path::PathBuf {
     root().join("verification/paper").join(name)
 }
 
+/// A scratch copy of the directory of paper scene `name` (to edit its files), and the
+/// original scene's path.
+fn paper_copy(tag: &str, name: &str) -> (std::path::PathBuf, std::path::PathBuf) {
+    let dir = tmp_dir(tag);
+    let src = paper(name);
+    for entry in std::fs::read_dir(src.parent().unwrap()).unwrap() {
+        let p = entry.unwrap().path();
+        std::fs::copy(&p, dir.join(p.file_name().unwrap())).unwrap();
+    }
+    (dir, src)
+}
+
 #[test]
 fn paper_scenes_import_with_the_reference_defaults() {
     let s = scene::load(paper("bridgesus/bridgesus.json"), LoadOptions::default()).unwrap();
@@ -162,12 +174,7 @@ fn diffsoft_scenes_reject_unknown_keys_and_meaningless_values() {
 /// no contact reads it (the bridge has no collisions).
 #[test]
 fn paper_scenes_refuse_negative_friction() {
-    let dir = tmp_dir("paper-friction");
-    let src = paper("bridgesus/bridgesus.json");
-    for entry in std::fs::read_dir(src.parent().unwrap()).unwrap() {
-        let p = entry.unwrap().path();
-        std::fs::copy(&p, dir.join(p.file_name().unwrap())).unwrap();
-    }
+    let (dir, src) = paper_copy("paper-friction", "bridgesus/bridgesus.json");
     let mut v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&src).unwrap()).unwrap();
     v["Friction coefficients"] = serde_json::json!([[-0.1]]);
     let p = write(&dir, "neg.json", &v.to_string());
@@ -182,12 +189,7 @@ fn paper_scenes_refuse_negative_friction() {
 /// as a muscle without segments.
 #[test]
 fn paper_muscle_files_refuse_negative_numbers() {
-    let dir = tmp_dir("paper-muscle");
-    let src = paper("octopus/octopus.json");
-    for entry in std::fs::read_dir(src.parent().unwrap()).unwrap() {
-        let p = entry.unwrap().path();
-        std::fs::copy(&p, dir.join(p.file_name().unwrap())).unwrap();
-    }
+    let (dir, _) = paper_copy("paper-muscle", "octopus/octopus.json");
     let muscle = dir.join("octopus.muscle");
     let text = std::fs::read_to_string(&muscle).unwrap();
     let mut lines: Vec<String> = text.lines().map(String::from).collect();
