@@ -392,9 +392,9 @@ pub(crate) fn run_mesh(
         .collect();
     let sweep_json = format!("sweeps/{slug}.json");
     let sweep_svg = format!("sweeps/{slug}.svg");
-    write_json(out.join(&sweep_json), &sweep_report)?;
+    write_json(diffsoft::output::own_file(out, &sweep_json)?, &sweep_report)?;
     plot::write_svg(
-        &out.join(&sweep_svg),
+        &diffsoft::output::own_file(out, &sweep_svg)?,
         &sweep_report.chart(&format!(
             "{}: spectral radius of (19) and (21) vs time step",
             entry.name

@@ -409,7 +409,7 @@ pub fn study(scenes: &[(std::path::PathBuf, usize)], sizes: &[usize], out: &Path
     ));
     if !detection.is_empty() {
         let drawn = plot::write_svg(
-            &out.join("cloth_detection.svg"),
+            &diffsoft::output::own_file(out, "cloth_detection.svg")?,
             &LogLogChart {
                 title: "Collision detection cost against surface size".into(),
                 x_label: "surface primitives (triangles + edges + vertices)".into(),
@@ -481,7 +481,7 @@ fn write_plots(name: &str, run: &ClothRun, out: &Path) -> Result<()> {
         points: times.iter().zip(&run.series).map(|(&t, s)| (t, f(s))).collect(),
     };
     plot::write_linear_svg(
-        &out.join(format!("cloth_{name}_stretch.svg")),
+        &diffsoft::output::own_file(out, &format!("cloth_{name}_stretch.svg"))?,
         &LinearChart {
             title: format!("{name}: principal stretches"),
             x_label: "time (s)".into(),
@@ -495,7 +495,7 @@ fn write_plots(name: &str, run: &ClothRun, out: &Path) -> Result<()> {
     )?;
     if run.series.iter().any(|s| s.min_distance.is_some()) {
         plot::write_linear_svg(
-            &out.join(format!("cloth_{name}_distance.svg")),
+            &diffsoft::output::own_file(out, &format!("cloth_{name}_distance.svg"))?,
             &LinearChart {
                 title: format!(
                     "{name}: smallest distance between the surfaces (thickness {:.0e} m)",
@@ -525,7 +525,7 @@ fn write_plots(name: &str, run: &ClothRun, out: &Path) -> Result<()> {
         hi = (hi.0.max(p.0), hi.1.max(p.1));
     }
     plot::write_snapshots_svg(
-        &out.join(format!("cloth_{name}_frames.svg")),
+        &diffsoft::output::own_file(out, &format!("cloth_{name}_frames.svg"))?,
         &Snapshots {
             title: format!("{name}: side view (x, y) of all vertices"),
             rows: vec![panels],

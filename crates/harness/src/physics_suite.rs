@@ -130,7 +130,7 @@ pub(crate) fn run_physics(base: &Path, out: &Path, suite: &suite::PhysicsSuite) 
             at: 0.008,
         }],
     };
-    plot::write_svg(&out.join("cantilever.svg"), &chart)?;
+    plot::write_svg(&diffsoft::output::own_file(out, "cantilever.svg")?, &chart)?;
     Ok(PhysicsReport {
         header: Header::new(PHYSICS_SCHEMA),
         free_fall,

@@ -388,7 +388,7 @@ pub fn study(scene_path: &Path, steps: usize, arm_bones: &[String], out: &Path) 
     );
     let (w, h) = (hi_x - lo_x, hi_y - lo_y);
     plot::write_snapshots_svg(
-        &out.join("skeleton_frames.svg"),
+        &diffsoft::output::own_file(out, "skeleton_frames.svg")?,
         &Snapshots {
             title: "Front views: with bones and shoulder torques (top, Fig. 5b) and without bones (bottom, Fig. 5e)"
                 .into(),
@@ -415,7 +415,7 @@ pub fn study(scene_path: &Path, steps: usize, arm_bones: &[String], out: &Path) 
             .series
             .push(series(&without, k, &format!("{} arm, no bones", a.bone)));
     }
-    plot::write_linear_svg(&out.join("skeleton_arms.svg"), &chart)?;
+    plot::write_linear_svg(&diffsoft::output::own_file(out, "skeleton_arms.svg")?, &chart)?;
     let joints = LinearChart {
         title: "Joint angles with shoulder torques (paper Fig. 5b)".into(),
         x_label: "time (s)".into(),
@@ -430,7 +430,7 @@ pub fn study(scene_path: &Path, steps: usize, arm_bones: &[String], out: &Path) 
             })
             .collect(),
     };
-    plot::write_linear_svg(&out.join("skeleton_joints.svg"), &joints)?;
+    plot::write_linear_svg(&diffsoft::output::own_file(out, "skeleton_joints.svg")?, &joints)?;
     Ok(SkeletonReport {
         header: Header::new(SCHEMA),
         scene: scene_path.display().to_string(),

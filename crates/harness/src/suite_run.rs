@@ -25,7 +25,7 @@ pub fn run_suite(suite_path: &Path, out: &Path) -> Result<SuiteBoundsReport> {
     let cpu0 = process_cpu_s();
     let suite = Suite::load(suite_path)?;
     let base = suite_path.parent().unwrap_or(Path::new("."));
-    std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
+    diffsoft::output::output_dir(out, "--out")?;
     let mut meshes = Vec::new();
     for entry in &suite.bounds.meshes {
         let t = Instant::now();
@@ -78,24 +78,27 @@ pub fn run_suite(suite_path: &Path, out: &Path) -> Result<SuiteBoundsReport> {
         t_scaling,
         wall_time_s: t0.elapsed().as_secs_f64(),
     };
-    let path = out.join("bounds.json");
+    let path = diffsoft::output::own_file(out, "bounds.json")?;
     write_json(&path, &report)?;
-    plot::write_svg(&out.join("t_scaling.svg"), &t_scaling_chart(&report.t_scaling))?;
+    plot::write_svg(
+        &diffsoft::output::own_file(out, "t_scaling.svg")?,
+        &t_scaling_chart(&report.t_scaling),
+    )?;
     let table = summary::table(&report);
     // The table as printed, for the documentation that quotes it (crates/harness/tests/harness/doc_numbers.rs).
-    diffsoft::output::write_atomic(&out.join("bounds_table.txt"), table.as_bytes())?;
+    diffsoft::output::write_atomic(&diffsoft::output::own_file(out, "bounds_table.txt")?, table.as_bytes())?;
     crate::say_raw!("{table}");
     section("t-scaling and paper arithmetic", &mut lap);
     crate::say!("\nJacobian checks of the skeleton:");
     let jac = jacobians::run(2021);
-    write_json(out.join("jacobians.json"), &jac)?;
+    write_json(diffsoft::output::own_file(out, "jacobians.json")?, &jac)?;
     for v in &jac.verdicts {
         crate::say!("  [{}] {}", if v.holds { "holds" } else { "FAILS" }, v.claim);
     }
     section("Jacobian checks", &mut lap);
     crate::say!("\nphysics checks of the forward solver:");
     let phys = run_physics(base, out, &suite.physics)?;
-    write_json(out.join("physics.json"), &phys)?;
+    write_json(diffsoft::output::own_file(out, "physics.json")?, &phys)?;
     crate::say_raw!("{}", summary::physics_table(&phys));
     section("physics checks", &mut lap);
     crate::say!("\nskeleton study ({}):", suite.skeleton.scene.display());
@@ -105,7 +108,7 @@ pub fn run_suite(suite_path: &Path, out: &Path) -> Result<SuiteBoundsReport> {
         &suite.skeleton.arm_bones,
         out,
     )?;
-    write_json(out.join("skeleton.json"), &sk)?;
+    write_json(diffsoft::output::own_file(out, "skeleton.json")?, &sk)?;
     crate::say_raw!("{}", summary::skeleton_table(&sk));
     section("skeleton study", &mut lap);
     crate::say!("\nactuator study:");
@@ -122,7 +125,7 @@ pub fn run_suite(suite_path: &Path, out: &Path) -> Result<SuiteBoundsReport> {
         },
         out,
     )?;
-    write_json(out.join("actuators.json"), &act)?;
+    write_json(diffsoft::output::own_file(out, "actuators.json")?, &act)?;
     crate::say_raw!("{}", actuators::table(&act));
     section("actuator study", &mut lap);
     crate::say!(
@@ -142,7 +145,7 @@ pub fn run_suite(suite_path: &Path, out: &Path) -> Result<SuiteBoundsReport> {
         },
         out,
     )?;
-    write_json(out.join("gradients.json"), &grad)?;
+    write_json(diffsoft::output::own_file(out, "gradients.json")?, &grad)?;
     for v in &grad.verdicts {
         crate::say!("  [{}] {}", if v.holds { "holds" } else { "FAILS" }, v.claim);
     }
@@ -155,7 +158,7 @@ pub fn run_suite(suite_path: &Path, out: &Path) -> Result<SuiteBoundsReport> {
     if let Some(x) = &suite.extremes {
         crate::say!("\nextremes ({:?} subset):", x.subset);
         let ex = extremes::run(x.subset, true);
-        write_json(out.join("extremes.json"), &ex)?;
+        write_json(diffsoft::output::own_file(out, "extremes.json")?, &ex)?;
         crate::say_raw!("{}", extremes::table(&ex));
     }
     section("extremes", &mut lap);
@@ -164,7 +167,7 @@ pub fn run_suite(suite_path: &Path, out: &Path) -> Result<SuiteBoundsReport> {
         let scenes: Vec<(std::path::PathBuf, usize)> =
             c.scenes.iter().map(|s| (base.join(&s.scene), s.steps)).collect();
         let cl = cloth::study(&scenes, &c.detection_sizes, out)?;
-        write_json(out.join("cloth.json"), &cl)?;
+        write_json(diffsoft::output::own_file(out, "cloth.json")?, &cl)?;
         crate::say_raw!("{}", cloth::table(&cl));
         for e in &cl.plot_errors {
             crate::warn!("warning: cloth plot not drawn: {e}");
@@ -174,7 +177,7 @@ pub fn run_suite(suite_path: &Path, out: &Path) -> Result<SuiteBoundsReport> {
     if let Some(v) = &suite.validation {
         crate::say!("\nvalidation against closed forms ({:?} subset):", v.subset);
         let val = validation::run(v.subset, &[]);
-        write_json(out.join("validation.json"), &val)?;
+        write_json(diffsoft::output::own_file(out, "validation.json")?, &val)?;
         crate::say_raw!("{}", validation::table(&val));
     }
     section("validation", &mut lap);

@@ -266,4 +266,13 @@ fn report_page_rewrites_the_page_and_names_a_bad_report() {
     assert!(err.contains("b.json") && err.contains("/verdicts/0/holds"), "{err}");
     // The page of the good reports stays as it was.
     assert_eq!(std::fs::read_to_string(dir.join("index.html")).unwrap(), html);
+    // The page's own name taken by a link to another file: refused, that file untouched.
+    std::fs::remove_file(dir.join("b.json")).unwrap();
+    std::fs::rename(dir.join("index.html"), dir.join("mine.txt")).unwrap();
+    std::os::unix::fs::symlink("mine.txt", dir.join("index.html")).unwrap();
+    let out = diffsoft(&["report-page", "--reports", dir.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("index.html: is a symbolic link to mine.txt"), "{err}");
+    assert_eq!(std::fs::read_to_string(dir.join("mine.txt")).unwrap(), html);
 }

@@ -107,7 +107,7 @@ impl FrameWriter {
     /// # Ok::<(), Box<dyn std::error::Error>>(())
     /// ```
     pub fn new(dir: &Path, model: &Model) -> std::io::Result<Self> {
-        std::fs::create_dir_all(dir).map_err(|e| named(e, dir))?;
+        super::output_dir(dir, "the frames' path")?;
         let n = model.n();
         let tets: Vec<_> = model
             .tets
@@ -268,7 +268,7 @@ impl FrameWriter {
     /// Assemble and write a frame from `q`, `v` and the activation and impulse buffers.
     fn write_frame(&mut self, time: f64, q: &[Vector3<f64>], v: &[Vector3<f64>]) -> std::io::Result<PathBuf> {
         let name = format!("frame_{:05}.vtu", self.frames.len());
-        let path = self.dir.join(&name);
+        let path = super::own_file(&self.dir, &name)?;
         if q.len() != self.n || v.len() != self.n {
             return Err(std::io::Error::new(
                 std::io::ErrorKind::InvalidInput,
@@ -348,7 +348,7 @@ impl FrameWriter {
             let _ = writeln!(s, "    <DataSet timestep=\"{t:?}\" part=\"0\" file=\"{f}\"/>");
         }
         s.push_str("  </Collection>\n</VTKFile>\n");
-        write_atomic(&self.dir.join(COLLECTION), s.as_bytes())
+        write_atomic(&super::own_file(&self.dir, COLLECTION)?, s.as_bytes())
     }
 }
 
@@ -369,11 +369,6 @@ fn contact_impulses(sim: &Simulator, out: &mut [Vector3<f64>]) {
             }
         }
     }
-}
-
-/// The error `e` with `path` in front.
-fn named(e: std::io::Error, path: &Path) -> std::io::Error {
-    std::io::Error::new(e.kind(), format!("{}: {e}", path.display()))
 }
 
 /// Little-endian bytes of `v`'s components, vector by vector.
@@ -458,6 +453,46 @@ mod tests {
         let mut out = b"x".to_vec();
         base64_encode(s, &mut out);
         String::from_utf8(out[1..].to_vec()).unwrap()
+    }
+
+    /// A frame or the collection whose name is taken by a link (to an input, say) or a FIFO is
+    /// refused, naming it, and the link's target is left as it was.
+    #[test]
+    fn frames_are_never_written_through_a_link_or_into_a_fifo() {
+        use crate::mesh::generate::BoxSpec;
+        use crate::{BodySpec, MassSpec, Material, ModelBuilder, Settings};
+        let mesh = BoxSpec::new([1, 1, 1], [0.1, 0.1, 0.1]).build().unwrap();
+        let material = Material {
+            youngs_modulus: 1e5,
+            poisson_ratio: 0.3,
+        };
+        let model = ModelBuilder::new()
+            .body(BodySpec::new("box", mesh, material, MassSpec::Density(1000.0)))
+            .build()
+            .unwrap();
+        let dir = std::env::temp_dir().join(format!("diffsoft-frames-links-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let input = dir.join("input.json");
+        std::fs::write(&input, "an input").unwrap();
+        std::os::unix::fs::symlink(&input, dir.join("frame_00000.vtu")).unwrap();
+        let mut frames = FrameWriter::new(&dir, &model).unwrap();
+        let mut sim = Simulator::new(model.clone(), Settings::default()).unwrap();
+        sim.step().unwrap();
+        let e = frames.write_state(&sim).unwrap_err().to_string();
+        assert!(e.contains("frame_00000.vtu: is a symbolic link to"), "{e}");
+        assert_eq!(std::fs::read_to_string(&input).unwrap(), "an input");
+        // The collection's name taken by a link: the frame is written, the collection refused.
+        std::fs::remove_file(dir.join("frame_00000.vtu")).unwrap();
+        std::os::unix::fs::symlink(&input, dir.join(COLLECTION)).unwrap();
+        let mut frames = FrameWriter::new(&dir, &model).unwrap();
+        let e = frames.write_state(&sim).unwrap_err().to_string();
+        assert!(e.contains(COLLECTION) && e.contains("symbolic link"), "{e}");
+        assert_eq!(std::fs::read_to_string(&input).unwrap(), "an input");
+        // A regular file where the directory should be is named as such.
+        let e = FrameWriter::new(&input, &model).unwrap_err().to_string();
+        assert!(e.contains("must name a directory, and this is a regular file"), "{e}");
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]

@@ -173,7 +173,7 @@ pub fn study(inp: &Inputs<'_>, out: &Path) -> Result<GradientsReport> {
     for c in [&cases[1], &cases[2]] {
         costs.push(accuracy_vs_cost(c, &caps)?);
     }
-    write_cost_svg(&out.join("gradient_cost.svg"), &costs)?;
+    write_cost_svg(&diffsoft::output::own_file(out, "gradient_cost.svg")?, &costs)?;
     took("accuracy against cost", &mut lap);
     let mem_scene = scene::load(inp.memory_scene, LoadOptions::default())?;
     let mut mem_settings = mem_scene.settings.clone();

@@ -75,7 +75,7 @@ pub fn render(dir: &Path) -> Result<Page> {
 /// beside it, renamed over it). Returns the page and the path written.
 pub fn write(dir: &Path) -> Result<(Page, PathBuf)> {
     let page = render(dir)?;
-    let path = dir.join(FILE);
+    let path = diffsoft::output::own_file(dir, FILE)?;
     crate::report::write_atomic(&path, page.html.as_bytes()).with_context(|| "cannot write the report page")?;
     Ok((page, path))
 }

@@ -127,7 +127,7 @@ pub fn write(s: &SceneTradeoff, dir: &Path, slug: &str) -> std::io::Result<Vec<S
         .collect();
     let name = format!("tradeoff_{slug}.svg");
     render(
-        &dir.join(&name),
+        &diffsoft::output::own_file(dir, &name)?,
         &Scatter {
             title: format!(
                 "{}: cost against trajectory error (h = {:e} s; one band per time step)",
@@ -157,7 +157,7 @@ pub fn write(s: &SceneTradeoff, dir: &Path, slug: &str) -> std::io::Result<Vec<S
             .collect();
         let name = format!("tradeoff_{slug}_gradient.svg");
         render(
-            &dir.join(&name),
+            &diffsoft::output::own_file(dir, &name)?,
             &Scatter {
                 title: format!("{}: cost against gradient error at the same time step", s.name),
                 x_label: "forward + backward cost per simulated second",

@@ -635,10 +635,13 @@ pub fn suite_section(base: &Path, out: &Path, specs: &[TradeoffSpec]) -> Result<
         scenes.push(s);
     }
     let report = super::TradeoffReport::new(scenes);
-    write_json(out.join("tradeoff.json"), &report).map_err(|e| TradeoffError::Output {
-        name: "tradeoff".into(),
-        message: e.to_string(),
-    })?;
+    diffsoft::output::own_file(out, "tradeoff.json")
+        .map_err(anyhow::Error::from)
+        .and_then(|path| write_json(path, &report).map_err(anyhow::Error::from))
+        .map_err(|e| TradeoffError::Output {
+            name: "tradeoff".into(),
+            message: e.to_string(),
+        })?;
     plots?;
     Ok(report)
 }
