@@ -35,12 +35,15 @@ use std::path::{Path, PathBuf};
 use nalgebra::Vector3;
 use serde_json::Value;
 
+mod actuators;
+
 use super::{LoadOptions, Scene, SceneError, SceneFormat};
 use crate::base::Material;
 use crate::contact::{Obstacle, TriMeshObstacle};
 use crate::mesh;
 use crate::model::{BodySpec, MassSpec, ModelBuilder};
 use crate::solver::Settings;
+use actuators::{paper_muscles, paper_pneumatic};
 
 /// Attach stiffness at or above which attachments become Dirichlet vertices.
 pub const DIRICHLET_STIFFNESS: f64 = 1e12;
@@ -641,170 +644,4 @@ fn paper_bones(
         });
     }
     Ok((out, notes))
-}
-
-/// The paper's "Volume Verts" groups as pneumatic groups (see the module docs).
-fn paper_pneumatic(
-    cx: &mut Ctx<'_>,
-    w: &str,
-    groups: &Value,
-    mesh: &crate::mesh::TetMesh,
-    info: &crate::mesh::MeshInfo,
-    stiffness: f64,
-) -> Result<Vec<crate::actuator::ActuatorSpec>, SceneError> {
-    use crate::actuator::{tets_of_vertices, ActuatorSpec};
-    use crate::base::Schedule;
-    let list = groups
-        .as_array()
-        .ok_or_else(|| cx.invalid(format!("{w}: \"Volume Verts\" must be a list of vertex lists")))?;
-    let mut out = Vec::new();
-    for (k, g) in list.iter().enumerate() {
-        let ids: Vec<usize> = g
-            .as_array()
-            .and_then(|a| {
-                a.iter()
-                    .map(|x| x.as_u64().map(|u| u as usize))
-                    .collect::<Option<Vec<_>>>()
-            })
-            .ok_or_else(|| cx.invalid(format!("{w}: \"Volume Verts\"[{k}] must be a list of vertex indices")))?;
-        let verts = super::select(
-            &cx.shown(),
-            &format!("{w} Volume Verts[{k}]"),
-            &super::format::VertexSelector::Indices(ids),
-            mesh,
-            info,
-        )?;
-        let tets = tets_of_vertices(mesh, &verts, 2);
-        if tets.is_empty() {
-            return Err(cx.invalid(format!("{w}: \"Volume Verts\"[{k}]: no tet has two of these vertices")));
-        }
-        out.push(ActuatorSpec::pneumatic(
-            &format!("pneumatic{k}"),
-            &tets,
-            stiffness,
-            Schedule::constant(1.0),
-        ));
-    }
-    let counts: Vec<String> = out.iter().map(|a| a.cells.len().to_string()).collect();
-    cx.notes.push(format!(
-        "{w}: \"Volume Verts\": {} pneumatic groups pneumatic0..{} on the tets with at least two listed vertices ({} tets), stiffness {stiffness:e}, activation 1 until set (the reference uses edge-length actuators along each list instead)",
-        out.len(),
-        out.len().saturating_sub(1),
-        counts.join(", ")
-    ));
-    Ok(out)
-}
-
-/// The paper's muscle file (`muscle sample x y z` per line, mesh units) as muscle groups.
-fn paper_muscles(
-    cx: &mut Ctx<'_>,
-    w: &str,
-    path: &Path,
-    mesh: &crate::mesh::TetMesh,
-    scale: f64,
-    stiffness: f64,
-) -> Result<Vec<crate::actuator::ActuatorSpec>, SceneError> {
-    use crate::actuator::{nearest_segments, ActuatorSpec};
-    use crate::base::Schedule;
-    let shown = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|e| SceneError::Io {
-        path: shown.clone(),
-        message: e.to_string(),
-    })?;
-    let mut samples: std::collections::BTreeMap<i64, Vec<(i64, Vector3<f64>)>> = Default::default();
-    for (n, line) in text.lines().enumerate() {
-        let fields: Vec<&str> = line.split_whitespace().collect();
-        if fields.is_empty() {
-            continue;
-        }
-        let bad = || SceneError::Invalid {
-            path: shown.clone(),
-            message: format!("line {}: expected `muscle sample x y z`, got {line:?}", n + 1),
-        };
-        if fields.len() != 5 {
-            return Err(bad());
-        }
-        let id: i64 = fields[0].parse().map_err(|_| bad())?;
-        let sample: i64 = fields[1].parse().map_err(|_| bad())?;
-        if id < 0 || sample < 0 {
-            return Err(SceneError::Invalid {
-                path: shown.clone(),
-                message: format!(
-                    "line {}: muscle and sample numbers count from 0, got {id} and {sample}",
-                    n + 1
-                ),
-            });
-        }
-        let mut p = [0.0; 3];
-        for (k, f) in fields[2..].iter().enumerate() {
-            p[k] = f.parse::<f64>().ok().filter(|v| v.is_finite()).ok_or_else(bad)?;
-        }
-        samples.entry(id).or_default().push((sample, Vector3::from(p) * scale));
-    }
-    if samples.is_empty() {
-        return Err(SceneError::Invalid {
-            path: shown,
-            message: "no muscle samples".into(),
-        });
-    }
-    let edges: Vec<f64> = mesh
-        .tets
-        .iter()
-        .flat_map(|t| {
-            [
-                (t[0], t[1]),
-                (t[0], t[2]),
-                (t[0], t[3]),
-                (t[1], t[2]),
-                (t[1], t[3]),
-                (t[2], t[3]),
-            ]
-        })
-        .map(|(a, b)| (mesh.vertices[a] - mesh.vertices[b]).norm())
-        .collect();
-    let radius = 0.5 * edges.iter().sum::<f64>() / edges.len().max(1) as f64;
-    // Nearest muscle (and segment) of every tet.
-    let mut best: Vec<(f64, usize, Vector3<f64>)> = vec![(f64::INFINITY, 0, Vector3::zeros()); mesh.num_tets()];
-    let ids: Vec<i64> = samples.keys().copied().collect();
-    for (k, id) in ids.iter().enumerate() {
-        let mut line = samples[id].clone();
-        line.sort_by_key(|s| s.0);
-        let pts: Vec<Vector3<f64>> = line.iter().map(|s| s.1).collect();
-        let near = nearest_segments(mesh, &pts).ok_or_else(|| SceneError::Invalid {
-            path: shown.clone(),
-            message: format!("muscle {id} has no segment of positive length"),
-        })?;
-        for (t, (d, m)) in near.into_iter().enumerate() {
-            if d < best[t].0 {
-                best[t] = (d, k, m);
-            }
-        }
-    }
-    let mut out = Vec::new();
-    for (k, id) in ids.iter().enumerate() {
-        let fibres: Vec<(usize, Vector3<f64>)> = best
-            .iter()
-            .enumerate()
-            .filter(|(_, b)| b.1 == k && b.0 <= radius)
-            .map(|(t, b)| (t, b.2))
-            .collect();
-        if fibres.is_empty() {
-            return Err(cx.invalid(format!(
-                "{w}: muscle {id}: no tet centroid within {radius:.3e} of its polyline"
-            )));
-        }
-        out.push(ActuatorSpec::muscle(
-            &format!("muscle{id}"),
-            fibres,
-            stiffness,
-            Schedule::constant(0.0),
-        ));
-    }
-    let counts: Vec<String> = out.iter().map(|a| a.cells.len().to_string()).collect();
-    cx.notes.push(format!(
-        "{w}: {} muscles from {shown} (scaled by {scale}): each tet within {radius:.3e} (half the mean edge length) of a polyline joins the nearest muscle along its nearest segment ({} tets), stiffness {stiffness:e}, activation 0 until set",
-        out.len(),
-        counts.join(", ")
-    ));
-    Ok(out)
 }
