@@ -46,6 +46,90 @@ fn union_by_divisor<T: Clone + PartialEq>(
     Ok(out.into_values().map(|(x, _)| x).collect())
 }
 
+/// The figures a row holds, checked for what its status says it has: a row that ran holds its
+/// work (as many steps as the row), timing and trajectory errors, every figure finite and the
+/// non-negative ones (times, errors, counts) not negative; a resolved row names a row of the
+/// grid; a row that failed says why. `Err` names the first figure that is off.
+fn check_row_figures(r: &Row, ids: &std::collections::HashSet<String>, dt: f64) -> Result<(), String> {
+    let fig = |name: &str, v: f64, signed: bool| -> Result<(), String> {
+        if v.is_finite() && (signed || v >= 0.0) {
+            Ok(())
+        } else {
+            let what = if signed { "finite" } else { "finite and not negative" };
+            Err(format!("{name} must be {what}, got {}", diffsoft::base::number(v)))
+        }
+    };
+    let want_dt = dt / r.setting.dt_divisor as f64;
+    if !(r.dt > 0.0 && ((r.dt - want_dt) / want_dt).abs() <= 1e-9) {
+        return Err(format!(
+            "dt is {}, where the scene's step over {} is {}",
+            diffsoft::base::number(r.dt),
+            r.setting.dt_divisor,
+            diffsoft::base::number(want_dt)
+        ));
+    }
+    match r.status {
+        Status::Ran => {
+            let (Some(work), Some(t), Some(e)) = (&r.work, &r.timing, &r.trajectory) else {
+                return Err("ran, but its work, timing or trajectory errors are missing".into());
+            };
+            if work.steps != r.steps || work.unconverged_steps > work.steps {
+                return Err(format!(
+                    "work counts {} steps ({} unconverged) for a row of {} steps",
+                    work.steps, work.unconverged_steps, r.steps
+                ));
+            }
+            if t.runs == 0 {
+                return Err("timing counts 0 runs".into());
+            }
+            fig("timing.setup_s", t.setup_s, false)?;
+            fig("timing.wall_s", t.wall_s, false)?;
+            fig("timing.wall_s_per_sim_s", t.wall_s_per_sim_s, false)?;
+            for (name, v) in [("timing.cpu_s", t.cpu_s), ("timing.cpu_s_per_sim_s", t.cpu_s_per_sim_s)] {
+                if let Some(v) = v {
+                    fig(name, v, false)?;
+                }
+            }
+            for (name, v) in [
+                ("max_vertex_error", e.max_vertex_error),
+                ("rms_vertex_error", e.rms_vertex_error),
+                ("com_error", e.com_error),
+                ("max_relative", e.max_relative),
+                ("rms_relative", e.rms_relative),
+                ("com_relative", e.com_relative),
+                ("solver_max_relative", e.solver_max_relative),
+                ("solver_rms_relative", e.solver_rms_relative),
+                ("energy_drift_error", e.energy_drift_error),
+            ] {
+                fig(&format!("trajectory.{name}"), v, false)?;
+            }
+            fig("trajectory.energy_drift", e.energy_drift, true)?;
+        }
+        Status::Resolved => match &r.resolved_to {
+            Some(to) if ids.contains(to) => {}
+            Some(to) => return Err(format!("is resolved to '{to}', which is not a row of the grid")),
+            None => return Err("is resolved, but does not say to which row".into()),
+        },
+        Status::Diverged | Status::Rejected | Status::Panicked => {
+            if r.message.as_deref().is_none_or(str::is_empty) {
+                return Err("failed, but does not say why (no message)".into());
+            }
+        }
+    }
+    let g = &r.gradient;
+    if let Some(v) = &g.values {
+        for (k, &x) in v.iter().enumerate() {
+            fig(&format!("gradient.values[{k}]"), x, true)?;
+        }
+    }
+    for (name, v) in [("gradient.wall_s", g.wall_s), ("gradient.cpu_s", g.cpu_s)] {
+        if let Some(v) = v {
+            fig(name, v, false)?;
+        }
+    }
+    Ok(())
+}
+
 /// Assemble the partial reports of one sweep (every shard once; `paths` name them in errors)
 /// into the scene's study.
 pub fn finalize(parts: Vec<TradeoffPartial>, paths: &[String]) -> Result<SceneTradeoff, ShardError> {
@@ -65,6 +149,10 @@ pub fn finalize(parts: Vec<TradeoffPartial>, paths: &[String]) -> Result<SceneTr
     // against it, not trusted.
     let grid = spec.grid();
     let total = grid.len();
+    let ids: std::collections::HashSet<String> = grid.iter().map(|g| g.id()).collect();
+    if let Some((_, path)) = parts.iter().zip(paths).find(|(p, _)| p.workers == 0) {
+        return Err(ShardError::Mismatch(format!("{path} says it ran on 0 workers")));
+    }
     if let Some((p, path)) = parts.iter().zip(paths).find(|(p, _)| p.total_rows != total) {
         return Err(ShardError::Mismatch(format!(
             "{path} says its sweep has {} rows, but its inputs give a grid of {total}",
@@ -126,6 +214,8 @@ pub fn finalize(parts: Vec<TradeoffPartial>, paths: &[String]) -> Result<SceneTr
                 r.index, r.id
             )));
         }
+        check_row_figures(r, &ids, scene.dt)
+            .map_err(|e| ShardError::Mismatch(format!("{path}: row {} ('{}'): {e}", r.index, r.id)))?;
     }
     if owned.len() != total {
         return Err(ShardError::Mismatch(format!(

@@ -189,6 +189,36 @@ fn shards_merge_into_the_unsharded_report() {
     other[2].rows[0].id = "direct/cap=999/h".into();
     let e = tradeoff::merge(other, &names).unwrap_err().to_string();
     assert!(e.contains("part2.json: row") && e.contains("where the grid has"), "{e}");
+    // Tampered figures inside a row: named by the row and the figure.
+    let ran = |p: &TradeoffPartial| p.rows.iter().position(|r| r.trajectory.is_some());
+    let (k, i) = (0..n).find_map(|k| ran(&parts[k]).map(|i| (k, i))).unwrap();
+    let mut other = parts.clone();
+    other[k].rows[i].timing.as_mut().unwrap().cpu_s = Some(-1.0);
+    let e = tradeoff::merge(other, &names).unwrap_err().to_string();
+    assert!(
+        e.contains(&format!("part{k}.json: row")) && e.contains("timing.cpu_s must be finite and not negative, got -1"),
+        "{e}"
+    );
+    let mut other = parts.clone();
+    other[k].rows[i].trajectory = None;
+    let e = tradeoff::merge(other, &names).unwrap_err().to_string();
+    assert!(e.contains("trajectory errors are missing"), "{e}");
+    let mut other = parts.clone();
+    other[k].rows[i].trajectory.as_mut().unwrap().max_relative = f64::NAN;
+    let e = tradeoff::merge(other, &names).unwrap_err().to_string();
+    assert!(e.contains("trajectory.max_relative must be finite"), "{e}");
+    let mut other = parts.clone();
+    other[k].rows[i].work.as_mut().unwrap().steps += 1;
+    let e = tradeoff::merge(other, &names).unwrap_err().to_string();
+    assert!(e.contains("steps") && e.contains("for a row of"), "{e}");
+    let mut other = parts.clone();
+    other[k].rows[i].dt *= 2.0;
+    let e = tradeoff::merge(other, &names).unwrap_err().to_string();
+    assert!(e.contains("where the scene's step over"), "{e}");
+    let mut other = parts.clone();
+    other[0].workers = 0;
+    let e = tradeoff::merge(other, &names).unwrap_err().to_string();
+    assert!(e.contains("part0.json says it ran on 0 workers"), "{e}");
 }
 
 /// The material model as a knob: against a refined Neo-Hookean reference, the Neo-Hookean rows
