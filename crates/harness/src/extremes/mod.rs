@@ -308,6 +308,38 @@ fn run_case_failed(index: usize, case: &Case, panic: String) -> CaseResult {
     }
 }
 
+/// A shard's case checked against the case list: the same case (name, expected outcomes,
+/// steps), no more steps run than asked, a wall time that is a time, and a verdict (`passes`)
+/// that follows from its own outcome, checks and gradient as [`run_case`] decides it.
+fn check_case(c: &CaseResult, case: &Case) -> Result<(), String> {
+    if c.name != case.name || c.expected != case.expected || c.steps != case.steps {
+        return Err(format!(
+            "is not the case the list has at that place ('{}', expecting {:?} in {} steps)",
+            case.name, case.expected, case.steps
+        ));
+    }
+    if c.steps_run > c.steps {
+        return Err(format!("ran {} steps of {}", c.steps_run, c.steps));
+    }
+    if !(c.wall_s.is_finite() && c.wall_s >= 0.0) {
+        return Err(format!(
+            "wall_s must be finite and not negative, got {}",
+            diffsoft::base::number(c.wall_s)
+        ));
+    }
+    let passes = c.expected.contains(&c.outcome)
+        && c.outcome != Outcome::Failed
+        && c.checks.iter().all(|k| k.holds)
+        && c.gradient.status != GradientStatus::NonFinite;
+    if c.passes != passes {
+        return Err(format!(
+            "says passes = {}, but its outcome, checks and gradient give {passes}",
+            c.passes
+        ));
+    }
+    Ok(())
+}
+
 /// Merge the partial reports of one run into the report of the unsharded run.
 pub fn merge(parts: Vec<ExtremesPartial>, paths: &[String]) -> Result<ExtremesReport, ShardError> {
     check_partials(&parts, paths, PARTIAL_SCHEMA)?;
@@ -316,13 +348,25 @@ pub fn merge(parts: Vec<ExtremesPartial>, paths: &[String]) -> Result<ExtremesRe
     let mut cases: Vec<CaseResult> = parts.iter().flat_map(|p| p.cases.iter().cloned()).collect();
     cases.sort_by_key(|c| c.index);
     let total = parts[0].total_cases;
-    let expected: Vec<usize> = select(subsets[0]).into_iter().map(|(i, _)| i).collect();
+    let listed = select(subsets[0]);
+    let expected: Vec<usize> = listed.iter().map(|(i, _)| *i).collect();
     let got: Vec<usize> = cases.iter().map(|c| c.index).collect();
     if cases.len() != total || got != expected {
         return Err(ShardError::Mismatch(format!(
             "the shards hold cases {got:?}, the {:?} subset has {expected:?}",
             subsets[0]
         )));
+    }
+    let owner = |index: usize| {
+        parts
+            .iter()
+            .zip(paths)
+            .find(|(p, _)| p.cases.iter().any(|c| c.index == index))
+            .map_or("", |(_, path)| path.as_str())
+    };
+    for (c, (_, case)) in cases.iter().zip(&listed) {
+        check_case(c, case)
+            .map_err(|e| ShardError::Mismatch(format!("{}: case {} ('{}'): {e}", owner(c.index), c.index, c.name)))?;
     }
     Ok(report(
         subsets[0],

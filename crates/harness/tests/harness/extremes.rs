@@ -100,6 +100,20 @@ fn shards_merge_into_the_unsharded_report() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("missing 1 of 3 shards: 0/3"), "{e}");
+    // A tampered case: its verdict must follow from its own outcome and checks.
+    let mut other = parts.clone();
+    let flipped = &mut other[1].cases[0];
+    flipped.passes = !flipped.passes;
+    let index = flipped.index;
+    let e = extremes::merge(other, &names).unwrap_err().to_string();
+    assert!(
+        e.contains(&format!("x1.json: case {index}")) && e.contains("but its outcome, checks and gradient give"),
+        "{e}"
+    );
+    let mut other = parts.clone();
+    other[2].cases[0].name = "something else".into();
+    let e = extremes::merge(other, &names).unwrap_err().to_string();
+    assert!(e.contains("is not the case the list has at that place"), "{e}");
 }
 
 #[test]
