@@ -215,11 +215,12 @@ def gradcheck(
     steps: int,
     loss: str = "final_com.y",
     params: list[str] | None = None,
-    iterations: int = 30,
+    iterations: int | None = None,
     seed: int = 2021,
 ) -> dict[str, Any]:
     """A ``diffsoft gradcheck`` case on ``scene``: reverse mode against central differences
-    (step sweeps) and dual numbers; ``passes`` says whether it holds."""
+    (step sweeps) and dual numbers; ``passes`` says whether it holds. ``iterations`` (fixed
+    local-global iterations per step) is 30 when not given."""
 
 def jacobians(seed: int = 2021) -> dict[str, Any]:
     """The ``diffsoft jacobians`` report (joint and ``B = dq/dz`` Jacobians)."""

@@ -46,13 +46,14 @@ pub(crate) fn each<T: Sync, R: Send>(
 pub fn grad_batch<'py>(
     py: Python<'py>,
     scene: &Scene,
-    steps: usize,
+    steps: &Bound<'py, PyAny>,
     loss: &str,
     params: Vec<String>,
     values: Vec<Bound<'py, PyDict>>,
     mode: &str,
     allow_unconverged: bool,
 ) -> PyResult<Vec<Bound<'py, PyTuple>>> {
+    let steps = crate::args::count(steps, "steps", 1)?;
     scene::names(&params)?;
     let m = scene::mode(mode)?;
     let runs = scenes(scene, &values)?;
@@ -74,9 +75,10 @@ pub fn grad_batch<'py>(
 pub fn simulate_batch<'py>(
     py: Python<'py>,
     scene: &Scene,
-    steps: usize,
+    steps: &Bound<'py, PyAny>,
     values: Vec<Bound<'py, PyDict>>,
 ) -> PyResult<Vec<Run>> {
+    let steps = crate::args::count(steps, "steps", 1)?;
     let runs = scenes(scene, &values)?;
     let mut unconverged = false;
     let mut crossed = false;

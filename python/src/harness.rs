@@ -58,21 +58,21 @@ pub fn bounds<'py>(
 }
 
 /// Reverse-mode gradients of `scene` checked against central finite differences (step sweeps)
-/// and dual numbers, per parameter group (a `diffsoft gradcheck` case).
+/// and dual numbers, per parameter group (a `diffsoft gradcheck` case); `iterations` (fixed
+/// local-global iterations per step) is 30 when not given.
 #[pyfunction]
-#[pyo3(signature = (scene, steps, loss = "final_com.y", params = None, iterations = 30, seed = 2021))]
+#[pyo3(signature = (scene, steps, loss = "final_com.y", params = None, iterations = None, seed = 2021))]
 pub fn gradcheck<'py>(
     py: Python<'py>,
     scene: &Scene,
-    steps: usize,
+    steps: &Bound<'py, PyAny>,
     loss: &str,
     params: Option<Vec<String>>,
-    iterations: usize,
+    iterations: Option<&Bound<'py, PyAny>>,
     seed: u64,
 ) -> PyResult<Bound<'py, PyAny>> {
-    if steps == 0 || iterations == 0 {
-        return Err(errors::value("steps and iterations must be at least 1"));
-    }
+    let steps = crate::args::count(steps, "steps", 1)?;
+    let iterations = iterations.map_or(Ok(30), |i| crate::args::count(i, "iterations", 1))?;
     let params = params.unwrap_or_else(|| vec!["youngs_modulus".into(), "initial_velocities".into()]);
     let groups = scene::names(&params)?
         .into_iter()

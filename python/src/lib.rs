@@ -2,6 +2,7 @@
 //! library's curated API. The Python layer (`python/diffsoft/`) adds the PyTorch and JAX
 //! wrappers and the type stubs.
 
+mod args;
 mod arrays;
 mod batch;
 mod errors;

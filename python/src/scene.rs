@@ -191,7 +191,8 @@ impl Scene {
     /// that stopped at `max_iterations` before meeting a positive tolerance raise a
     /// `ConvergenceWarning` at the caller's line; steps that ended with bodies passing through
     /// each other, or with inverted tets, a `UserWarning`.
-    fn simulate(slf: PyRef<'_, Self>, steps: usize) -> PyResult<Run> {
+    fn simulate(slf: PyRef<'_, Self>, steps: &Bound<'_, PyAny>) -> PyResult<Run> {
+        let steps = crate::args::count(steps, "steps", 1)?;
         let (py, s) = snapshot(slf);
         let r = interrupt::run(py, || s.rollout(steps))??;
         // A tolerance of 0 asks for a fixed iteration count: no step is meant to converge.
@@ -212,12 +213,13 @@ impl Scene {
     #[pyo3(signature = (steps, loss = "final_com.y", params = None, mode = "unrolled", allow_unconverged = false))]
     fn grad<'py>(
         slf: PyRef<'py, Self>,
-        steps: usize,
+        steps: &Bound<'py, PyAny>,
         loss: &str,
         params: Option<Vec<String>>,
         mode: &str,
         allow_unconverged: bool,
     ) -> PyResult<Bound<'py, PyTuple>> {
+        let steps = crate::args::count(steps, "steps", 1)?;
         let (py, s) = snapshot(slf);
         let params = params.unwrap_or_default();
         names(&params)?;
@@ -235,13 +237,14 @@ impl Scene {
     #[allow(clippy::too_many_arguments)]
     fn vjp<'py>(
         slf: PyRef<'py, Self>,
-        steps: usize,
+        steps: &Bound<'py, PyAny>,
         params: Vec<String>,
         cotangent: &Bound<'py, PyAny>,
         velocity_cotangent: Option<&Bound<'py, PyAny>>,
         mode: &str,
         allow_unconverged: bool,
     ) -> PyResult<Bound<'py, PyDict>> {
+        let steps = crate::args::count(steps, "steps", 1)?;
         let (py, s) = snapshot(slf);
         names(&params)?;
         let m = self::mode(mode)?;

@@ -80,7 +80,7 @@ impl Scene {
 #[allow(clippy::too_many_arguments)]
 pub fn vjp_batch<'py>(
     scene: PyRef<'py, Scene>,
-    steps: usize,
+    steps: &Bound<'py, PyAny>,
     params: Vec<String>,
     values: Vec<Bound<'py, PyDict>>,
     cotangents: Vec<Bound<'py, PyAny>>,
@@ -89,6 +89,7 @@ pub fn vjp_batch<'py>(
     allow_unconverged: bool,
 ) -> PyResult<Vec<Bound<'py, PyDict>>> {
     let py = scene.py();
+    let steps = crate::args::count(steps, "steps", 1)?;
     scene::names(&params)?;
     let m = scene::mode(mode)?;
     let items = values.len();

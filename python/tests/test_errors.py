@@ -83,6 +83,32 @@ def test_bad_input_is_input_error(beam, tmp_path):
     )
 
 
+def test_counts_are_named_when_refused(beam):
+    # A count that is not an int is a TypeError, one below 1 or past a machine word an
+    # InputError; either names the argument and the value it got. NumPy integers count.
+    for bad, cls, words in [
+        (-1, diffsoft.InputError, "steps must be at least 1, got -1"),
+        (0, diffsoft.InputError, "steps must be at least 1, got 0"),
+        (2**64, diffsoft.InputError, "steps must be at most 18446744073709551615"),
+        (1.5, TypeError, "steps must be an int, got float 1.5"),
+        ("3", TypeError, "steps must be an int, got str '3'"),
+        (None, TypeError, "steps must be an int, got NoneType None"),
+        (True, TypeError, "steps must be an int, got bool True"),
+    ]:
+        for call, args in (
+            (beam.simulate, (bad,)),
+            (beam.grad, (bad,)),
+            (diffsoft.simulate_batch, (beam, bad, [{}])),
+            (diffsoft.grad_batch, (beam, bad, "final_com.y", ["density"], [{}])),
+        ):
+            with pytest.raises(cls) as e:
+                call(*args)
+            assert words in str(e.value), (bad, str(e.value))
+    with pytest.raises(diffsoft.InputError, match="iterations must be at least 1, got 0"):
+        diffsoft.gradcheck(beam, 2, iterations=0)
+    assert len(beam.simulate(np.int64(2)).positions) == 3
+
+
 def test_input_refused_when_a_run_starts(beam):
     # A negative tolerance: refused by `configure` (settings are checked by name there) or, were
     # it let through, when the run starts; an InputError either way.

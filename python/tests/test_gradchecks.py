@@ -85,7 +85,7 @@ def test_jax_check_grads(name):
 
 
 def test_negative_steps_raise(beam):
-    with pytest.raises(OverflowError):
+    with pytest.raises(diffsoft.InputError, match="steps must be at least 1, got -1"):
         beam.simulate(-1)
-    with pytest.raises(OverflowError):
+    with pytest.raises(diffsoft.InputError, match="steps must be at least 1, got -5"):
         beam.grad(-5)
