@@ -404,6 +404,14 @@ impl ModelBuilder {
                     o.name, o.thickness
                 )));
             }
+            if o.thickness >= length_scale {
+                return Err(too_thick(&format!("obstacle '{}'", o.name), o.thickness, length_scale));
+            }
+        }
+        if let Some(c) = &self.collision {
+            if c.thickness >= length_scale {
+                return Err(too_thick("the collisions between bodies", c.thickness, length_scale));
+            }
         }
         let vertex_tets = VertexTets::new(rest.len(), &tets);
         let collision = match self.collision {
@@ -436,5 +444,65 @@ impl ModelBuilder {
             length_scale,
             hyper: (!hyper.is_empty()).then_some(hyper),
         })
+    }
+}
+
+/// The error for a contact thickness of `what` as large as the bodies themselves: every vertex
+/// would start inside it, and the first step would push the bodies out by that distance.
+fn too_thick(what: &str, thickness: f64, length_scale: f64) -> InputError {
+    InputError::new(format!(
+        "{what}: thickness {} m is not smaller than the bodies' length scale (the diagonal of their bounding box, {} m): every vertex would start within it; a contact thickness is a small gap (the paper's scenes use 1e-4 to 1.5e-2 m)",
+        crate::base::number(thickness),
+        crate::base::number(length_scale)
+    ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::contact::pair::BodyCollision;
+    use crate::mesh::generate::BoxSpec;
+
+    fn cube(name: &str, y: f64) -> BodySpec {
+        let mesh = BoxSpec::new([1, 1, 1], [0.1, 0.1, 0.1])
+            .origin([0.0, y, 0.0])
+            .build()
+            .unwrap();
+        let m = Material {
+            youngs_modulus: 1e5,
+            poisson_ratio: 0.3,
+        };
+        BodySpec::new(name, mesh, m, MassSpec::Density(1000.0))
+    }
+
+    /// A contact thickness as large as the bodies (bounding-box diagonal 0.33 m for two cubes
+    /// of 0.1 m, 0.2 m apart) is refused naming what it belongs to; a small one builds.
+    #[test]
+    fn a_contact_thickness_as_large_as_the_bodies_is_refused() {
+        let ground = |t: f64| {
+            let mut g = Obstacle::plane("ground", Vector3::zeros(), Vector3::y(), 0.5);
+            g.thickness = t;
+            g
+        };
+        let pair = |t: f64| BodyCollision {
+            thickness: t,
+            friction: 0.3,
+        };
+        let build = |g: f64, c: f64| {
+            ModelBuilder::new()
+                .body(cube("a", 0.0))
+                .body(cube("b", 0.2))
+                .obstacle(ground(g))
+                .collisions(pair(c))
+                .build()
+        };
+        build(1e-3, 1e-3).unwrap();
+        let e = build(1.0, 1e-3).unwrap_err().to_string();
+        assert!(
+            e.contains("obstacle 'ground': thickness 1 m is not smaller than the bodies' length scale"),
+            "{e}"
+        );
+        let e = build(1e-3, 1e300).unwrap_err().to_string();
+        assert!(e.contains("the collisions between bodies: thickness 1e300 m"), "{e}");
     }
 }
