@@ -482,6 +482,15 @@ mod tests {
         let e = frames.write_state(&sim).unwrap_err().to_string();
         assert!(e.contains("frame_00000.vtu: is a symbolic link to"), "{e}");
         assert_eq!(std::fs::read_to_string(&input).unwrap(), "an input");
+        // A FIFO under the frame's name: refused at once (writing would block).
+        std::fs::remove_file(dir.join("frame_00000.vtu")).unwrap();
+        let made = std::process::Command::new("mkfifo")
+            .arg(dir.join("frame_00000.vtu"))
+            .status()
+            .unwrap();
+        assert!(made.success());
+        let e = frames.write_state(&sim).unwrap_err().to_string();
+        assert!(e.contains("frame_00000.vtu: is a named pipe (FIFO)"), "{e}");
         // The collection's name taken by a link: the frame is written, the collection refused.
         std::fs::remove_file(dir.join("frame_00000.vtu")).unwrap();
         std::os::unix::fs::symlink(&input, dir.join(COLLECTION)).unwrap();
