@@ -64,7 +64,23 @@ def _collect(futures: Sequence[Any]) -> list[Any]:
 
 
 def _dicts(values: Iterable[Mapping[str, Any]]) -> list[dict[str, Any]]:
-    return [dict(v) for v in values]
+    """``values`` as a list of dicts; anything else is refused naming the argument (and the
+    item), as the native module's own checks do."""
+    if isinstance(values, (str, bytes)) or not isinstance(values, Iterable):
+        raise TypeError(f"values must be a list of dicts, got {type(values).__name__} {values!r}")
+    out = []
+    for k, v in enumerate(values):
+        if not isinstance(v, Mapping):
+            raise TypeError(f"values[{k}] must be a dict, got {type(v).__name__} {v!r}")
+        out.append(dict(v))
+    return out
+
+
+def _names(params: Sequence[str]) -> list[str]:
+    """``params`` as a list of names: a bare str would otherwise be read as its letters."""
+    if isinstance(params, str):
+        raise TypeError(f"params must be a list of names, got str {params!r} (for one name, write [{params!r}])")
+    return list(params)
 
 
 def grad_batch(
@@ -82,9 +98,9 @@ def grad_batch(
     with one (any ``concurrent.futures.Executor``) each item is submitted to it with the
     pickled scene, and the results are the same numbers."""
     if executor is None:
-        return _diffsoft.grad_batch(scene, steps, loss, list(params), _dicts(values), mode, allow_unconverged)
+        return _diffsoft.grad_batch(scene, steps, loss, _names(params), _dicts(values), mode, allow_unconverged)
     futures = [
-        executor.submit(_grad_item, scene, steps, loss, list(params), v, mode, allow_unconverged)
+        executor.submit(_grad_item, scene, steps, loss, _names(params), v, mode, allow_unconverged)
         for v in _dicts(values)
     ]
     return _collect(futures)

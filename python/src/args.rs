@@ -1,21 +1,73 @@
-//! Count arguments of the Python API (`steps`, `iterations`), read so that a wrong value is
-//! refused naming the argument and what it got: PyO3's own conversion to `usize` says only
-//! "can't convert negative int to unsigned" or "'float' object cannot be interpreted as an
-//! integer".
+//! Arguments of the Python API read so that a wrong value is refused naming the argument and
+//! what it got: counts (`steps`, `iterations`), lists of names (`params`) and lists of dicts
+//! (`values`). PyO3's own conversions say only "can't convert negative int to unsigned",
+//! "Can't extract `str` to `Vec`" or "'NoneType' object is not iterable".
 
 use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
-use pyo3::types::PyBool;
+use pyo3::types::{PyBool, PyDict, PySequence, PyString};
 
 use crate::errors;
+
+/// `type value` of `v` for messages (`float 1.5`, `str 'density'`).
+fn described(v: &Bound<'_, PyAny>) -> String {
+    let kind = v.get_type().name().map_or_else(|_| "?".to_string(), |n| n.to_string());
+    let shown = v.repr().map_or_else(|_| "?".to_string(), |r| r.to_string());
+    format!("{kind} {shown}")
+}
+
+/// The items of `v`, a sequence (a list or tuple; not a str), named `name` in errors.
+fn items<'py>(v: &Bound<'py, PyAny>, name: &str, what: &str) -> PyResult<Vec<Bound<'py, PyAny>>> {
+    let seq = match v.cast::<PySequence>() {
+        Ok(s) if !v.is_instance_of::<PyString>() => s,
+        _ => {
+            return Err(PyTypeError::new_err(format!(
+                "{name} must be {what}, got {}",
+                described(v)
+            )))
+        }
+    };
+    seq.try_iter()?.collect()
+}
+
+/// `v` as a list of names (`params`), named `name` in errors: a list or tuple of str. A bare
+/// str is refused with the list it likely meant.
+pub(crate) fn names(v: &Bound<'_, PyAny>, name: &str) -> PyResult<Vec<String>> {
+    if v.is_instance_of::<PyString>() {
+        let shown = v.repr().map_or_else(|_| "?".to_string(), |r| r.to_string());
+        return Err(PyTypeError::new_err(format!(
+            "{name} must be a list of names, got str {shown} (for one name, write [{shown}])"
+        )));
+    }
+    items(v, name, "a list of names")?
+        .iter()
+        .enumerate()
+        .map(|(k, x)| {
+            x.extract::<String>()
+                .map_err(|_| PyTypeError::new_err(format!("{name}[{k}] must be a str, got {}", described(x))))
+        })
+        .collect()
+}
+
+/// `v` as a list of dicts (`values` of the batches), named `name` in errors.
+pub(crate) fn dicts<'py>(v: &Bound<'py, PyAny>, name: &str) -> PyResult<Vec<Bound<'py, PyDict>>> {
+    items(v, name, "a list of dicts")?
+        .into_iter()
+        .enumerate()
+        .map(|(k, x)| {
+            let shown = described(&x);
+            x.cast_into::<PyDict>()
+                .map_err(|_| PyTypeError::new_err(format!("{name}[{k}] must be a dict, got {shown}")))
+        })
+        .collect()
+}
 
 /// `v` as a count of at least `min`, named `name` in errors: an int or an object with
 /// `__index__` (a NumPy integer), not a bool. Not an int: `TypeError`; below `min` or beyond a
 /// machine word: `InputError` (a `ValueError`).
 pub(crate) fn count(v: &Bound<'_, PyAny>, name: &str, min: usize) -> PyResult<usize> {
     let shown = || v.repr().map_or_else(|_| "?".to_string(), |r| r.to_string());
-    let kind = || v.get_type().name().map_or_else(|_| "?".to_string(), |n| n.to_string());
-    let not_int = || PyTypeError::new_err(format!("{name} must be an int, got {} {}", kind(), shown()));
+    let not_int = || PyTypeError::new_err(format!("{name} must be an int, got {}", described(v)));
     if v.is_instance_of::<PyBool>() {
         return Err(not_int());
     }

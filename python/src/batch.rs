@@ -48,12 +48,14 @@ pub fn grad_batch<'py>(
     scene: &Scene,
     steps: &Bound<'py, PyAny>,
     loss: &str,
-    params: Vec<String>,
-    values: Vec<Bound<'py, PyDict>>,
+    params: &Bound<'py, PyAny>,
+    values: &Bound<'py, PyAny>,
     mode: &str,
     allow_unconverged: bool,
 ) -> PyResult<Vec<Bound<'py, PyTuple>>> {
     let steps = crate::args::count(steps, "steps", 1)?;
+    let params = crate::args::names(params, "params")?;
+    let values = crate::args::dicts(values, "values")?;
     scene::names(&params)?;
     let m = scene::mode(mode)?;
     let runs = scenes(scene, &values)?;
@@ -76,9 +78,10 @@ pub fn simulate_batch<'py>(
     py: Python<'py>,
     scene: &Scene,
     steps: &Bound<'py, PyAny>,
-    values: Vec<Bound<'py, PyDict>>,
+    values: &Bound<'py, PyAny>,
 ) -> PyResult<Vec<Run>> {
     let steps = crate::args::count(steps, "steps", 1)?;
+    let values = crate::args::dicts(values, "values")?;
     let runs = scenes(scene, &values)?;
     let mut unconverged = false;
     let mut crossed = false;

@@ -67,13 +67,16 @@ pub fn gradcheck<'py>(
     scene: &Scene,
     steps: &Bound<'py, PyAny>,
     loss: &str,
-    params: Option<Vec<String>>,
+    params: Option<&Bound<'py, PyAny>>,
     iterations: Option<&Bound<'py, PyAny>>,
     seed: u64,
 ) -> PyResult<Bound<'py, PyAny>> {
     let steps = crate::args::count(steps, "steps", 1)?;
     let iterations = iterations.map_or(Ok(30), |i| crate::args::count(i, "iterations", 1))?;
-    let params = params.unwrap_or_else(|| vec!["youngs_modulus".into(), "initial_velocities".into()]);
+    let params = match params {
+        Some(p) => crate::args::names(p, "params")?,
+        None => vec!["youngs_modulus".into(), "initial_velocities".into()],
+    };
     let groups = scene::names(&params)?
         .into_iter()
         .map(|n| match n {

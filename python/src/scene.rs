@@ -215,13 +215,13 @@ impl Scene {
         slf: PyRef<'py, Self>,
         steps: &Bound<'py, PyAny>,
         loss: &str,
-        params: Option<Vec<String>>,
+        params: Option<&Bound<'py, PyAny>>,
         mode: &str,
         allow_unconverged: bool,
     ) -> PyResult<Bound<'py, PyTuple>> {
         let steps = crate::args::count(steps, "steps", 1)?;
+        let params = params.map_or(Ok(Vec::new()), |p| crate::args::names(p, "params"))?;
         let (py, s) = snapshot(slf);
-        let params = params.unwrap_or_default();
         names(&params)?;
         let m = self::mode(mode)?;
         let g = interrupt::run(py, || s.gradient(steps, loss, m, allow_unconverged))??;
@@ -238,13 +238,14 @@ impl Scene {
     fn vjp<'py>(
         slf: PyRef<'py, Self>,
         steps: &Bound<'py, PyAny>,
-        params: Vec<String>,
+        params: &Bound<'py, PyAny>,
         cotangent: &Bound<'py, PyAny>,
         velocity_cotangent: Option<&Bound<'py, PyAny>>,
         mode: &str,
         allow_unconverged: bool,
     ) -> PyResult<Bound<'py, PyDict>> {
         let steps = crate::args::count(steps, "steps", 1)?;
+        let params = crate::args::names(params, "params")?;
         let (py, s) = snapshot(slf);
         names(&params)?;
         let m = self::mode(mode)?;

@@ -81,8 +81,8 @@ impl Scene {
 pub fn vjp_batch<'py>(
     scene: PyRef<'py, Scene>,
     steps: &Bound<'py, PyAny>,
-    params: Vec<String>,
-    values: Vec<Bound<'py, PyDict>>,
+    params: &Bound<'py, PyAny>,
+    values: &Bound<'py, PyAny>,
     cotangents: Vec<Bound<'py, PyAny>>,
     velocity_cotangents: Option<Vec<Option<Bound<'py, PyAny>>>>,
     mode: &str,
@@ -90,6 +90,8 @@ pub fn vjp_batch<'py>(
 ) -> PyResult<Vec<Bound<'py, PyDict>>> {
     let py = scene.py();
     let steps = crate::args::count(steps, "steps", 1)?;
+    let params = crate::args::names(params, "params")?;
+    let values = crate::args::dicts(values, "values")?;
     scene::names(&params)?;
     let m = scene::mode(mode)?;
     let items = values.len();

@@ -109,6 +109,30 @@ def test_counts_are_named_when_refused(beam):
     assert len(beam.simulate(np.int64(2)).positions) == 3
 
 
+def test_lists_are_named_when_refused(beam):
+    # A str where a list of names belongs would read as its letters; a list of dicts holding
+    # something else names the item.
+    hint = "params must be a list of names, got str 'density' (for one name, write ['density'])"
+    for call, args in (
+        (beam.grad, (2, "final_com.y", "density")),
+        (diffsoft.grad_batch, (beam, 2, "final_com.y", "density", [{}])),
+        (diffsoft.gradcheck, (beam, 2, "final_com.y", "density")),
+    ):
+        with pytest.raises(TypeError) as e:
+            call(*args)
+        assert hint in str(e.value)
+    with pytest.raises(TypeError, match=r"params\[0\] must be a str, got int 3"):
+        beam.grad(2, "final_com.y", [3])
+    with pytest.raises(TypeError, match=r"values\[1\] must be a dict, got NoneType None"):
+        diffsoft.simulate_batch(beam, 1, [{}, None])
+    with pytest.raises(TypeError, match="values must be a list of dicts, got NoneType None"):
+        diffsoft.grad_batch(beam, 1, "final_com.y", ["density"], None)
+    with pytest.raises(TypeError, match=r"values\[0\] must be a dict, got int 3"):
+        diffsoft.vjp_batch(beam, 1, ["density"], [3], [np.zeros((2, beam.n_vertices, 3))])
+    # Tuples are lists too.
+    assert len(diffsoft.simulate_batch(beam, 1, ({}, {}))) == 2
+
+
 def test_input_refused_when_a_run_starts(beam):
     # A negative tolerance: refused by `configure` (settings are checked by name there) or, were
     # it let through, when the run starts; an InputError either way.
