@@ -223,10 +223,28 @@ def test_bodies_passing_through_each_other_warn_and_refuse_gradients():
     assert not any("too soft to carry its own weight" in n for n in calm.notes)
 
 
+def test_contacts_found_by_sweeping_hold_the_bodies_apart_and_refuse_gradients():
+    """The ball thrown at the cloth at 30 m/s (15 cm per step): pairs that pass through each
+    other within a contact round are found by sweeping its motion and kept apart, so no step
+    ends crossed; the step log and summary count the steps that needed them, and a gradient
+    through the first such step raises ``SimulationError`` naming it."""
+    scene = diffsoft.Scene.load(REPO / "verification/scenes/ball_on_cloth.json")
+    v = np.asarray(scene.get("initial_velocities"))
+    scene.set("initial_velocities", 30.0 * v)
+    run = scene.simulate(60)
+    steps = run.stats["steps"]
+    swept = [s["step"] for s in steps if s["swept_pairs"] > 0]
+    assert swept and all(s["pair_crossings"] == 0 for s in steps)
+    assert run.stats["summary"]["steps_with_swept_pairs"] == len(swept)
+    assert run.stats["summary"]["steps_with_pair_crossings"] == 0
+    with pytest.raises(diffsoft.SimulationError, match=rf"sweeping .*from step {swept[0]} on"):
+        scene.grad(swept[0], "final_com.y", ["youngs_modulus"])
+
+
 def test_a_body_folded_through_itself_warns():
     """The paper's cloth_ball: its ball (E = 2e-5 Pa) is far too soft to carry itself on the
     cloth, and its tets fold through themselves from step 103 on (the crossings with the cloth
-    follow a step later): the run says so with a ``UserWarning`` at the caller's line, and the
+    follow): the run says so with a ``UserWarning`` at the caller's line, and the
     step log and summary count the inverted tets."""
     scene = diffsoft.Scene.load(REPO / "verification/paper/cloth_ball/cloth_ball.json")
     with pytest.warns(UserWarning, match="folded through itself") as caught:

@@ -227,6 +227,13 @@ pub(crate) fn simulate(
             summary.steps
         );
     }
+    if summary.steps_with_swept_pairs > 0 {
+        say!(
+            "note        {} of {} steps kept bodies apart only with contacts found by sweeping their motion (surfaces that passed through each other within a contact round; swept_pairs in the step log): a gradient through them is refused; lower the time step or the speed for differentiable steps",
+            summary.steps_with_swept_pairs,
+            summary.steps
+        );
+    }
     if diffsoft::output::folded(summary.max_inverted_tets, model_size.tets) {
         say!(
             "warning     {} of {} steps ended with inverted tets (at most {} of {}; inverted_tets in the step log): a body folded through itself, under a load its material is too soft for or in too long a time step; its contacts cannot keep it apart from other bodies",

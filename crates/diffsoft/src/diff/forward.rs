@@ -178,6 +178,11 @@ pub(crate) struct Forward {
     pub crossed: usize,
     /// `(step, crossing edges)` of the first such step.
     pub first_crossed: Option<(usize, usize)>,
+    /// Steps with contacts linearised where they met (`StepStats::swept_pairs`), and
+    /// `(step, such contacts)` of the first.
+    pub swept: usize,
+    /// See `swept`.
+    pub first_swept: Option<(usize, usize)>,
     /// Steps that met the tolerance in their first iteration.
     pub one_iteration: usize,
     /// Steps that ended with a joint at one of its limits (a kink of the loss).
@@ -351,6 +356,8 @@ pub(crate) fn forward(
         flagged: 0,
         crossed: 0,
         first_crossed: None,
+        swept: 0,
+        first_swept: None,
         one_iteration: 0,
         at_limit: 0,
     };
@@ -380,6 +387,10 @@ pub(crate) fn forward(
         if st.pair_crossings > 0 {
             f.crossed += 1;
             f.first_crossed.get_or_insert((k + 1, st.pair_crossings));
+        }
+        if st.swept_pairs > 0 {
+            f.swept += 1;
+            f.first_swept.get_or_insert((k + 1, st.swept_pairs));
         }
         f.one_iteration += usize::from(st.converged && st.iterations == 1 && settings.tolerance > 0.0);
         if let Some(sk) = sim.skeleton() {

@@ -334,6 +334,14 @@ pub fn gradient_on(
             edges,
         });
     }
+    if let Some((first, pairs)) = fwd.first_swept {
+        return Err(DiffError::SweptContacts {
+            steps: fwd.swept,
+            of: steps,
+            first,
+            pairs,
+        });
+    }
     if !opts.allow_unconverged && settings.tolerance > 0.0 && fwd.unconverged > 0 {
         return Err(DiffError::Unconverged {
             steps: fwd.unconverged,

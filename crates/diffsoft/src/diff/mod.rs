@@ -119,6 +119,24 @@ pub enum DiffError {
         /// Crossing surface edges at the end of that step.
         edges: usize,
     },
+    /// Some forward steps kept two bodies apart only with contacts found by sweeping their
+    /// motion (primitives that passed through each other during a round of the step,
+    /// linearised where they met, docs/method.md Eq. C6): those contacts' geometry depends on
+    /// the round's end positions, which the backward pass does not differentiate, so the
+    /// gradient would be missing terms. Not waived by [`Options::allow_unconverged`].
+    #[error(
+        "{steps} of {of} forward steps needed contacts found by sweeping the bodies' motion (from step {first} on, {pairs} such contacts there: surfaces that passed through each other within a round of the step): the trajectory is kept apart, but the backward pass does not differentiate where those contacts were linearised, so it refuses; lower the time step or the speed so that the contacts are found at the start of each step"
+    )]
+    SweptContacts {
+        /// Steps with such contacts.
+        steps: usize,
+        /// Steps simulated.
+        of: usize,
+        /// The first of them (1-based).
+        first: usize,
+        /// Such contacts in that step.
+        pairs: usize,
+    },
     /// Unrolled mode: replaying a step from its checkpoint did not reproduce the forward pass
     /// (e.g. an accelerated forward that did not converge), so the backward pass would
     /// differentiate another trajectory.

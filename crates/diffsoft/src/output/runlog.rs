@@ -32,6 +32,9 @@ pub struct RunSummary {
     /// Steps that ended with the surfaces of two bodies crossing (`pair_crossings` in the step
     /// log): contacts the run missed.
     pub steps_with_pair_crossings: usize,
+    /// Steps that kept two bodies apart with contacts found by sweeping their motion
+    /// (`swept_pairs` in the step log): gradients refuse them.
+    pub steps_with_swept_pairs: usize,
     /// Steps that ended with inverted tets (`inverted_tets` in the step log): a body folded
     /// through itself.
     pub steps_with_inverted_tets: usize,
@@ -293,6 +296,7 @@ impl RunSummary {
             converged_steps: steps.iter().filter(|s| s.converged).count(),
             steps_with_capped_solves: steps.iter().filter(|s| s.capped_solves > 0).count(),
             steps_with_pair_crossings: steps.iter().filter(|s| s.pair_crossings > 0).count(),
+            steps_with_swept_pairs: steps.iter().filter(|s| s.swept_pairs > 0).count(),
             steps_with_inverted_tets: steps.iter().filter(|s| s.inverted_tets > 0).count(),
             max_inverted_tets: steps.iter().map(|s| s.inverted_tets).max().unwrap_or(0),
             max_penetration: steps.iter().map(|s| s.max_penetration).fold(0.0, f64::max),

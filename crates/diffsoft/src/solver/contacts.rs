@@ -1,6 +1,7 @@
-//! The contact phase of a step (docs/method.md section 4, Eqs. C1-C5): candidate contacts from
+//! The contact phase of a step (docs/method.md section 4, Eqs. C1-C6): candidate contacts from
 //! the start and predicted positions, then after each round of iterations the new penetrations
-//! (obstacles) and violated pairs (between bodies), added as contacts for the next round.
+//! (obstacles) and violated pairs (between bodies) or, when no pair is violated, the pairs that
+//! passed through each other during the round (Eq. C6), added as contacts for the next round.
 
 use nalgebra::Vector3;
 
@@ -105,8 +106,9 @@ impl StepContacts {
         }
     }
 
-    /// After a round of iterations ending at `q` (all vertices): add every violated pair and
-    /// every new penetration of an obstacle as a contact. Returns whether any was added.
+    /// After a round of iterations ending at `q` (all vertices): add every violated pair (or,
+    /// without one, every pair that passed through another on the way, Eq. C6) and every new
+    /// penetration of an obstacle as a contact. Returns whether any was added.
     pub(crate) fn add_violations(
         &mut self,
         model: &Model,

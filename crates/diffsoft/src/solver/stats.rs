@@ -53,6 +53,11 @@ pub struct StepStats {
     /// step missed (a body too fast for the time step, or a contact set the solve could not
     /// satisfy). Gradients refuse such a step (the differentiation's `Interpenetration` error).
     pub pair_crossings: usize,
+    /// Contacts between bodies whose primitives passed through each other during a round of
+    /// the step and were linearised where they met (docs/method.md Eq. C6): the step kept the
+    /// bodies apart, but those contacts' geometry depends on more than the step's start, so
+    /// gradients refuse the step (the differentiation's `SweptContacts` error).
+    pub swept_pairs: usize,
     /// Tets with a zero or negative volume at the end of the step (0 without tets): a body
     /// folded through itself, under a load its material is too soft for or in a step too long
     /// for it. The projective and corotated models pull such a tet back only weakly, and
@@ -89,6 +94,7 @@ impl StepStats {
             bone_length_error: 0.0,
             pair_contacts: 0,
             pair_crossings: 0,
+            swept_pairs: 0,
             inverted_tets: 0,
             bone_contacts: 0,
         }

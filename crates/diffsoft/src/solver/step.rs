@@ -61,6 +61,7 @@ impl Simulator {
         }
         stats.contacts = self.contacts.obstacle.len();
         stats.pair_contacts = self.contacts.pairs.len();
+        stats.swept_pairs = self.contacts.pairs.iter().filter(|p| p.swept).count();
         stats.bone_contacts = self.contacts.rigid.len();
         observer.end(&self.work.x, self.skeleton.as_ref());
         self.finish(&mut stats, t0)?;

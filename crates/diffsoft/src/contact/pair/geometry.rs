@@ -8,7 +8,7 @@ use serde::Serialize;
 
 /// Which features of a pair are closest (fixed for a step; the pair's geometry is smooth in
 /// the start positions within it).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Regime {
     /// A vertex and the interior of a face; the normal is the face normal times the sign.

@@ -1,5 +1,5 @@
 //! Collisions between bodies: soft-soft, soft-cloth and cloth-cloth (docs/method.md section 4,
-//! Eqs. C3 and C5, with both sides moving).
+//! Eqs. C3, C5 and C6, with both sides moving).
 //!
 //! Each body's collision surface is its boundary triangles (a tet mesh) or its triangles
 //! (cloth), with their edges and vertices. A step's candidate contacts are
@@ -9,7 +9,10 @@
 //!   collision thickness plus a margin (each vertex keeps the closest pair per other body), and
 //! * after the step's iterations, every **vertex-face** or **edge-edge** pair (surface edges of
 //!   two bodies whose closest points are interior to both) that ended up violated; these join
-//!   and the iterations resume (contact rounds).
+//!   and the iterations resume (contact rounds);
+//! * when a round leaves no violated pair, every vertex-face or edge-edge pair whose primitives
+//!   passed through each other on the straight path from the step's start to the round's end
+//!   ([`sweep`], Eq. C6), linearised where they met (*swept* pairs, which gradients refuse).
 //!
 //! A uniform spatial hash over the primitives' swept bounding boxes finds them in time linear in
 //! the surface size.
@@ -29,6 +32,7 @@
 mod geometry;
 mod grid;
 pub mod overlap;
+pub mod sweep;
 
 use nalgebra::Vector3;
 use num_dual::Dual64;
@@ -207,6 +211,10 @@ impl Colliders {
     }
 }
 
+/// What identifies a pair: its regime, whether it was linearised where it crossed, and its
+/// vertices ([`PairContact::key`]).
+pub type PairKey = (Regime, bool, [usize; 4]);
+
 /// A linearised contact between two bodies (see the module docs).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct PairContact {
@@ -220,6 +228,11 @@ pub struct PairContact {
     pub distance: f64,
     /// Closest features.
     pub regime: Regime,
+    /// A pair that passed through each other during a round of the step, linearised where
+    /// and when they met ([`sweep`], [`Query::Violations`]): its coefficients and normal
+    /// depend on the round's end positions, not only the start, so gradients refuse a step
+    /// with one.
+    pub swept: bool,
 }
 
 impl PairContact {
@@ -228,9 +241,11 @@ impl PairContact {
         (0..4).fold(Vector3::zeros(), |acc, k| acc + x[self.vertices[k]] * self.coefs[k])
     }
 
-    /// A key identifying the pair (its kind and vertices).
-    pub fn key(&self) -> (bool, [usize; 4]) {
-        (self.regime == Regime::EdgeEdge, self.vertices)
+    /// A key identifying the pair (its regime, whether it is swept, and its vertices): a
+    /// vertex and a face may be a pair linearised at the start and another where they met
+    /// ([`Query::Violations`]).
+    pub fn key(&self) -> PairKey {
+        (self.regime, self.swept, self.vertices)
     }
 
     /// Derivatives of the coefficients and the normal with respect to the start positions of
@@ -269,7 +284,10 @@ pub enum Query {
         /// Extra distance (m).
         margin: f64,
     },
-    /// Pairs (not already known) whose linearised gap at `q1` is below `-tolerance`.
+    /// Pairs (not already known) whose linearised gap at `q1` is below `-tolerance`; when
+    /// there is none, the pairs (not already known as swept) whose primitives pass through
+    /// each other moving linearly from `q0` to `q1`, ending on the other side ([`sweep`]),
+    /// linearised where they meet.
     Violations {
         /// Allowed violation (m).
         tolerance: f64,
@@ -284,9 +302,13 @@ pub struct Detector {
     edge_boxes: Vec<(Vector3<f64>, Vector3<f64>)>,
     stamp: Vec<u32>,
     epoch: u32,
-    known: rustc_hash::FxHashSet<(bool, [usize; 4])>,
+    known: rustc_hash::FxHashSet<PairKey>,
     /// The closest pair found so far per other body (one query primitive at a time).
     best: Vec<Option<PairContact>>,
+    /// The earliest crossing found so far per other body, with its time in the step.
+    first: Vec<Option<(f64, PairContact)>>,
+    /// Crossings found in a violations pass, handed over only when it finds no violation.
+    swept: Vec<PairContact>,
     /// Candidate pairs tested exactly in the last pass (for the cost study).
     pub tested: usize,
 }
@@ -375,6 +397,11 @@ impl Detector {
         self.tested = 0;
         self.best.clear();
         self.best.resize(col.names.len(), None);
+        self.first.clear();
+        self.first.resize(col.names.len(), None);
+        let sweeps = matches!(query, Query::Violations { .. });
+        let start = out.len();
+        self.swept.clear();
         // Triangles, with the largest motion of their corners.
         self.triangle_grid(col, q0, q1, pad);
         let motion = |v: usize| (q1[v] - q0[v]).norm();
@@ -382,7 +409,7 @@ impl Detector {
             let vb = swept_box(&[p], q0, q1, pad);
             self.next_epoch();
             let (grid, stamp, epoch, boxes) = (&self.grid, &mut self.stamp, self.epoch, &self.tri_boxes);
-            let best = &mut self.best;
+            let (best, first) = (&mut self.best, &mut self.first);
             let body = col.vertex_body[vi];
             let mut tested = 0;
             grid.query(&vb.0, &vb.1, |t| {
@@ -396,17 +423,22 @@ impl Detector {
                     return;
                 }
                 tested += 1;
+                let verts = [p, tri[0], tri[1], tri[2]];
+                if sweeps {
+                    if let Some(c) = swept_crossing(q0, q1, verts, false, &self.known) {
+                        keep_first(first, col.triangle_body[t], c);
+                    }
+                }
                 let Some((regime, d0)) = vertex_face(&q0[p], &q0[tri[0]], &q0[tri[1]], &q0[tri[2]]) else {
                     return;
                 };
-                let verts = [p, tri[0], tri[1], tri[2]];
                 let moved = motion(p) + tri.iter().map(|&v| motion(v)).fold(0.0, f64::max);
                 if let Some(c) = accept(col, q0, q1, verts, regime, d0, moved, query, &self.known) {
                     keep_closest(best, col.triangle_body[t], c);
                 }
             });
             self.tested += tested;
-            out.extend(best.iter_mut().filter_map(|b| b.take()));
+            emit(best, first, out, &mut self.swept);
         }
         // Edges against edges of other bodies: only where a step ended with an edge through
         // a face (vertex-face contacts already keep nearby surfaces apart; edge-edge
@@ -421,7 +453,7 @@ impl Detector {
             let body = col.edge_body[ei];
             self.next_epoch();
             let (grid, boxes, stamp, epoch) = (&self.grid, &self.edge_boxes, &mut self.stamp, self.epoch);
-            let best = &mut self.best;
+            let (best, first) = (&mut self.best, &mut self.first);
             let mut tested = 0;
             grid.query(&eb.0, &eb.1, |f| {
                 let f = f as usize;
@@ -435,17 +467,27 @@ impl Detector {
                     return;
                 }
                 tested += 1;
+                let verts = [e[0], e[1], g[0], g[1]];
+                if sweeps {
+                    if let Some(c) = swept_crossing(q0, q1, verts, true, &self.known) {
+                        keep_first(first, col.edge_body[f], c);
+                    }
+                }
                 let Some((_, _, d0)) = edge_edge(&q0[e[0]], &q0[e[1]], &q0[g[0]], &q0[g[1]]) else {
                     return;
                 };
-                let verts = [e[0], e[1], g[0], g[1]];
                 let moved = motion(e[0]).max(motion(e[1])) + motion(g[0]).max(motion(g[1]));
                 if let Some(c) = accept(col, q0, q1, verts, Regime::EdgeEdge, d0, moved, query, &self.known) {
                     keep_closest(best, col.edge_body[f], c);
                 }
             });
             self.tested += tested;
-            out.extend(best.iter_mut().filter_map(|b| b.take()));
+            emit(best, first, out, &mut self.swept);
+        }
+        // Swept pairs only when no violation is left (docs/method.md Eq. C6): a step that
+        // needs none is what it was without them.
+        if out.len() == start {
+            out.append(&mut self.swept);
         }
     }
 
@@ -480,6 +522,65 @@ fn keep_closest(best: &mut [Option<PairContact>], body: u32, c: PairContact) {
     }
 }
 
+/// Keep the crossing `c` at time `t` if it is earlier than the one kept for its body (ties to
+/// the smaller vertex indices, as [`keep_closest`]).
+fn keep_first(first: &mut [Option<(f64, PairContact)>], body: u32, (t, c): (f64, PairContact)) {
+    let slot = &mut first[body as usize];
+    if slot
+        .as_ref()
+        .is_none_or(|(s, b)| t < *s || (t == *s && c.vertices < b.vertices))
+    {
+        *slot = Some((t, c));
+    }
+}
+
+/// Hand over the pairs kept per body, clearing the slots: the closest one to `out`, the
+/// earliest crossing to `swept`.
+fn emit(
+    best: &mut [Option<PairContact>],
+    first: &mut [Option<(f64, PairContact)>],
+    out: &mut Vec<PairContact>,
+    swept: &mut Vec<PairContact>,
+) {
+    out.extend(best.iter_mut().filter_map(|b| b.take()));
+    swept.extend(first.iter_mut().filter_map(|f| f.take().map(|(_, c)| c)));
+}
+
+/// A pair whose primitives pass through each other while moving from `q0` to `q1`
+/// ([`sweep`]), not already `known`, with its time of crossing: linearised across the face's
+/// plane (a vertex and a face: [`Regime::Face`] on the side the vertex starts on, whatever the
+/// closest features) or across the two lines (two edges: [`Regime::EdgeEdge`] on the lines'
+/// closest points), both at the start of the step, so that the pair's geometry stays a smooth
+/// function of the start positions for the backward pass.
+fn swept_crossing(
+    q0: &[Vector3<f64>],
+    q1: &[Vector3<f64>],
+    verts: [usize; 4],
+    edges: bool,
+    known: &rustc_hash::FxHashSet<PairKey>,
+) -> Option<(f64, PairContact)> {
+    let x0: [Vector3<f64>; 4] = std::array::from_fn(|k| q0[verts[k]]);
+    let x1: [Vector3<f64>; 4] = std::array::from_fn(|k| q1[verts[k]]);
+    let (hit, regime) = if edges {
+        (sweep::edge_edge(&x0, &x1)?, Regime::EdgeEdge)
+    } else {
+        let hit = sweep::vertex_face(&x0, &x1)?;
+        let side = (x0[2] - x0[1]).cross(&(x0[3] - x0[1])).dot(&(x0[0] - x0[1]));
+        (hit, Regime::Face(if side > 0.0 { 1 } else { -1 }))
+    };
+    let c = PairContact {
+        vertices: verts,
+        coefs: hit.coefs,
+        normal: hit.normal,
+        distance: 0.0,
+        regime,
+        swept: true,
+    };
+    let distance = c.normal.dot(&c.relative(q0));
+    let fine = distance.is_finite() && distance > 0.0;
+    (fine && !known.contains(&c.key())).then_some((hit.time, PairContact { distance, ..c }))
+}
+
 #[allow(clippy::too_many_arguments)]
 fn accept(
     col: &Colliders,
@@ -490,7 +591,7 @@ fn accept(
     d0: f64,
     moved: f64,
     query: Query,
-    known: &rustc_hash::FxHashSet<(bool, [usize; 4])>,
+    known: &rustc_hash::FxHashSet<PairKey>,
 ) -> Option<PairContact> {
     let th = col.settings.thickness;
     if let Query::Candidates { margin } = query {
@@ -512,6 +613,7 @@ fn accept(
         normal,
         distance: d0,
         regime,
+        swept: false,
     };
     if let Query::Violations { tolerance } = query {
         if known.contains(&c.key()) || normal.dot(&c.relative(q1)) - th >= -tolerance {
@@ -683,6 +785,7 @@ mod tests {
             normal: Vector3::y(),
             distance,
             regime: Regime::Edge(0),
+            swept: false,
         };
         // A vertex nearest an edge is as near both faces on it.
         let (a, b) = (pair([0, 3, 4, 5], 0.25), pair([0, 4, 3, 6], 0.25));
@@ -759,6 +862,7 @@ mod tests {
                 normal,
                 distance: 0.0,
                 regime,
+                swept: false,
             };
             let (dc, dn) = c.jacobian(&q);
             let h = 1e-6;
