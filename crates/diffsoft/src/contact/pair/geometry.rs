@@ -114,9 +114,14 @@ pub fn vertex_face(p: &Vector3<f64>, a: &Vector3<f64>, b: &Vector3<f64>, c: &Vec
     Some((Regime::Face(if s >= 0.0 { 1 } else { -1 }), s.abs()))
 }
 
-/// Closest points of segments `ab` and `cd` when they are interior to both (parameters in
-/// `(eps, 1 - eps)`) and the segments are not parallel: `(s, t, distance)`.
-pub fn edge_edge(a: &Vector3<f64>, b: &Vector3<f64>, c: &Vector3<f64>, d: &Vector3<f64>) -> Option<(f64, f64, f64)> {
+/// Parameters `(s, t)` of the closest points `a + s (b - a)` and `c + t (d - c)` of the lines
+/// through `ab` and `cd` (`None` when they are parallel or not finite).
+pub(crate) fn line_parameters(
+    a: &Vector3<f64>,
+    b: &Vector3<f64>,
+    c: &Vector3<f64>,
+    d: &Vector3<f64>,
+) -> Option<(f64, f64)> {
     let (d1, d2, r) = (b - a, d - c, a - c);
     let (a11, a22, a12) = (d1.dot(&d1), d2.dot(&d2), d1.dot(&d2));
     let den = a11 * a22 - a12 * a12;
@@ -124,8 +129,14 @@ pub fn edge_edge(a: &Vector3<f64>, b: &Vector3<f64>, c: &Vector3<f64>, d: &Vecto
         return None;
     }
     let (e1, e2) = (d1.dot(&r), d2.dot(&r));
-    let s = (a12 * e2 - a22 * e1) / den;
-    let t = (a11 * e2 - a12 * e1) / den;
+    Some(((a12 * e2 - a22 * e1) / den, (a11 * e2 - a12 * e1) / den))
+}
+
+/// Closest points of segments `ab` and `cd` when they are interior to both (parameters in
+/// `(eps, 1 - eps)`) and the segments are not parallel: `(s, t, distance)`.
+pub fn edge_edge(a: &Vector3<f64>, b: &Vector3<f64>, c: &Vector3<f64>, d: &Vector3<f64>) -> Option<(f64, f64, f64)> {
+    let (s, t) = line_parameters(a, b, c, d)?;
+    let (d1, d2) = (b - a, d - c);
     const EPS: f64 = 1e-6;
     if !(EPS..=1.0 - EPS).contains(&s) || !(EPS..=1.0 - EPS).contains(&t) {
         return None;

@@ -154,22 +154,11 @@ fn in_triangle(x: &[Vector3<f64>; 4]) -> Option<[f64; 3]> {
 }
 
 /// Where coplanar segments `x0 x1` and `x2 x3` cross, with [`INSIDE_SLACK`]: the parameters
-/// along each, clamped to `[0, 1]`.
+/// along each, clamped to `[0, 1]` (`None` for parallel segments: no single crossing point).
 fn segments_cross(x: &[Vector3<f64>; 4]) -> Option<(f64, f64)> {
-    let (d1, d2, r) = (x[1] - x[0], x[3] - x[2], x[0] - x[2]);
-    let (a11, a22, a12) = (d1.dot(&d1), d2.dot(&d2), d1.dot(&d2));
-    let den = a11 * a22 - a12 * a12;
-    // Parallel (or non-finite) edges: no single crossing point.
-    if den.is_nan() || den <= 1e-12 * a11 * a22 {
-        return None;
-    }
-    let (e1, e2) = (d1.dot(&r), d2.dot(&r));
-    let s = (a12 * e2 - a22 * e1) / den;
-    let t = (a11 * e2 - a12 * e1) / den;
+    let (s, t) = super::geometry::line_parameters(&x[0], &x[1], &x[2], &x[3])?;
     let k = INSIDE_SLACK;
-    let gap = ((x[0] + d1 * s) - (x[2] + d2 * t)).norm();
-    ((-k..=1.0 + k).contains(&s) && (-k..=1.0 + k).contains(&t) && gap <= 1e-6 * (a11.sqrt() + a22.sqrt()))
-        .then(|| (s.clamp(0.0, 1.0), t.clamp(0.0, 1.0)))
+    ((-k..=1.0 + k).contains(&s) && (-k..=1.0 + k).contains(&t)).then(|| (s.clamp(0.0, 1.0), t.clamp(0.0, 1.0)))
 }
 
 /// A crossing found by [`vertex_face`] or [`edge_edge`].
@@ -192,48 +181,46 @@ fn oriented(n: Vector3<f64>, f0: f64) -> Option<Vector3<f64>> {
     (len > 0.0 && f0 != 0.0 && len.is_finite()).then(|| n * (f0.signum() / len))
 }
 
-/// The first crossing in `[0, 1]` of vertex `x[0]` through face `x[1] x[2] x[3]`, all moving
-/// linearly from `x0` to `x1`, when the vertex ends on the other side of the face's plane.
-pub fn vertex_face(x0: &[Vector3<f64>; 4], x1: &[Vector3<f64>; 4]) -> Option<Hit> {
-    let mut roots = [0.0; 3];
+/// The first root of the coplanarity cubic of `x0 -> x1` at which `meet` finds the crossing
+/// (given the points then and the cubic's value at the start), when the points end on the
+/// other side of each other.
+fn first_hit(
+    x0: &[Vector3<f64>; 4],
+    x1: &[Vector3<f64>; 4],
+    meet: impl Fn(&[Vector3<f64>; 4], f64) -> Option<([f64; 4], Vector3<f64>)>,
+) -> Option<Hit> {
     let cubic = coplanarity(x0, x1);
     if !changes_side(&cubic) {
         return None;
     }
+    let mut roots = [0.0; 3];
     let n = roots_in_unit(&cubic, &mut roots);
     roots[..n].iter().find_map(|&time| {
-        let x = at(x0, x1, time);
-        let [u, v, w] = in_triangle(&x)?;
+        let (coefs, normal) = meet(&at(x0, x1, time), cubic[0])?;
+        Some(Hit { time, coefs, normal })
+    })
+}
+
+/// The first crossing in `[0, 1]` of vertex `x[0]` through face `x[1] x[2] x[3]`, all moving
+/// linearly from `x0` to `x1`, when the vertex ends on the other side of the face's plane.
+pub fn vertex_face(x0: &[Vector3<f64>; 4], x1: &[Vector3<f64>; 4]) -> Option<Hit> {
+    first_hit(x0, x1, |x, f0| {
+        let [u, v, w] = in_triangle(x)?;
         // f = (a - p) . ((b - p) x (c - p)) = -(p - a) . ((b - a) x (c - a)).
-        let normal = oriented((x[2] - x[1]).cross(&(x[3] - x[1])), -cubic[0])?;
-        Some(Hit {
-            time,
-            coefs: [1.0, -u, -v, -w],
-            normal,
-        })
+        let normal = oriented((x[2] - x[1]).cross(&(x[3] - x[1])), -f0)?;
+        Some(([1.0, -u, -v, -w], normal))
     })
 }
 
 /// The first crossing in `[0, 1]` of edge `x[0] x[1]` through edge `x[2] x[3]`, all moving
 /// linearly from `x0` to `x1`, when the edges end on the other side of each other.
 pub fn edge_edge(x0: &[Vector3<f64>; 4], x1: &[Vector3<f64>; 4]) -> Option<Hit> {
-    let mut roots = [0.0; 3];
-    let cubic = coplanarity(x0, x1);
-    if !changes_side(&cubic) {
-        return None;
-    }
-    let n = roots_in_unit(&cubic, &mut roots);
-    roots[..n].iter().find_map(|&time| {
-        let x = at(x0, x1, time);
-        let (s, t) = segments_cross(&x)?;
+    first_hit(x0, x1, |x, f0| {
+        let (s, t) = segments_cross(x)?;
         // f = (b - a) . ((c - a) x (d - a)) = ((b - a) x (d - c)) . (a - c): its sign at the
         // start is the side of the first edge along (b - a) x (d - c).
-        let normal = oriented((x[1] - x[0]).cross(&(x[3] - x[2])), cubic[0])?;
-        Some(Hit {
-            time,
-            coefs: [1.0 - s, s, -(1.0 - t), -t],
-            normal,
-        })
+        let normal = oriented((x[1] - x[0]).cross(&(x[3] - x[2])), f0)?;
+        Some(([1.0 - s, s, -(1.0 - t), -t], normal))
     })
 }
 
