@@ -547,11 +547,10 @@ fn emit(
 }
 
 /// A pair whose primitives pass through each other while moving from `q0` to `q1`
-/// ([`sweep`]), not already `known`, with its time of crossing: linearised across the face's
-/// plane (a vertex and a face: [`Regime::Face`] on the side the vertex starts on, whatever the
-/// closest features) or across the two lines (two edges: [`Regime::EdgeEdge`] on the lines'
-/// closest points), both at the start of the step, so that the pair's geometry stays a smooth
-/// function of the start positions for the backward pass.
+/// ([`sweep`]), not already `known`, with its time of crossing: a swept pair linearised where
+/// its primitives met (the meeting points' coefficients and the face's or the edges' normal
+/// then, on the side the pair started on; regime [`Regime::Face`] or [`Regime::EdgeEdge`] for
+/// its kind). Kept only with a positive gap at the start along that normal.
 fn swept_crossing(
     q0: &[Vector3<f64>],
     q1: &[Vector3<f64>],
