@@ -43,6 +43,11 @@ pub struct Settings {
     pub contact_margin: f64,
     /// Largest number of detect-and-resolve rounds per step.
     pub contact_rounds: usize,
+    /// Largest number of rounds of a step that would otherwise end with the surfaces of two
+    /// bodies crossing: past `contact_rounds`, the rounds go on while the round's end
+    /// positions cross and detection finds contacts to add (docs/method.md, "Crossed surfaces
+    /// after a step"). At or below `contact_rounds`: no extra rounds.
+    pub crossing_rounds: usize,
     /// Eigensolver for certification.
     pub eigen_method: EigenMethod,
     /// Anderson acceleration memory of the local-global iteration (0: off, the paper's plain
@@ -78,6 +83,7 @@ impl Default for Settings {
             damping: 1.0,
             contact_margin: 1e-3,
             contact_rounds: 4,
+            crossing_rounds: 64,
             eigen_method: EigenMethod::Auto,
             anderson: 0,
         }

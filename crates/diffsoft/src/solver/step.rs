@@ -41,7 +41,8 @@ impl Simulator {
             .candidates(&self.model, &self.system, &self.work.q_start, &self.work.s, margin);
         observer.begin();
         let mut stats = StepStats::new(self.state.step + 1, self.state.time + self.integrator.h());
-        for round in 0..self.settings.contact_rounds.max(1) {
+        let rounds = self.settings.contact_rounds.max(1);
+        for round in 0..rounds.max(self.settings.crossing_rounds) {
             stats.contact_rounds = round + 1;
             stats.converged = false;
             observer.contact_set(&self.contacts.free);
@@ -56,6 +57,10 @@ impl Simulator {
                 .contacts
                 .add_violations(&self.model, &self.system, &w.q_start, &w.full)
             {
+                break;
+            }
+            // Past the ordinary rounds, only while the surfaces of two bodies cross.
+            if round + 1 >= rounds && self.contacts.crossings_at(&self.model, &self.work.full) == 0 {
                 break;
             }
         }

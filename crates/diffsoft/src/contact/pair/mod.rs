@@ -285,9 +285,9 @@ pub enum Query {
         margin: f64,
     },
     /// Pairs (not already known) whose linearised gap at `q1` is below `-tolerance`; when
-    /// there is none, the pairs (not already known as swept) whose primitives pass through
-    /// each other moving linearly from `q0` to `q1`, ending on the other side ([`sweep`]),
-    /// linearised where they meet.
+    /// there is none, the pairs whose primitives pass through each other moving linearly from
+    /// `q0` to `q1`, ending on the other side ([`sweep`]), linearised where they meet (a pair
+    /// already known as swept only where it met elsewhere).
     Violations {
         /// Allowed violation (m).
         tolerance: f64,
@@ -303,6 +303,9 @@ pub struct Detector {
     stamp: Vec<u32>,
     epoch: u32,
     known: rustc_hash::FxHashSet<PairKey>,
+    /// The swept pairs already in use: a pair that crossed again on a later round's path,
+    /// where its earlier linearisation no longer holds it, is linearised again.
+    known_swept: Vec<PairContact>,
     /// The closest pair found so far per other body (one query primitive at a time).
     best: Vec<Option<PairContact>>,
     /// The earliest crossing found so far per other body, with its time in the step.
@@ -425,7 +428,7 @@ impl Detector {
                 tested += 1;
                 let verts = [p, tri[0], tri[1], tri[2]];
                 if sweeps {
-                    if let Some(c) = swept_crossing(q0, q1, verts, false, &self.known) {
+                    if let Some(c) = swept_crossing(q0, q1, verts, false, (&self.known, &self.known_swept)) {
                         keep_first(first, col.triangle_body[t], c);
                     }
                 }
@@ -469,7 +472,7 @@ impl Detector {
                 tested += 1;
                 let verts = [e[0], e[1], g[0], g[1]];
                 if sweeps {
-                    if let Some(c) = swept_crossing(q0, q1, verts, true, &self.known) {
+                    if let Some(c) = swept_crossing(q0, q1, verts, true, (&self.known, &self.known_swept)) {
                         keep_first(first, col.edge_body[f], c);
                     }
                 }
@@ -504,8 +507,14 @@ impl Detector {
     pub fn remember(&mut self, pairs: &[PairContact], clear: bool) {
         if clear {
             self.known.clear();
+            self.known_swept.clear();
         }
-        self.known.extend(pairs.iter().map(|c| c.key()));
+        for c in pairs {
+            self.known.insert(c.key());
+            if c.swept {
+                self.known_swept.push(*c);
+            }
+        }
     }
 }
 
@@ -547,7 +556,10 @@ fn emit(
 }
 
 /// A pair whose primitives pass through each other while moving from `q0` to `q1`
-/// ([`sweep`]), not already `known`, with its time of crossing: a swept pair linearised where
+/// ([`sweep`]), not already `known` with the same linearisation (a pair that met somewhere
+/// else on this path than where it was linearised before is linearised again: its earlier
+/// constraint held the end positions on its side while the primitives went through each
+/// other), with its time of crossing: a swept pair linearised where
 /// its primitives met (the meeting points' coefficients and the face's or the edges' normal
 /// then, on the side the pair started on; regime [`Regime::Face`] or [`Regime::EdgeEdge`] for
 /// its kind). Kept only with a positive gap at the start along that normal.
@@ -556,7 +568,7 @@ fn swept_crossing(
     q1: &[Vector3<f64>],
     verts: [usize; 4],
     edges: bool,
-    known: &rustc_hash::FxHashSet<PairKey>,
+    (known, known_swept): (&rustc_hash::FxHashSet<PairKey>, &[PairContact]),
 ) -> Option<(f64, PairContact)> {
     let x0: [Vector3<f64>; 4] = std::array::from_fn(|k| q0[verts[k]]);
     let x1: [Vector3<f64>; 4] = std::array::from_fn(|k| q1[verts[k]]);
@@ -577,7 +589,15 @@ fn swept_crossing(
     };
     let distance = c.normal.dot(&c.relative(q0));
     let fine = distance.is_finite() && distance > 0.0;
-    (fine && !known.contains(&c.key())).then_some((hit.time, PairContact { distance, ..c }))
+    let same = |k: &PairContact| {
+        k.key() == c.key()
+            && (0..4).all(|i| (k.coefs[i] - c.coefs[i]).abs() <= SAME_LINEARISATION)
+            && (k.normal - c.normal).amax() <= SAME_LINEARISATION
+    };
+    // The key tells in O(1) whether the pair is in use at all; only then are its
+    // linearisations compared (a rare event: swept pairs are few).
+    let new = !known.contains(&c.key()) || !known_swept.iter().any(same);
+    (fine && new).then_some((hit.time, PairContact { distance, ..c }))
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -621,6 +641,10 @@ fn accept(
     }
     Some(c)
 }
+
+/// Largest difference of coefficients and normal components of two linearisations of one
+/// swept pair that are the same (both are of order one).
+const SAME_LINEARISATION: f64 = 1e-9;
 
 /// Closeness of the bodies' surfaces at positions `q`.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]

@@ -118,6 +118,32 @@ fn a_body_moved_through_another_within_a_step_is_found_by_the_sweep() {
         again.iter().all(|p| swept.iter().all(|q| q.key() != p.key())),
         "{again:?}"
     );
+    // A later round that ends elsewhere (b also slid sideways): the same vertex goes through
+    // the same face at another point, so the pair is handed over again, linearised where it
+    // met this time (in a step, an earlier linearisation of a turned face can hold the end
+    // positions on its side while the vertex went through; the ball on the cloth at 200 m/s
+    // did so).
+    let slide = Vector3::new(0.02, -0.5, 0.01);
+    let q2: Vec<_> = q0
+        .iter()
+        .enumerate()
+        .map(|(i, x)| if i >= 8 { x + slide } else { *x })
+        .collect();
+    let mut relinearised = Vec::new();
+    det.detect(col, &q0, &q2, violations, &mut relinearised);
+    let renewed: Vec<_> = relinearised
+        .iter()
+        .filter(|p| swept.iter().any(|q| q.key() == p.key()))
+        .collect();
+    assert!(!renewed.is_empty(), "{relinearised:?}");
+    for p in renewed {
+        let old = swept.iter().find(|q| q.key() == p.key()).unwrap();
+        assert!(
+            (0..4).any(|k| (p.coefs[k] - old.coefs[k]).abs() > 1e-6),
+            "{p:?} {old:?}"
+        );
+        assert!(p.normal.dot(&p.relative(&q2)) < 0.0, "{p:?}: violated at the new end");
+    }
 }
 
 #[test]
