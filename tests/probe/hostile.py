@@ -907,6 +907,8 @@ class Probe:
             ("inner_tolerance", 1e300),
             ("contact_rounds", 0),
             ("contact_rounds", 10**19),
+            ("crossing_rounds", 0),
+            ("crossing_rounds", 10**19),
         ]:
             sc = scene([body(translate=[0, 0.01, 0])], obstacles=[ground()], solver={setting: v})
             self.sim_case(C, f"solver.{setting} {v!r}", sc, names=[setting])
