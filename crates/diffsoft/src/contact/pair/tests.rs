@@ -58,12 +58,13 @@ fn a_body_moved_through_another_within_a_step_is_found_by_the_sweep() {
     let col = model.collision().unwrap();
     let q0 = model.rest().to_vec();
     // b (vertices 8..16) ends wholly below a: no surface crosses at the end.
-    let drop = Vector3::new(0.0, -0.5, 0.0);
-    let q1: Vec<_> = q0
-        .iter()
-        .enumerate()
-        .map(|(i, x)| if i >= 8 { x + drop } else { *x })
-        .collect();
+    let b_moved_by = |d: Vector3<f64>| -> Vec<Vector3<f64>> {
+        q0.iter()
+            .enumerate()
+            .map(|(i, x)| if i >= 8 { x + d } else { *x })
+            .collect()
+    };
+    let q1 = b_moved_by(Vector3::new(0.0, -0.5, 0.0));
     let mut det = Detector::default();
     assert_eq!(det.crossing_count(col, &q1), 0);
     let violations = Query::Violations { tolerance: 0.0 };
@@ -123,12 +124,7 @@ fn a_body_moved_through_another_within_a_step_is_found_by_the_sweep() {
     // met this time (in a step, an earlier linearisation of a turned face can hold the end
     // positions on its side while the vertex went through; the ball on the cloth at 200 m/s
     // did so).
-    let slide = Vector3::new(0.02, -0.5, 0.01);
-    let q2: Vec<_> = q0
-        .iter()
-        .enumerate()
-        .map(|(i, x)| if i >= 8 { x + slide } else { *x })
-        .collect();
+    let q2 = b_moved_by(Vector3::new(0.02, -0.5, 0.01));
     let mut relinearised = Vec::new();
     det.detect(col, &q0, &q2, violations, &mut relinearised);
     let renewed: Vec<_> = relinearised
