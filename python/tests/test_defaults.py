@@ -196,15 +196,20 @@ def test_setting_a_scene_that_a_batch_reads_raises_the_named_error(beam):
     assert beam.get("youngs_modulus") == 5e4
 
 
+def _ball_thrown_at(speed: float) -> diffsoft.Scene:
+    """The ball on the pinned cloth with its scene velocity (1 m/s down) scaled by ``speed``."""
+    scene = diffsoft.Scene.load(REPO / "verification/scenes/ball_on_cloth.json")
+    scene.set("initial_velocities", speed * np.asarray(scene.get("initial_velocities")))
+    return scene
+
+
 def test_bodies_passing_through_each_other_warn_and_refuse_gradients():
     """The ball thrown at the cloth at 1000 m/s is held by rounds past ``contact_rounds`` while
     the surfaces cross (``crossing_rounds``); with those switched off it crosses the cloth
     within a step: the run says so (a ``UserWarning`` at the caller's line,
     ``pair_crossings`` in the step log) and a gradient through it is refused; batches warn
     too."""
-    scene = diffsoft.Scene.load(REPO / "verification/scenes/ball_on_cloth.json")
-    v = np.asarray(scene.get("initial_velocities"))
-    scene.set("initial_velocities", 1000.0 * v)
+    scene = _ball_thrown_at(1000.0)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the ball folds through itself on impact
         held = scene.simulate(4)
@@ -236,9 +241,7 @@ def test_contacts_found_by_sweeping_hold_the_bodies_apart_and_refuse_gradients()
     other within a contact round are found by sweeping its motion and kept apart, so no step
     ends crossed; the step log and summary count the steps that needed them, and a gradient
     through the first such step raises ``SimulationError`` naming it."""
-    scene = diffsoft.Scene.load(REPO / "verification/scenes/ball_on_cloth.json")
-    v = np.asarray(scene.get("initial_velocities"))
-    scene.set("initial_velocities", 30.0 * v)
+    scene = _ball_thrown_at(30.0)
     run = scene.simulate(60)
     steps = run.stats["steps"]
     swept = [s["step"] for s in steps if s["swept_pairs"] > 0]
@@ -257,9 +260,7 @@ def test_a_step_held_by_rounds_past_contact_rounds_keeps_its_gradient():
     differences at two relative steps to the project's rule (``1e-12 + 1e-6 |fd|``; measured
     2e-7; the unrolled gradient agrees to 1e-8 but takes about 50 s through the step's 792
     iterations, against 2 s)."""
-    scene = diffsoft.Scene.load(REPO / "verification/scenes/ball_on_cloth.json")
-    v = np.asarray(scene.get("initial_velocities"))
-    scene.set("initial_velocities", 200.0 * v)
+    scene = _ball_thrown_at(200.0)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the ball folds through itself on impact
         run = scene.simulate(3)
