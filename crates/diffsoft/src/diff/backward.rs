@@ -8,7 +8,7 @@ use std::time::Instant;
 
 use nalgebra::Vector3;
 
-use super::contact::{self, ContactAdjoint};
+use super::contact::{self, ContactAdjoint, Reuse};
 use super::recording::Recording;
 use super::skeletal_state::SkeletalAdjoint;
 use super::{DiffError, Gradient, Mode, Options};
@@ -34,6 +34,9 @@ pub(crate) struct Backward<'a> {
     pub(super) direct: Direct,
     pub(super) local: Constraints,
     pub(super) contact: ContactAdjoint,
+    /// The recorded contact set (of this step's recording) whose Delassus block `contact`
+    /// holds; reset at every step.
+    pub(super) contact_set: Option<usize>,
     pub(super) opts: Options,
     /// The implicit adjoint's tolerance ([`Options::implicit_tolerance_for`]).
     pub(super) implicit_tol: f64,
@@ -142,6 +145,7 @@ impl<'a> Backward<'a> {
             implicit_older: false,
             accel: Anderson::new(opts.implicit_anderson, if opts.mode == Mode::Implicit { nf } else { 0 }),
             act_grad: vec![0.0; groups],
+            contact_set: None,
             model,
             sys,
             direct,
@@ -172,8 +176,9 @@ impl<'a> Backward<'a> {
     }
 
     /// `z = A^-T x_bar` with the contact correction (`impulse_bar`: a direct adjoint of the
-    /// impulses); anchors' adjoints into `anchor_bar`. `reuse`: the contacts are the previous
-    /// call's (see [`ContactAdjoint::apply`]).
+    /// impulses); anchors' adjoints into `anchor_bar`. `reuse`: the linearized contact system
+    /// is the previous call's ([`Reuse::Everything`]); otherwise `set`, the contacts' set in
+    /// this step's recording, keeps the Delassus block when the previous call had the same.
     #[allow(clippy::too_many_arguments)]
     pub(super) fn solve_adjoint(
         &mut self,
@@ -184,11 +189,20 @@ impl<'a> Backward<'a> {
         anchor_bar: &mut [Vector3<f64>],
         q_start: &[Vector3<f64>],
         reuse: bool,
+        set: Option<usize>,
     ) -> Result<(), DiffError> {
         self.direct.solve_free(&self.xbar, &mut self.z)?;
         if contacts.is_empty() {
             return Ok(());
         }
+        let reuse = if reuse {
+            Reuse::Everything
+        } else if set.is_some() && set == self.contact_set {
+            Reuse::Delassus
+        } else {
+            Reuse::Nothing
+        };
+        self.contact_set = set;
         let t = Instant::now();
         let pairs = self.model.collision.as_ref().map(|c| contact::PairInputs {
             q_start,
@@ -265,6 +279,7 @@ impl<'a> Backward<'a> {
         }
         let step = inp.step;
         self.contact.near_kinks = 0;
+        self.contact_set = None;
         let mut s_bar = std::mem::take(&mut self.s_bar);
         std::mem::swap(&mut self.act_grad, &mut g.activations[step]);
         let r = match (self.opts.mode, inp.replay) {
@@ -335,7 +350,16 @@ impl<'a> Backward<'a> {
         for k in (0..iters).rev() {
             let (contacts, impulses) = rec.solve(k);
             let x_next = &rec.iterates[k + 1];
-            self.solve_adjoint(contacts, impulses, x_next, None, qbar, q_n, false)?;
+            self.solve_adjoint(
+                contacts,
+                impulses,
+                x_next,
+                None,
+                qbar,
+                q_n,
+                false,
+                Some(rec.solve_set(k)),
+            )?;
             self.accumulate_solve(x_next, g);
             Self::scatter(&self.sys, model, &rec.iterates[k], &mut self.q_full, false);
             Self::scatter(&self.sys, model, x_next, &mut self.xn_full, false);

@@ -11,16 +11,24 @@
 //! `(I + D/w - D Delta) d lambda = D E^T A^-1 dr + G d anchor`.
 //!
 //! The adjoint of `x` therefore maps to `r_bar = z + A^-1 E D^T mu`, with `z = A^-1 x_bar` and
-//! `mu` the solution of the transposed system `mu_i + D_i^T mu_i / w_i - sum_j Delta_ij D_j^T mu_j = z_{c_i}`,
-//! solved by Gauss-Seidel (with `w_i = 1/Delta_ii` the diagonal terms cancel: for sticking
-//! contacts this is Gauss-Seidel on the SPD Delassus system, the forward PGS's own
-//! convergence); the anchors (start-of-step positions) receive `G_j^T mu_j`.
+//! `mu` the solution of the transposed system `mu_i + D_i^T mu_i / w_i - sum_j Delta_ij D_j^T mu_j = z_{c_i}`
+//! (with `w_i = 1/Delta_ii` the diagonal terms cancel); the anchors (start-of-step positions)
+//! receive `G_j^T mu_j`. Only contacts with a non-zero `D_j` (touching ones) couple, so the
+//! system is solved densely over those (an LU of `3a x 3a` for `a` of them), and the others'
+//! `mu` follow from their own rows. The factor is kept while the Delassus block stays (the
+//! local-global iterations of one contact round in unrolled mode, every iteration of an
+//! implicit adjoint's fixed point): a system whose cone Jacobians moved is solved by iterative
+//! refinement preconditioned with it, and factored again only when that slows. Gauss-Seidel
+//! (for sticking contacts, on the SPD Delassus system: the forward PGS's own rate, thousands of
+//! sweeps where a cloth drapes a body) remains for sets beyond [`DENSE_MAX_UNKNOWNS`] and as
+//! the fallback when the dense path does not reach the tolerance.
 //! Plane normals and points are constant; for triangle-mesh obstacles their change with the
 //! closest point is ignored (exact only for planes).
 
 use nalgebra::{Matrix3, Vector3};
 
 use crate::contact::Contact;
+use crate::solver::dense_lu::DenseLu;
 use crate::solver::direct::Direct;
 use crate::solver::free_contact::FreeContact;
 
@@ -84,6 +92,118 @@ fn near_kinks(distances: &[(f64, f64, f64)], length_scale: f64) -> usize {
         .count()
 }
 
+/// Largest dense system (three unknowns per active contact) [`ContactAdjoint::apply`] solves
+/// by LU; larger contact sets go to Gauss-Seidel. At this size the factor is 46 MB and takes
+/// about as long as a few thousand Gauss-Seidel sweeps of the same contacts, which
+/// ill-conditioned sets (a cloth draped over a body) need per solve.
+const DENSE_MAX_UNKNOWNS: usize = 2400;
+
+/// Refinement steps with a factor of the very system being solved (the first gives the LU
+/// solution; later ones only polish rounding).
+const EXACT_REFINEMENTS: usize = 4;
+
+/// Refinement steps with a factor of an earlier system of the same contacts (the cone
+/// Jacobians of sliding contacts move from one local-global iteration to the next), used as a
+/// preconditioner before the system is factored again.
+const STALE_REFINEMENTS: usize = 12;
+
+/// A refinement step must shrink the residual at least this much, or the factor is taken
+/// again (stale) or the solve falls back to Gauss-Seidel (exact).
+const REFINEMENT_RATE: f64 = 0.25;
+
+/// What of the previous [`ContactAdjoint::apply`] still holds for the next call.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Reuse {
+    /// Nothing: other contacts, or another global matrix.
+    Nothing,
+    /// The same contacts' stencils under the same global matrix: the Delassus block is kept,
+    /// the cone Jacobians are taken again at the new impulses and solution (two local-global
+    /// iterations of one contact round).
+    Delassus,
+    /// The same linearized system with a new right-hand side (an implicit adjoint's
+    /// iterations): everything is kept and the previous solution is the starting point.
+    Everything,
+}
+
+/// The transposed contact system over the contacts whose cone Jacobian is not zero, dense
+/// (`3a x 3a` for `a` such contacts, block `(p, q)` equal to `I` on the diagonal and
+/// `-Delta_pq D_q^T` off it), with an LU factor kept across calls while the Delassus block
+/// stays.
+#[derive(Debug, Default)]
+struct DenseAdjoint {
+    /// Whether `factor` holds the LU factor of the system of `factored_active` and
+    /// `factored_dt` under the current Delassus block.
+    valid: bool,
+    factored_active: Vec<usize>,
+    factored_dt: Vec<Matrix3<f64>>,
+    factor: Vec<f64>,
+    lu: DenseLu,
+    /// The current call's active contacts and their `D_j^T`.
+    active: Vec<usize>,
+    dt: Vec<Matrix3<f64>>,
+    /// Right-hand side, iterate, residual and correction (three entries per active contact).
+    b: Vec<f64>,
+    x: Vec<f64>,
+    r: Vec<f64>,
+    dx: Vec<f64>,
+    /// `D_q^T x_q` per active contact (the product's inner vector).
+    w: Vec<Vector3<f64>>,
+}
+
+impl DenseAdjoint {
+    /// `r = b - M x` for the current active contacts and `D^T`, with `delta` the row-major
+    /// `m x m` Delassus block; returns `|r|_inf`.
+    fn residual(&mut self, delta: &[f64], m: usize) -> f64 {
+        let a = self.active.len();
+        self.w.clear();
+        self.w
+            .extend((0..a).map(|q| self.dt[q] * Vector3::new(self.x[3 * q], self.x[3 * q + 1], self.x[3 * q + 2])));
+        let mut worst = 0.0f64;
+        for (p, &i) in self.active.iter().enumerate() {
+            let row = &delta[i * m..(i + 1) * m];
+            let mut acc = Vector3::zeros();
+            for (q, &j) in self.active.iter().enumerate() {
+                if q != p {
+                    acc += self.w[q] * row[j];
+                }
+            }
+            for d in 0..3 {
+                let e = self.b[3 * p + d] - (self.x[3 * p + d] - acc[d]);
+                self.r[3 * p + d] = e;
+                worst = worst.max(e.abs());
+            }
+        }
+        worst
+    }
+
+    /// Build and factor the current system; false if it is singular.
+    fn refactor(&mut self, delta: &[f64], m: usize) -> bool {
+        let a = self.active.len();
+        let k = 3 * a;
+        self.factor.clear();
+        self.factor.resize(k * k, 0.0);
+        for (p, &i) in self.active.iter().enumerate() {
+            for (q, &j) in self.active.iter().enumerate() {
+                for r in 0..3 {
+                    let row = &mut self.factor[(3 * p + r) * k + 3 * q..(3 * p + r) * k + 3 * q + 3];
+                    if p == q {
+                        row[r] = 1.0;
+                    } else {
+                        let dij = delta[i * m + j];
+                        for (c, e) in row.iter_mut().enumerate() {
+                            *e = -dij * self.dt[q][(r, c)];
+                        }
+                    }
+                }
+            }
+        }
+        self.valid = self.lu.factor(&mut self.factor, k);
+        self.factored_active.clone_from(&self.active);
+        self.factored_dt.clone_from(&self.dt);
+        self.valid
+    }
+}
+
 /// The adjoint of one global solve with contacts (see the module docs).
 #[derive(Debug, Default)]
 pub struct ContactAdjoint {
@@ -94,7 +214,9 @@ pub struct ContactAdjoint {
     delta: Vec<f64>,
     /// `D_j^T mu_j` per contact.
     v: Vec<Vector3<f64>>,
-    /// Gauss-Seidel sweeps used, summed.
+    /// The dense path's system over the active contacts ([`ContactAdjoint::solve_dense`]).
+    dense: DenseAdjoint,
+    /// Gauss-Seidel sweeps and dense refinement steps used, summed.
     pub sweeps: usize,
     /// Largest final relative residual of the transposed contact system.
     pub worst_residual: f64,
@@ -169,10 +291,8 @@ impl ContactAdjoint {
     /// given, is a direct adjoint of the impulses themselves (one per contact; the skeleton's
     /// step reuses them in its next iteration).
     ///
-    /// `reuse`: the contacts, impulses and `x` are those of the previous call (an implicit
-    /// adjoint's fixed point solves the same linearized contact system with a new right-hand
-    /// side each iteration), so its Delassus block and cone Jacobians are kept and the
-    /// Gauss-Seidel solve starts from the previous solution.
+    /// `reuse` says what of the previous call still holds ([`Reuse`]): its Delassus block, or
+    /// the whole linearized system (then the previous solution is the starting point too).
     #[allow(clippy::too_many_arguments)]
     pub fn apply(
         &mut self,
@@ -186,16 +306,22 @@ impl ContactAdjoint {
         pairs: Option<PairInputs<'_>>,
         tolerance: f64,
         max_sweeps: usize,
-        reuse: bool,
+        reuse: Reuse,
     ) -> Result<(), DiffError> {
         let m = contacts.len();
         if m == 0 {
             return Ok(());
         }
-        let reuse = reuse && self.d.len() == m && self.mu.len() == m;
-        if !reuse {
-            self.prepare(direct, contacts, impulses, x)?;
+        // What the caller says holds, checked against the sizes kept.
+        let reuse = match reuse {
+            Reuse::Everything if self.d.len() == m && self.mu.len() == m => Reuse::Everything,
+            Reuse::Everything | Reuse::Delassus if self.delta.len() == m * m => Reuse::Delassus,
+            _ => Reuse::Nothing,
+        };
+        if reuse != Reuse::Everything {
+            self.prepare(direct, contacts, impulses, x, reuse == Reuse::Delassus)?;
         }
+        let reuse = reuse == Reuse::Everything;
         self.rhs.clear();
         self.rhs.extend(contacts.iter().map(|c| c.stencil.apply(z)));
         if let Some(lb) = impulse_bar {
@@ -213,18 +339,22 @@ impl ContactAdjoint {
             self.mu.clear();
             self.mu.extend_from_slice(&self.rhs);
         }
-        self.solve_transposed(tolerance, max_sweeps)?;
+        if !self.solve_dense(tolerance) {
+            self.solve_transposed(tolerance, max_sweeps)?;
+        }
         self.finish(direct, contacts, impulses, x, z, anchor_bar, pairs)
     }
 
     /// The step's linearized contact system: the Delassus block `Delta = C A^-1 C^T` between
-    /// the contacts' stencils and each cone projection's Jacobians at the impulse it ended with.
+    /// the contacts' stencils (kept from the previous call when `same_delassus`) and each cone
+    /// projection's Jacobians at the impulse it ended with.
     fn prepare(
         &mut self,
         direct: &mut Direct,
         contacts: &[FreeContact],
         impulses: &[Vector3<f64>],
         x: &[Vector3<f64>],
+        same_delassus: bool,
     ) -> Result<(), DiffError> {
         let m = contacts.len();
         if impulses.len() != m {
@@ -233,12 +363,15 @@ impl ContactAdjoint {
                     .into(),
             ));
         }
-        for c in contacts {
-            for (i, _) in c.stencil.entries() {
-                direct.inverse_column(i);
+        if !same_delassus {
+            for c in contacts {
+                for (i, _) in c.stencil.entries() {
+                    direct.inverse_column(i);
+                }
             }
+            direct.delassus_matrix(contacts.iter().map(|c| &c.stencil), &mut self.delta);
+            self.dense.valid = false;
         }
-        direct.delassus_matrix(contacts.iter().map(|c| &c.stencil), &mut self.delta);
         self.d.clear();
         self.g.clear();
         self.distances.clear();
@@ -253,6 +386,107 @@ impl ContactAdjoint {
         }
         self.near_kinks += near_kinks(&self.distances, self.length_scale);
         Ok(())
+    }
+
+    /// `mu = rhs + Delta' D^T mu` (off-diagonal `Delta`) by a dense LU of the contacts with a
+    /// non-zero cone Jacobian, the factor kept across calls while the Delassus block stays and
+    /// used to precondition iterative refinement when only the Jacobians moved (refactored
+    /// when the refinement slows). To the residual `tolerance` relative to the largest entry of
+    /// `rhs` and `mu`, the same scale as the Gauss-Seidel's change; false (nothing solved,
+    /// `mu` a valid start) when the set is too large for the dense path, the system singular
+    /// or the refinement does not reach the tolerance.
+    fn solve_dense(&mut self, tolerance: f64) -> bool {
+        let m = self.d.len();
+        let dense = &mut self.dense;
+        dense.active.clear();
+        dense.active.extend((0..m).filter(|&j| self.d[j] != Matrix3::zeros()));
+        let a = dense.active.len();
+        let k = 3 * a;
+        if k > DENSE_MAX_UNKNOWNS {
+            return false;
+        }
+        dense.dt.clear();
+        dense.dt.extend(dense.active.iter().map(|&j| self.d[j].transpose()));
+        dense.b.clear();
+        dense
+            .b
+            .extend(dense.active.iter().flat_map(|&j| self.rhs[j].iter().copied()));
+        for buf in [&mut dense.x, &mut dense.r, &mut dense.dx] {
+            buf.clear();
+            buf.resize(k, 0.0);
+        }
+        let rhs_scale = self.rhs.iter().map(|v| v.amax()).fold(0.0, f64::max);
+        // No touching contact: every mu is its right-hand side, one pass.
+        let mut solved = a == 0;
+        if solved {
+            self.sweeps += 1;
+        }
+        let mut exact = dense.valid && dense.factored_active == dense.active && dense.factored_dt == dense.dt;
+        let stale = dense.valid && dense.factored_active == dense.active;
+        if !solved && !stale {
+            if !dense.refactor(&self.delta, m) {
+                return false;
+            }
+            exact = true;
+        }
+        while !solved {
+            // From x = 0: the first correction is the factor's solution of b.
+            dense.x.iter_mut().for_each(|x| *x = 0.0);
+            dense.r.copy_from_slice(&dense.b);
+            let mut previous = f64::INFINITY;
+            let steps = if exact { EXACT_REFINEMENTS } else { STALE_REFINEMENTS };
+            for _ in 0..steps {
+                dense.dx.copy_from_slice(&dense.r);
+                if !dense.lu.solve_factored(&dense.factor, &mut dense.dx, k) {
+                    break;
+                }
+                for (x, dx) in dense.x.iter_mut().zip(&dense.dx) {
+                    *x += dx;
+                }
+                self.sweeps += 1;
+                let residual = dense.residual(&self.delta, m);
+                let scale = dense
+                    .x
+                    .iter()
+                    .fold(rhs_scale, |s, x| s.max(x.abs()))
+                    .max(f64::MIN_POSITIVE);
+                if residual / scale <= tolerance {
+                    self.worst_residual = self.worst_residual.max(residual / scale);
+                    solved = true;
+                    break;
+                }
+                if residual.is_nan() || residual >= REFINEMENT_RATE * previous {
+                    break;
+                }
+                previous = residual;
+            }
+            if solved {
+                break;
+            }
+            if exact || !dense.refactor(&self.delta, m) {
+                return false;
+            }
+            exact = true;
+        }
+        // mu and v on every contact: the active ones from the solution, the others from
+        // their equation `mu_i = rhs_i + sum_j Delta_ij v_j`.
+        self.v.clear();
+        self.v.resize(m, Vector3::zeros());
+        for (p, &j) in dense.active.iter().enumerate() {
+            let mu = Vector3::new(dense.x[3 * p], dense.x[3 * p + 1], dense.x[3 * p + 2]);
+            self.mu[j] = mu;
+            self.v[j] = dense.dt[p] * mu;
+        }
+        for i in 0..m {
+            if self.d[i] == Matrix3::zeros() {
+                let row = &self.delta[i * m..(i + 1) * m];
+                self.mu[i] = dense
+                    .active
+                    .iter()
+                    .fold(self.rhs[i], |acc, &j| acc + self.v[j] * row[j]);
+            }
+        }
+        true
     }
 
     /// `mu = rhs + Delta' D^T mu` (off-diagonal `Delta`) by Gauss-Seidel from the current `mu`,
@@ -383,6 +617,111 @@ mod tests {
             anchor: Vector3::new(0.03, 0.1, 0.02),
             friction: mu,
         }
+    }
+
+    /// A linearized contact system of `m` contacts sharing vertices (a Delassus block
+    /// `B B^T` of a random stencil matrix `B`, so neighbouring contacts couple strongly), each
+    /// contact separating, sticking or sliding by its index; `shift` moves the sliding
+    /// contacts' slip.
+    fn system(m: usize, shift: f64) -> ContactAdjoint {
+        let cols = m + 4;
+        let b: Vec<f64> = (0..m * cols)
+            .map(|i| {
+                let (r, c) = (i / cols, i % cols);
+                if c == r || c == r + 1 || c == r + 3 {
+                    1.0 + ((r * 7 + c * 3) % 5) as f64 * 0.2
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        let mut ca = ContactAdjoint {
+            delta: (0..m * m)
+                .map(|i| {
+                    let (r, c) = (i / m, i % m);
+                    (0..cols).map(|k| b[r * cols + k] * b[c * cols + k]).sum::<f64>()
+                })
+                .collect(),
+            ..ContactAdjoint::default()
+        };
+        for j in 0..m {
+            let w = 1.0 / ca.delta[j * m + j];
+            let mut c = contact(0.4);
+            c.normal = Vector3::new(0.1 * (j as f64).sin(), 1.0, 0.05).normalize();
+            let x_hat = match j % 3 {
+                0 => Vector3::new(0.0, 0.5, 0.0),                     // separating
+                1 => c.anchor + Vector3::new(0.001, -0.2, 0.0),       // sticking
+                _ => c.anchor + Vector3::new(0.3 + shift, -0.5, 0.2), // sliding
+            };
+            ca.d.push(project_jacobian(&x_hat, w, &c).0);
+            ca.rhs
+                .push(Vector3::new(1.0 + j as f64, -0.5 * j as f64, (j as f64).cos()));
+        }
+        ca.mu = ca.rhs.clone();
+        ca
+    }
+
+    /// Largest entry of `mu - rhs - Delta' D^T mu` over the largest entry of `rhs`.
+    fn residual(ca: &ContactAdjoint) -> f64 {
+        let m = ca.d.len();
+        let scale = ca.rhs.iter().map(|v| v.amax()).fold(0.0, f64::max);
+        (0..m)
+            .map(|i| {
+                let mut acc = ca.rhs[i];
+                for j in (0..m).filter(|&j| j != i) {
+                    acc += ca.d[j].transpose() * ca.mu[j] * ca.delta[i * m + j];
+                }
+                (ca.mu[i] - acc).amax() / scale
+            })
+            .fold(0.0, f64::max)
+    }
+
+    /// The dense path solves the transposed contact system to its tolerance, agrees with
+    /// Gauss-Seidel run to convergence, and solves a system whose sliding contacts moved
+    /// with its earlier factor (refinement) without factoring again.
+    #[test]
+    fn dense_adjoint_matches_gauss_seidel_and_reuses_its_factor() {
+        let m = 30;
+        let mut dense = system(m, 0.0);
+        for j in 0..m {
+            let w = 1.0 / dense.delta[j * m + j];
+            match j % 3 {
+                0 => assert_eq!(dense.d[j], Matrix3::zeros()),
+                1 => assert_eq!(dense.d[j], -Matrix3::identity() * w),
+                _ => assert!(dense.d[j] != Matrix3::zeros() && dense.d[j] != dense.d[j].transpose()),
+            }
+        }
+        assert!(dense.solve_dense(1e-14));
+        assert!(residual(&dense) < 1e-13, "{}", residual(&dense));
+        let mut gs = system(m, 0.0);
+        gs.solve_transposed(1e-15, 1_000_000).unwrap();
+        for (a, b) in dense.mu.iter().zip(&gs.mu) {
+            assert!((a - b).amax() <= 1e-10 * b.amax().max(1.0), "{a} vs {b}");
+        }
+        // The separating contacts' mu follows from the others (their v is zero).
+        for j in (0..m).step_by(3) {
+            assert_eq!(dense.v[j], Vector3::zeros());
+        }
+        // Sliding contacts moved a little: the old factor preconditions the new system.
+        let moved = system(m, 1e-3);
+        assert!(moved.d[2] != dense.d[2]);
+        let factor = dense.dense.factor.clone();
+        dense.d.clone_from(&moved.d);
+        let sweeps = dense.sweeps;
+        assert!(dense.solve_dense(1e-14));
+        assert!(residual(&dense) < 1e-13, "{}", residual(&dense));
+        assert_eq!(dense.dense.factor, factor, "refactored a system its old factor solves");
+        assert!(
+            dense.sweeps - sweeps > 1,
+            "no refinement needed: the systems did not differ"
+        );
+        // A sticking contact that slides instead: the old factor no longer converges fast
+        // enough and the system is factored again.
+        dense.d[1] = dense.d[2];
+        assert!(dense.solve_dense(1e-14));
+        assert!(residual(&dense) < 1e-13, "{}", residual(&dense));
+        assert_ne!(dense.dense.factor, factor);
+        assert_eq!(dense.dense.factored_dt[0], dense.d[1].transpose());
     }
 
     /// Both Jacobians match central differences in the stick and slide states.

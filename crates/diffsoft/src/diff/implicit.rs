@@ -156,7 +156,16 @@ impl Backward<'_> {
             self.anchor_scratch.iter_mut().for_each(|a| *a = Vector3::zeros());
             let mut anchors = std::mem::take(&mut self.anchor_scratch);
             // The step's contact system is the same every iteration: built on the first.
-            let r = self.solve_adjoint(contacts, impulses, &w[X_STAR], None, &mut anchors, inp.q_n, it > 0);
+            let r = self.solve_adjoint(
+                contacts,
+                impulses,
+                &w[X_STAR],
+                None,
+                &mut anchors,
+                inp.q_n,
+                it > 0,
+                None,
+            );
             self.anchor_scratch = anchors;
             if let Err(e) = r {
                 break Err(e);

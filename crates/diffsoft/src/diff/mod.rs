@@ -191,9 +191,11 @@ pub struct Options {
     /// Implicit mode with contacts: memory of the Anderson mixing that accelerates the adjoint
     /// fixed point (0: the plain iteration, which converges at the forward's own rate).
     pub implicit_anderson: usize,
-    /// Relative tolerance of the linearized contact systems.
+    /// Relative tolerance of the linearized contact systems (their residual, or the
+    /// Gauss-Seidel's change per sweep, against the largest entry of the right-hand side and
+    /// solution).
     pub contact_tolerance: f64,
-    /// Sweep cap of the linearized contact systems.
+    /// Sweep cap of the linearized contact systems solved by Gauss-Seidel.
     pub contact_max_sweeps: usize,
     /// Unrolled mode: keep the forward pass's recordings of whole steps (iterates and
     /// decompositions) up to this many bytes, so those steps need no replay in the backward
@@ -338,7 +340,9 @@ pub struct DiffStats {
     pub joint_limit_steps: usize,
     /// Implicit mode: largest final relative change of an adjoint fixed point (1).
     pub implicit_residual: f64,
-    /// Gauss-Seidel sweeps of the linearized contact systems.
+    /// Passes over the linearized contact systems: dense refinement steps (one per solve with
+    /// a factor, docs/method.md Eq. C5; one for a set with no touching contact) and
+    /// Gauss-Seidel sweeps (sets beyond the dense path).
     pub contact_sweeps: usize,
     /// Largest final relative residual of a linearized contact system (1).
     pub contact_residual: f64,

@@ -162,6 +162,11 @@ impl Recording {
         self.solve_sets.len()
     }
 
+    /// Which recorded contact set solve `k` ran with (solves of one contact round share it).
+    pub(crate) fn solve_set(&self, k: usize) -> usize {
+        self.solve_sets[k]
+    }
+
     /// Solve `k`'s contacts and impulses.
     pub(crate) fn solve(&self, k: usize) -> (&[FreeContact], &[Vector3<f64>]) {
         let set = self.solve_sets[k];

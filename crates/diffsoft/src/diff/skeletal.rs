@@ -326,7 +326,7 @@ impl Backward<'_> {
         // contact solve at x_pre = y0 - W q_R': y~ = A_FF^-1 x_pre_bar (contact-corrected).
         let ib = (!contacts.is_empty() && impulse_bar.len() == contacts.len()).then_some(&impulse_bar[..]);
         // A skeleton has no contacts between bodies (refused by the simulator): no start positions needed.
-        self.solve_adjoint(contacts, impulses, x_next, ib, qbar, &[], false)?;
+        self.solve_adjoint(contacts, impulses, x_next, ib, qbar, &[], false, Some(rec.solve_set(k)))?;
         SkeletalAdjoint::load(
             &mut sa.work,
             &rec.skeleton_states[k + 1],

@@ -46,7 +46,7 @@ mod cholesky;
 pub mod choose;
 pub(crate) mod contact_space;
 pub(crate) mod contacts;
-mod dense_lu;
+pub(crate) mod dense_lu;
 pub(crate) mod direct;
 mod error;
 mod few_rhs;
