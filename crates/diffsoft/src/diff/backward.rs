@@ -37,6 +37,8 @@ pub(crate) struct Backward<'a> {
     /// The recorded contact set (of this step's recording) whose Delassus block `contact`
     /// holds; reset at every step.
     pub(super) contact_set: Option<usize>,
+    /// Whether this step's contact systems may be solved densely ([`StepInputs::capped`]).
+    pub(super) contact_dense: bool,
     pub(super) opts: Options,
     /// The implicit adjoint's tolerance ([`Options::implicit_tolerance_for`]).
     pub(super) implicit_tol: f64,
@@ -96,6 +98,11 @@ pub(crate) struct StepInputs<'r> {
     pub previous: Previous<'r>,
     /// Step index.
     pub step: usize,
+    /// Whether the forward step stopped a global or contact solve unconverged (capped or
+    /// stalled; gradients only with `allow_unconverged`): its linearized contact systems are
+    /// then solved by Gauss-Seidel, whose truncation follows the forward's own, rather than
+    /// exactly at a fixed point the forward did not reach.
+    pub capped: bool,
 }
 
 impl<'a> Backward<'a> {
@@ -146,6 +153,7 @@ impl<'a> Backward<'a> {
             accel: Anderson::new(opts.implicit_anderson, if opts.mode == Mode::Implicit { nf } else { 0 }),
             act_grad: vec![0.0; groups],
             contact_set: None,
+            contact_dense: true,
             model,
             sys,
             direct,
@@ -227,6 +235,7 @@ impl<'a> Backward<'a> {
             },
             self.opts.contact_max_sweeps,
             reuse,
+            self.contact_dense,
         );
         self.contact_ms += t.elapsed().as_secs_f64() * 1e3;
         r
@@ -280,6 +289,7 @@ impl<'a> Backward<'a> {
         let step = inp.step;
         self.contact.near_kinks = 0;
         self.contact_set = None;
+        self.contact_dense = !inp.capped;
         let mut s_bar = std::mem::take(&mut self.s_bar);
         std::mem::swap(&mut self.act_grad, &mut g.activations[step]);
         let r = match (self.opts.mode, inp.replay) {

@@ -293,6 +293,8 @@ impl ContactAdjoint {
     ///
     /// `reuse` says what of the previous call still holds ([`Reuse`]): its Delassus block, or
     /// the whole linearized system (then the previous solution is the starting point too).
+    /// `dense`: the system may be solved by the dense path (otherwise, and when that path
+    /// declines, by Gauss-Seidel).
     #[allow(clippy::too_many_arguments)]
     pub fn apply(
         &mut self,
@@ -307,6 +309,7 @@ impl ContactAdjoint {
         tolerance: f64,
         max_sweeps: usize,
         reuse: Reuse,
+        dense: bool,
     ) -> Result<(), DiffError> {
         let m = contacts.len();
         if m == 0 {
@@ -339,7 +342,7 @@ impl ContactAdjoint {
             self.mu.clear();
             self.mu.extend_from_slice(&self.rhs);
         }
-        if !self.solve_dense(tolerance) {
+        if !(dense && self.solve_dense(tolerance)) {
             self.solve_transposed(tolerance, max_sweeps)?;
         }
         self.finish(direct, contacts, impulses, x, z, anchor_bar, pairs)

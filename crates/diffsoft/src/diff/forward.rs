@@ -171,6 +171,8 @@ pub(crate) struct Forward {
     pub unconverged: usize,
     /// Steps with a global or contact solve that stopped unconverged (capped or stalled).
     pub capped: usize,
+    /// Per step: whether it had such a solve.
+    pub capped_steps: Vec<bool>,
     /// Steps unconverged or with such a solve.
     pub flagged: usize,
     /// Steps that ended with the surfaces of two bodies crossing, and the first of them
@@ -353,6 +355,7 @@ pub(crate) fn forward(
         iterations: 0,
         unconverged: 0,
         capped: 0,
+        capped_steps: Vec::with_capacity(steps),
         flagged: 0,
         crossed: 0,
         first_crossed: None,
@@ -383,6 +386,7 @@ pub(crate) fn forward(
         f.iterations += st.iterations;
         f.unconverged += usize::from(!st.converged);
         f.capped += usize::from(st.capped_solves > 0);
+        f.capped_steps.push(st.capped_solves > 0);
         f.flagged += usize::from(!st.converged || st.capped_solves > 0);
         if st.pair_crossings > 0 {
             f.crossed += 1;

@@ -510,6 +510,7 @@ pub fn gradient_on(
                 final_contacts: fwd.contacts.get(step),
                 previous,
                 step,
+                capped: fwd.capped_steps.get(step).copied().unwrap_or(false),
             },
             &mut qbar,
             &mut vbar,
