@@ -19,7 +19,7 @@ use faer::{Conj, Mat, Par, Side};
 use nalgebra::Vector3;
 
 use super::assembled::GlobalSystem;
-use super::contact_space::{ContactSpace, Problem};
+use super::contact_space::{ContactSpace, Effort, Problem};
 use super::free_contact::{FreeContact, Stencil};
 use super::global::{GlobalSolver, GlobalStats, InnerControl, SolverKind};
 use super::tree_solve::{TreePlan, TreeWork};
@@ -112,6 +112,10 @@ pub(crate) struct Direct {
     dmat: Vec<f64>,
     x_free: Vec<Vector3<f64>>,
     space: ContactSpace,
+    /// Whether this step's last contact solve stalled (or, after one that did, on the same
+    /// contact set, did not converge): the next solve of the same set runs with
+    /// [`Effort::AfterStall`]. Reset by [`Direct::begin_step`].
+    stalled: bool,
     /// The previous solve's impulses by contact vertices (warm starts).
     previous: FxHashMap<(u8, [usize; 4]), Vector3<f64>>,
 }
@@ -156,6 +160,7 @@ impl Direct {
             dmat: Vec::new(),
             x_free: Vec::new(),
             space: ContactSpace::default(),
+            stalled: false,
             previous: FxHashMap::default(),
         }
     }
@@ -325,6 +330,12 @@ impl Direct {
         }
     }
 
+    /// Forget the last step's stalled contact solves (a new step's first solve of any set runs
+    /// with [`Effort::Full`]).
+    pub(crate) fn begin_step(&mut self) {
+        self.stalled = false;
+    }
+
     /// Contacts on a contact-free solution `x`: projected Gauss-Seidel on the contact-space
     /// operator for the impulses (same cone projection as the iterative solvers), then
     /// `x += sum_c (A^-1)_{:,c} lambda_c`.
@@ -385,7 +396,14 @@ impl Direct {
             &mut self.lambda,
             self.control.tolerance,
             self.control.max_iterations,
+            if same && self.stalled {
+                Effort::AfterStall
+            } else {
+                Effort::Full
+            },
         );
+        // Kept while the set stays and its solves do not converge (see `Effort::AfterStall`).
+        self.stalled = solve.stalled || (same && self.stalled && !solve.converged);
         stats.contact_iterations = solve.sweeps + solve.active_set_solves;
         stats.converged = solve.converged;
         stats.last_update = solve.last_change;
@@ -417,6 +435,10 @@ impl GlobalSolver for Direct {
     ) -> Result<GlobalStats, SolverError> {
         self.solve_free(b, x)?;
         Ok(self.apply_contacts(x, contacts))
+    }
+
+    fn begin_step(&mut self) {
+        Direct::begin_step(self);
     }
 
     fn impulses(&self) -> Option<&[Vector3<f64>]> {

@@ -65,6 +65,9 @@ pub(crate) trait GlobalSolver: Send {
         contacts: &[FreeContact],
     ) -> Result<GlobalStats, SolverError>;
 
+    /// A new time step begins (solvers that keep per-step state reset it).
+    fn begin_step(&mut self) {}
+
     /// Whether a solve runs parallel work of its own (then the pool's workers are not kept
     /// spinning through it, see `warm`).
     fn parallel_inside(&self) -> bool {

@@ -88,8 +88,12 @@ impl StepIteration for LocalGlobal {
     }
 
     fn begin_step(&mut self) {
-        if let GlobalPhase::Reduced(r) = &mut self.global {
-            r.reduced.reset_impulses();
+        match &mut self.global {
+            GlobalPhase::Free(s) => s.begin_step(),
+            GlobalPhase::Reduced(r) => {
+                r.reduced.reset_impulses();
+                r.direct.begin_step();
+            }
         }
     }
 

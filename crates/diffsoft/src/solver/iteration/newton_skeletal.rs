@@ -543,6 +543,7 @@ impl StepIteration for NewtonSkeletalIteration {
 
     fn begin_step(&mut self) {
         self.step.reduced.reset_impulses();
+        self.step.direct.begin_step();
     }
 
     /// Newton iterations from the first iterate `begin_step` set (see the module docs); with a
