@@ -581,6 +581,32 @@ mod tests {
         )
     }
 
+    /// Three ground contacts with friction 0.3, 0.8 and 0, coupled through `D`, two pushed in
+    /// and sliding, one apart.
+    fn three_coupled() -> ([FreeContact; 3], [f64; 9], [Vector3<f64>; 3]) {
+        let y = Vector3::y();
+        (
+            [ground(0, y, 0.3), ground(1, y, 0.8), ground(2, y, 0.0)],
+            [1.0, 0.4, 0.1, 0.4, 2.0, 0.3, 0.1, 0.3, 0.5],
+            [
+                Vector3::new(0.3, -0.2, 0.1),
+                Vector3::new(-0.02, -0.1, 0.05),
+                Vector3::new(0.01, 0.3, 0.0),
+            ],
+        )
+    }
+
+    /// Two contacts that ask the same vertex to be above one plane and below another 0.1 m
+    /// under it: an infeasible set.
+    fn above_and_below() -> ([FreeContact; 2], [f64; 4], [Vector3<f64>; 2]) {
+        let y = Vector3::y();
+        let mut below = ground(0, -y, 0.0);
+        below.contact.point = Vector3::new(0.0, -0.1, 0.0);
+        let mut contacts = [ground(0, y, 0.0), below];
+        contacts[1].stencil = Stencil::single(0);
+        (contacts, [1.0; 4], [Vector3::new(0.0, -0.5, 0.0); 2])
+    }
+
     /// The unit normal tilted `deg` degrees from `+y` towards `+x`.
     fn tilt(deg: f64) -> Vector3<f64> {
         Vector3::new(deg.to_radians().sin(), deg.to_radians().cos(), 0.0)
@@ -633,14 +659,7 @@ mod tests {
     /// of an attempt it still equals a fresh product at the iterate reached (up to rounding).
     #[test]
     fn positions_kept_along_the_line_search_match_a_fresh_product() {
-        let y = Vector3::y();
-        let contacts = [ground(0, y, 0.3), ground(1, y, 0.8), ground(2, y, 0.0)];
-        let d = [1.0, 0.4, 0.1, 0.4, 2.0, 0.3, 0.1, 0.3, 0.5];
-        let f = [
-            Vector3::new(0.3, -0.2, 0.1),
-            Vector3::new(-0.02, -0.1, 0.05),
-            Vector3::new(0.01, 0.3, 0.0),
-        ];
+        let (contacts, d, f) = three_coupled();
         let p = Problem {
             d: &d,
             f: &f,
@@ -745,13 +764,7 @@ mod tests {
     /// says so (not converged, stalled) long before its cap.
     #[test]
     fn an_infeasible_set_stalls_instead_of_running_to_the_cap() {
-        let y = Vector3::y();
-        let mut below = ground(0, -y, 0.0);
-        below.contact.point = Vector3::new(0.0, -0.1, 0.0);
-        let mut contacts = [ground(0, y, 0.0), below];
-        contacts[1].stencil = Stencil::single(0);
-        let d = [1.0, 1.0, 1.0, 1.0];
-        let f = [Vector3::new(0.0, -0.5, 0.0); 2];
+        let (contacts, d, f) = above_and_below();
         let p = Problem {
             d: &d,
             f: &f,
@@ -769,13 +782,7 @@ mod tests {
     /// it still reports converged, at the same solution the full solve reaches.
     #[test]
     fn a_solve_after_a_stall_runs_only_a_few_sweeps_and_still_converges_where_it_can() {
-        let y = Vector3::y();
-        let mut below = ground(0, -y, 0.0);
-        below.contact.point = Vector3::new(0.0, -0.1, 0.0);
-        let mut contacts = [ground(0, y, 0.0), below];
-        contacts[1].stencil = Stencil::single(0);
-        let d = [1.0, 1.0, 1.0, 1.0];
-        let f = [Vector3::new(0.0, -0.5, 0.0); 2];
+        let (contacts, d, f) = above_and_below();
         let p = Problem {
             d: &d,
             f: &f,
@@ -795,13 +802,7 @@ mod tests {
             "{again:?}"
         );
 
-        let contacts = [ground(0, y, 0.3), ground(1, y, 0.8), ground(2, y, 0.0)];
-        let d = [1.0, 0.4, 0.1, 0.4, 2.0, 0.3, 0.1, 0.3, 0.5];
-        let f = [
-            Vector3::new(0.3, -0.2, 0.1),
-            Vector3::new(-0.02, -0.1, 0.05),
-            Vector3::new(0.01, 0.3, 0.0),
-        ];
+        let (contacts, d, f) = three_coupled();
         let p = Problem {
             d: &d,
             f: &f,
