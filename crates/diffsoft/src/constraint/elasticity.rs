@@ -111,15 +111,12 @@ impl ConstraintSet for Elasticity {
         let body = |chunk: usize, (((out, v), e), tw): Bufs<'_>, svd_out: Option<&mut [TetSvd]>| {
             let t0 = chunk * LANES;
             let len = out.len();
-            let f: [Matrix3<f64>; LANES] = std::array::from_fn(|k| {
-                if k < len {
-                    let [i0, i1, i2, i3] = tets[t0 + k];
-                    let x0 = q[i0];
-                    Matrix3::from_columns(&[q[i1] - x0, q[i2] - x0, q[i3] - x0]) * geo[t0 + k].p_inv
-                } else {
-                    Matrix3::identity()
-                }
-            });
+            let mut f = [Matrix3::identity(); LANES];
+            for (k, fk) in f[..len].iter_mut().enumerate() {
+                let [i0, i1, i2, i3] = tets[t0 + k];
+                let x0 = q[i0];
+                *fk = Matrix3::from_columns(&[q[i1] - x0, q[i2] - x0, q[i3] - x0]) * geo[t0 + k].p_inv;
+            }
             let chunk = Chunk {
                 w_rot: &w_rot[t0..t0 + len],
                 w_vol: &w_vol[t0..t0 + len],
@@ -344,11 +341,17 @@ unsafe fn chunk_avx2(f: &[Matrix3<f64>; LANES], c: Chunk<'_>) -> Result<(), Chun
 #[inline(always)]
 fn chunk_kernel(f: &[Matrix3<f64>; LANES], mut c: Chunk<'_>) -> Result<(), ChunkError> {
     let len = c.out.len();
-    let v0: [Matrix3<f64>; LANES] = std::array::from_fn(|k| if k < len { c.v_warm[k] } else { Matrix3::identity() });
-    let svds = svd::batch_generic(f, &v0);
-    let sig: [Vector3<f64>; LANES] = std::array::from_fn(|k| svds[k].sigma);
+    let mut v0 = [Matrix3::identity(); LANES];
+    v0[..len].copy_from_slice(c.v_warm);
+    // Structure-of-arrays, read lane by lane below (no array of `Svd3` is built).
+    let svds = svd::batch_soa(f, &v0);
     let targets = if c.w_vol.iter().any(|&w| w > 0.0) {
-        let mut t: [f64; LANES] = std::array::from_fn(|k| if k < len { c.t_warm[k] } else { 0.0 });
+        let mut sig = [Vector3::zeros(); LANES];
+        for (k, s) in sig.iter_mut().enumerate() {
+            *s = svds.sigma_of(k);
+        }
+        let mut t = [0.0; LANES];
+        t[..len].copy_from_slice(c.t_warm);
         let x = volume::batch_generic(&sig, 1.0, &mut t).map_err(|err| (0, Some(err)))?;
         c.t_warm.copy_from_slice(&t[..len]);
         Some(x)
@@ -356,9 +359,8 @@ fn chunk_kernel(f: &[Matrix3<f64>; LANES], mut c: Chunk<'_>) -> Result<(), Chunk
         None
     };
     for k in 0..len {
-        let svd = &svds[k];
-        c.v_warm[k] = svd.v;
-        let s = svd.sigma;
+        c.v_warm[k] = svds.v_of(k);
+        let s = svds.sigma_of(k);
         let mut diag = Vector3::repeat(c.w_rot[k]);
         let mut en = 0.5 * c.w_rot[k] * (s - Vector3::repeat(1.0)).norm_squared();
         if let Some(x) = &targets {
@@ -370,11 +372,11 @@ fn chunk_kernel(f: &[Matrix3<f64>; LANES], mut c: Chunk<'_>) -> Result<(), Chunk
         if !en.is_finite() {
             return Err((k, None));
         }
-        c.out[k] = svd.compose(&diag);
+        c.out[k] = svds.compose(k, &diag);
         c.energy[k] = en;
         if let Some(rec) = c.svd_out.as_deref_mut() {
             rec[k] = TetSvd {
-                svd: *svd,
+                svd: svds.lane(k),
                 target: match (&targets, c.w_vol[k] > 0.0) {
                     (Some(x), true) => x[k],
                     _ => Vector3::zeros(),

@@ -103,6 +103,7 @@ impl TetLinearization {
     /// assert!(lin.apply(&Matrix3::identity()).norm() < 1e-12);
     /// # Ok::<(), Box<dyn std::error::Error>>(())
     /// ```
+    #[inline(always)]
     pub fn with_target(svd: &Svd3, x: Option<Vector3<f64>>, w_rot: f64, w_vol: f64) -> Result<Self, &'static str> {
         let s = svd.sigma;
         let mut pairs = [(0.0, 0.0); 3];
@@ -138,7 +139,7 @@ impl TetLinearization {
     }
 
     /// `dp = (dp/dF) dF` (equal to `(dp/dF)^T dF`: the Jacobian is symmetric).
-    #[inline]
+    #[inline(always)]
     pub fn apply(&self, df: &Matrix3<f64>) -> Matrix3<f64> {
         let g = self.u.transpose() * df * self.v;
         let ds = Vector3::new(g[(0, 0)], g[(1, 1)], g[(2, 2)]);

@@ -322,26 +322,144 @@ unsafe fn batch_avx2(f: &[Matrix3<f64>; LANES], v0: &[Matrix3<f64>; LANES]) -> [
 /// One scalar per lane.
 type Lane = [f64; LANES];
 
-#[inline(always)]
-#[allow(clippy::needless_range_loop)] // lane loops over parallel arrays
-pub(crate) fn batch_generic(f: &[Matrix3<f64>; LANES], v0: &[Matrix3<f64>; LANES]) -> [Svd3; LANES] {
-    // One sum is non-finite iff an entry is (or, harmlessly, the sum overflows): cheaper than
-    // testing 144 entries one by one.
-    let mut total = 0.0f64;
-    for m in f.iter().chain(v0.iter()) {
-        for x in m.iter() {
-            total += x * 0.0;
+/// `LANES` decompositions in structure-of-arrays form (`u[i][j][lane]`), as the batched kernel
+/// computes them: the local step reads its lanes from here without first gathering each into
+/// an [`Svd3`].
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct SoaSvd {
+    /// Left rotations.
+    pub u: [[Lane; 3]; 3],
+    /// Signed singular values.
+    pub sigma: [Lane; 3],
+    /// Right rotations.
+    pub v: [[Lane; 3]; 3],
+}
+
+impl SoaSvd {
+    /// All zeros (a buffer to decompose into).
+    pub(crate) const ZERO: SoaSvd = SoaSvd {
+        u: [[[0.0; LANES]; 3]; 3],
+        sigma: [[0.0; LANES]; 3],
+        v: [[[0.0; LANES]; 3]; 3],
+    };
+
+    /// Lane `k` as an [`Svd3`].
+    #[inline(always)]
+    pub(crate) fn lane(&self, k: usize) -> Svd3 {
+        Svd3 {
+            u: lane_matrix(&self.u, k),
+            sigma: self.sigma_of(k),
+            v: self.v_of(k),
         }
     }
-    if !total.is_finite() {
-        return std::array::from_fn(|k| svd3_warm(&f[k], &v0[k]));
+
+    /// Lane `k`'s right rotation.
+    #[inline(always)]
+    pub(crate) fn v_of(&self, k: usize) -> Matrix3<f64> {
+        lane_matrix(&self.v, k)
+    }
+
+    /// Lane `k`'s singular values.
+    #[inline(always)]
+    pub(crate) fn sigma_of(&self, k: usize) -> Vector3<f64> {
+        Vector3::new(self.sigma[0][k], self.sigma[1][k], self.sigma[2][k])
+    }
+
+    /// Store `svd` in lane `k`.
+    #[inline(always)]
+    fn set(&mut self, k: usize, svd: &Svd3) {
+        for i in 0..3 {
+            for j in 0..3 {
+                self.u[i][j][k] = svd.u[(i, j)];
+                self.v[i][j][k] = svd.v[(i, j)];
+            }
+            self.sigma[i][k] = svd.sigma[i];
+        }
+    }
+
+    /// Lane `k`'s `u diag(s) v^T`, with the same operations in the same order as
+    /// [`Svd3::compose`] (so the same bits): `(u_i0 s_0) v_j0 + (u_i1 s_1) v_j1`, then
+    /// `+ (u_i2 s_2) v_j2`.
+    #[inline(always)]
+    pub(crate) fn compose(&self, k: usize, s: &Vector3<f64>) -> Matrix3<f64> {
+        let (u, v) = (&self.u, &self.v);
+        // Row i of `u diag(s)`.
+        let us = |i: usize| [u[i][0][k] * s[0], u[i][1][k] * s[1], u[i][2][k] * s[2]];
+        let (a, b, c) = (us(0), us(1), us(2));
+        let dot = |r: &[f64; 3], j: usize| r[0] * v[j][0][k] + r[1] * v[j][1][k] + r[2] * v[j][2][k];
+        Matrix3::new(
+            dot(&a, 0),
+            dot(&a, 1),
+            dot(&a, 2),
+            dot(&b, 0),
+            dot(&b, 1),
+            dot(&b, 2),
+            dot(&c, 0),
+            dot(&c, 1),
+            dot(&c, 2),
+        )
+    }
+}
+
+/// Lane `k` of a structure-of-arrays matrix (written out: nalgebra's `from_fn` is not always
+/// inlined into the AVX2 kernel).
+#[inline(always)]
+fn lane_matrix(m: &[[Lane; 3]; 3], k: usize) -> Matrix3<f64> {
+    Matrix3::new(
+        m[0][0][k], m[0][1][k], m[0][2][k], m[1][0][k], m[1][1][k], m[1][2][k], m[2][0][k], m[2][1][k], m[2][2][k],
+    )
+}
+
+#[inline(always)]
+pub(crate) fn batch_generic(f: &[Matrix3<f64>; LANES], v0: &[Matrix3<f64>; LANES]) -> [Svd3; LANES] {
+    let soa = batch_soa(f, v0);
+    let mut out = [Svd3 {
+        u: Matrix3::zeros(),
+        sigma: Vector3::zeros(),
+        v: Matrix3::zeros(),
+    }; LANES];
+    for (k, o) in out.iter_mut().enumerate() {
+        *o = soa.lane(k);
+    }
+    out
+}
+
+/// [`svd3_warm_batch`] in structure-of-arrays form, for callers compiled for the same
+/// target features (the local step's AVX2 kernel inlines it).
+#[inline(always)]
+#[allow(clippy::needless_range_loop)] // lane loops over parallel arrays
+pub(crate) fn batch_soa(f: &[Matrix3<f64>; LANES], v0: &[Matrix3<f64>; LANES]) -> SoaSvd {
+    // One sum is non-finite iff an entry is (or, harmlessly, the sum overflows): cheaper than
+    // testing 144 entries one by one. Nine sums, one per entry position, so the additions
+    // form nine short chains instead of one of 144.
+    let mut total = [0.0f64; 9];
+    for m in f.iter().chain(v0.iter()) {
+        for (t, x) in total.iter_mut().zip(m.iter()) {
+            *t += x * 0.0;
+        }
+    }
+    if !total.iter().sum::<f64>().is_finite() {
+        let mut out = SoaSvd::ZERO;
+        for k in 0..LANES {
+            out.set(k, &svd3_warm(&f[k], &v0[k]));
+        }
+        return out;
     }
     const L: usize = LANES;
     // Everything below is structure-of-arrays (`m[i][j][lane]`) and branch-free per lane, so
     // it vectorises; only lanes that need the one-sided polish leave for the scalar code.
-    let fm: [[Lane; 3]; 3] = std::array::from_fn(|i| std::array::from_fn(|j| std::array::from_fn(|k| f[k][(i, j)])));
-    let mut v: [[Lane; 3]; 3] =
-        std::array::from_fn(|i| std::array::from_fn(|j| std::array::from_fn(|k| v0[k][(i, j)])));
+    // (Plain loops: `std::array::from_fn`'s closures are not always inlined into the AVX2
+    // build, and a call per entry cost about 10% of the local step.)
+    let mut fm = [[[0.0f64; L]; 3]; 3];
+    let mut v = [[[0.0f64; L]; 3]; 3];
+    for i in 0..3 {
+        for j in 0..3 {
+            for k in 0..L {
+                fm[i][j][k] = f[k][(i, j)];
+                v[i][j][k] = v0[k][(i, j)];
+            }
+        }
+    }
     // B0 = F V0, then S = B0^T B0 = V0^T F^T F V0 (six entries).
     let mut b = [[[0.0f64; L]; 3]; 3];
     for i in 0..3 {
@@ -435,25 +553,24 @@ pub(crate) fn batch_generic(f: &[Matrix3<f64>; LANES], v0: &[Matrix3<f64>; LANES
         // Zero columns (need an arbitrary completion) and ill-conditioned lanes: scalar tail.
         scalar[k] = !(s1 > 0.0 && s2 > 0.0) || s2 * ILL_CONDITIONED < s1;
     }
-    std::array::from_fn(|k| {
-        let vm = Matrix3::from_fn(|i, j| v[i][j][k]);
+    let mut out = SoaSvd { u, sigma, v };
+    for k in 0..L {
         if scalar[k] {
+            let vm = Matrix3::from_fn(|i, j| v[i][j][k]);
             let (uk, sk) = orthonormal_factor(&(f[k] * vm));
-            if sk[1] * ILL_CONDITIONED < sk[0] {
-                return one_sided_polish(&f[k], &vm);
-            }
-            return Svd3 {
-                u: uk,
-                sigma: sk,
-                v: vm,
+            let svd = if sk[1] * ILL_CONDITIONED < sk[0] {
+                one_sided_polish(&f[k], &vm)
+            } else {
+                Svd3 {
+                    u: uk,
+                    sigma: sk,
+                    v: vm,
+                }
             };
+            out.set(k, &svd);
         }
-        Svd3 {
-            u: Matrix3::from_fn(|i, j| u[i][j][k]),
-            sigma: Vector3::new(sigma[0][k], sigma[1][k], sigma[2][k]),
-            v: vm,
-        }
-    })
+    }
+    out
 }
 
 /// One Jacobi rotation on every lane; `idx` = positions of (app, aqq, apq, arp, arq) in `s`.
@@ -537,6 +654,40 @@ mod tests {
                 a.sigma,
                 b.sigma
             );
+        }
+    }
+
+    #[test]
+    fn the_lanes_compose_to_the_same_bits_as_svd3_compose() {
+        // The local step composes its projections from the structure-of-arrays result; its
+        // trajectories stay bit-identical only if this equals `Svd3::compose` exactly.
+        let mut seed = 11u64;
+        let mut rnd = || {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        for round in 0..200 {
+            let f: [Matrix3<f64>; LANES] = std::array::from_fn(|k| {
+                let m = Matrix3::from_fn(|_, _| rnd()) + Matrix3::identity() * (1.0 + rnd());
+                // Some lanes ill-conditioned or inverted: the scalar tail's lanes too.
+                match (round + k) % 5 {
+                    0 => m * Matrix3::from_diagonal(&Vector3::new(1.0, 1e-3, 1.0)),
+                    1 => -m,
+                    _ => m,
+                }
+            });
+            let v0: [Matrix3<f64>; LANES] = std::array::from_fn(|k| svd3(&(f[k] + Matrix3::repeat(1e-3))).v);
+            let soa = batch_soa(&f, &v0);
+            let arr = batch_generic(&f, &v0);
+            for (k, svd) in arr.iter().enumerate() {
+                assert_eq!(soa.lane(k), *svd);
+                let d = Vector3::new(rnd(), rnd(), rnd());
+                let a = soa.compose(k, &d);
+                let b = svd.compose(&d);
+                for (x, y) in a.iter().zip(b.iter()) {
+                    assert_eq!(x.to_bits(), y.to_bits(), "lane {k}: {a} vs {b}");
+                }
+            }
         }
     }
 }

@@ -262,7 +262,7 @@ impl Model {
 
     /// `F_t(x) = sum_a x_a a_{t,a}^T`: the deformation gradient of tet `t` at positions `x`
     /// (all vertices), or the adjoint of its projection when `x` is an adjoint.
-    #[inline]
+    #[inline(always)]
     pub fn tet_deformation(&self, t: usize, x: &[Vector3<f64>]) -> Matrix3<f64> {
         let [i0, i1, i2, i3] = self.tets[t];
         let x0 = x[i0];
