@@ -636,13 +636,17 @@ mod tests {
         assert_eq!(z.sigma, Vector3::zeros());
     }
 
-    #[test]
-    fn matches_nalgebra_on_a_grid_of_matrices() {
-        let mut seed = 7u64;
-        let mut rnd = || {
+    /// A reproducible stream of numbers in `[-0.5, 0.5)` (a linear congruential generator).
+    fn uniform(mut seed: u64) -> impl FnMut() -> f64 {
+        move || {
             seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
             (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
+        }
+    }
+
+    #[test]
+    fn matches_nalgebra_on_a_grid_of_matrices() {
+        let mut rnd = uniform(7u64);
         for _ in 0..2000 {
             let f = Matrix3::from_fn(|_, _| rnd()) + Matrix3::identity() * rnd();
             let a = svd3(&f);
@@ -661,11 +665,7 @@ mod tests {
     fn the_lanes_compose_to_the_same_bits_as_svd3_compose() {
         // The local step composes its projections from the structure-of-arrays result; its
         // trajectories stay bit-identical only if this equals `Svd3::compose` exactly.
-        let mut seed = 11u64;
-        let mut rnd = || {
-            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
+        let mut rnd = uniform(11u64);
         for round in 0..200 {
             let f: [Matrix3<f64>; LANES] = std::array::from_fn(|k| {
                 let m = Matrix3::from_fn(|_, _| rnd()) + Matrix3::identity() * (1.0 + rnd());
