@@ -35,6 +35,9 @@ pub struct MemoryPoint {
     pub backward_ms: f64,
     /// Backward / forward (1).
     pub ratio: f64,
+    /// Wall-clock runs made of this point; the times above are those of the run with the
+    /// median ratio (three for the points a cost verdict reads, one otherwise).
+    pub timed_runs: usize,
 }
 
 /// Memory and time of the backward pass on `case` over `steps` steps, measured on the calling
@@ -64,5 +67,6 @@ pub fn memory_point(case: &Case, steps: usize, opts: Options) -> Result<MemoryPo
         forward_ms: g.stats.forward_ms,
         backward_ms: g.stats.backward_ms,
         ratio: g.stats.backward_ms / g.stats.forward_ms,
+        timed_runs: 1,
     })
 }
