@@ -284,7 +284,7 @@ pub fn study(inp: &Inputs<'_>, out: &Path) -> Result<GradientsReport> {
                 .unwrap_or_else(|| "worst relative error at the best step <= rtol".into()),
         ));
     }
-    for m in mem.iter().filter(|m| m.steps == 100 && m.mode == Mode::Unrolled) {
+    for m in mem.iter().filter(|m| verdict_point(m.steps, m.mode)) {
         verdicts.push(Verdict::at_most(
             format!(
                 "{}: unrolled backward at most 3x the forward over 100 steps ({}; the median of {TIMED_RUNS} wall-clock runs, see benches/gradient.rs for criterion medians)",
