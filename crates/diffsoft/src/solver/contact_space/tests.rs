@@ -18,6 +18,11 @@ fn ground(index: usize, normal: Vector3<f64>, friction: f64) -> FreeContact {
     )
 }
 
+/// The contact problem over `contacts` with Delassus matrix `d` and free positions `f`.
+fn problem<'a>(contacts: &'a [FreeContact], d: &'a [f64], f: &'a [Vector3<f64>]) -> Problem<'a> {
+    Problem { d, f, contacts }
+}
+
 /// Three ground contacts with friction 0.3, 0.8 and 0, coupled through `D`, two pushed in
 /// and sliding, one apart.
 fn three_coupled() -> ([FreeContact; 3], [f64; 9], [Vector3<f64>; 3]) {
@@ -79,11 +84,7 @@ fn redundant_coupled_contacts_converge() {
         Vector3::new(-0.02, -0.1, 0.0),
         Vector3::new(0.05, -0.2, 0.0),
     ];
-    let p = Problem {
-        d: &d,
-        f: &f,
-        contacts: &contacts,
-    };
+    let p = problem(&contacts, &d, &f);
     let mut lambda = vec![Vector3::zeros(); 3];
     let mut space = ContactSpace::default();
     let out = space.solve(&p, &mut lambda, 1e-12, 2000, Effort::Full);
@@ -97,11 +98,7 @@ fn redundant_coupled_contacts_converge() {
 #[test]
 fn positions_kept_along_the_line_search_match_a_fresh_product() {
     let (contacts, d, f) = three_coupled();
-    let p = Problem {
-        d: &d,
-        f: &f,
-        contacts: &contacts,
-    };
+    let p = problem(&contacts, &d, &f);
     let mut lambda = vec![Vector3::zeros(); 3];
     let mut space = ContactSpace::default();
     let (solved, solves) = space.active_set(&p, &mut lambda, 1e-13);
@@ -131,11 +128,7 @@ fn near_duplicate_contacts_with_different_planes_converge_quickly() {
         Vector3::new(0.031, -0.199, 0.01),
         Vector3::new(0.029, -0.201, 0.011),
     ];
-    let p = Problem {
-        d: &d,
-        f: &f,
-        contacts: &contacts,
-    };
+    let p = problem(&contacts, &d, &f);
     let mut lambda = vec![Vector3::zeros(); 3];
     let out = ContactSpace::default().solve(&p, &mut lambda, 1e-12, 2000, Effort::Full);
     assert!(out.converged, "{out:?}");
@@ -169,11 +162,7 @@ fn holding_slip_directions_while_the_states_change_reaches_the_same_solution() {
         Vector3::new(0.3, -0.3, -0.7),
         Vector3::new(-0.2, 0.4, 0.1),
     ];
-    let p = Problem {
-        d: &d,
-        f: &f,
-        contacts: &contacts,
-    };
+    let p = problem(&contacts, &d, &f);
     let solve = |always_linearize: bool| {
         let mut space = ContactSpace {
             always_linearize,
@@ -202,11 +191,7 @@ fn holding_slip_directions_while_the_states_change_reaches_the_same_solution() {
 #[test]
 fn an_infeasible_set_stalls_instead_of_running_to_the_cap() {
     let (contacts, d, f) = above_and_below();
-    let p = Problem {
-        d: &d,
-        f: &f,
-        contacts: &contacts,
-    };
+    let p = problem(&contacts, &d, &f);
     let mut lambda = vec![Vector3::zeros(); 2];
     let out = ContactSpace::default().solve(&p, &mut lambda, 1e-12, 100_000, Effort::Full);
     assert!(!out.converged && out.stalled, "{out:?}");
@@ -220,11 +205,7 @@ fn an_infeasible_set_stalls_instead_of_running_to_the_cap() {
 #[test]
 fn a_solve_after_a_stall_runs_only_a_few_sweeps_and_still_converges_where_it_can() {
     let (contacts, d, f) = above_and_below();
-    let p = Problem {
-        d: &d,
-        f: &f,
-        contacts: &contacts,
-    };
+    let p = problem(&contacts, &d, &f);
     let mut space = ContactSpace::default();
     let mut lambda = vec![Vector3::zeros(); 2];
     let full = space.solve(&p, &mut lambda, 1e-12, 100_000, Effort::Full);
@@ -240,11 +221,7 @@ fn a_solve_after_a_stall_runs_only_a_few_sweeps_and_still_converges_where_it_can
     );
 
     let (contacts, d, f) = three_coupled();
-    let p = Problem {
-        d: &d,
-        f: &f,
-        contacts: &contacts,
-    };
+    let p = problem(&contacts, &d, &f);
     let mut solved = vec![Vector3::zeros(); 3];
     assert!(space.solve(&p, &mut solved, 1e-13, 5000, Effort::Full).converged);
     let mut lambda: Vec<_> = solved.iter().map(|l| l * (1.0 + 1e-6)).collect();
