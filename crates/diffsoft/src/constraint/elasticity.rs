@@ -15,7 +15,7 @@ use super::{
     VectorPair,
 };
 use crate::kernel::linearization::TetLinearization;
-use crate::kernel::svd::{self, svd3_warm_batch, LANES};
+use crate::kernel::svd::{self, svd3_warm_batch, LaneMatrix, LANES};
 use crate::kernel::{volume, ProjectionError};
 use crate::model::Model;
 
@@ -46,8 +46,9 @@ impl Default for TetSvd {
 /// The corotated and volume constraints of every tet, with their buffers.
 #[derive(Debug, Clone)]
 pub(crate) struct Elasticity {
-    /// Last `V` of each tet's SVD (warm start of the next local step).
-    v_warm: Vec<Matrix3<f64>>,
+    /// Last `V` of each tet's SVD (warm start of the next local step), one structure-of-arrays
+    /// block per chunk of `LANES` tets, where the batched SVD reads and writes it.
+    v_warm: Vec<LaneMatrix>,
     /// Constraint energy per tet.
     energy: Vec<f64>,
     /// Last volume-projection multiplier of each tet (warm start).
@@ -63,7 +64,7 @@ impl Elasticity {
     pub(crate) fn new(model: &Model) -> Self {
         let n = model.tets.len();
         Self {
-            v_warm: vec![Matrix3::identity(); n],
+            v_warm: vec![IDENTITY_LANES; n.div_ceil(LANES)],
             energy: vec![0.0; n],
             t_warm: vec![0.0; n],
             v_warm_adjoint: vec![Matrix3::identity(); n],
@@ -105,17 +106,25 @@ impl ConstraintSet for Elasticity {
         let geo = &model.fem.geometry;
         let (w_rot, w_vol) = (&model.w_rot, &model.w_vol);
         type Bufs<'b> = (
-            ((&'b mut [Matrix3<f64>], &'b mut [Matrix3<f64>]), &'b mut [f64]),
+            ((&'b mut [Matrix3<f64>], &'b mut LaneMatrix), &'b mut [f64]),
             &'b mut [f64],
         );
         let body = |chunk: usize, (((out, v), e), tw): Bufs<'_>, svd_out: Option<&mut [TetSvd]>| {
             let t0 = chunk * LANES;
             let len = out.len();
-            let mut f = [Matrix3::identity(); LANES];
-            for (k, fk) in f[..len].iter_mut().enumerate() {
+            // Each tet's F = D P^-1 straight into its lane (unused lanes: F = I), with the
+            // operations of nalgebra's product: (d_i0 p_0j + d_i1 p_1j) + d_i2 p_2j.
+            let mut f = IDENTITY_LANES;
+            for k in 0..len {
                 let [i0, i1, i2, i3] = tets[t0 + k];
                 let x0 = q[i0];
-                *fk = Matrix3::from_columns(&[q[i1] - x0, q[i2] - x0, q[i3] - x0]) * geo[t0 + k].p_inv;
+                let d = [q[i1] - x0, q[i2] - x0, q[i3] - x0];
+                let p = &geo[t0 + k].p_inv;
+                for i in 0..3 {
+                    for j in 0..3 {
+                        f[i][j][k] = d[0][i] * p[(0, j)] + d[1][i] * p[(1, j)] + d[2][i] * p[(2, j)];
+                    }
+                }
             }
             let chunk = Chunk {
                 w_rot: &w_rot[t0..t0 + len],
@@ -134,7 +143,7 @@ impl ConstraintSet for Elasticity {
         let bufs = ctx
             .per_tet
             .par_chunks_mut(LANES)
-            .zip(self.v_warm.par_chunks_mut(LANES))
+            .zip(self.v_warm.par_iter_mut())
             .zip(self.energy.par_chunks_mut(LANES))
             .zip(self.t_warm.par_chunks_mut(LANES));
         match record {
@@ -295,6 +304,17 @@ fn linearize_chunk(
     Ok(())
 }
 
+/// Every lane `I` (the warm start of a tet never decomposed, and `F` of an unused lane).
+const IDENTITY_LANES: LaneMatrix = {
+    let mut m = [[[0.0; LANES]; 3]; 3];
+    let mut i = 0;
+    while i < 3 {
+        m[i][i] = [1.0; LANES];
+        i += 1;
+    }
+    m
+};
+
 /// Whether a tet has no projective elasticity (both weights zero: a tet of a hyperelastic
 /// body, whose kind owns its parameter adjoints).
 fn absent(w_rot: f64, w_vol: f64) -> bool {
@@ -305,7 +325,7 @@ fn absent(w_rot: f64, w_vol: f64) -> bool {
 struct Chunk<'a> {
     w_rot: &'a [f64],
     w_vol: &'a [f64],
-    v_warm: &'a mut [Matrix3<f64>],
+    v_warm: &'a mut LaneMatrix,
     t_warm: &'a mut [f64],
     out: &'a mut [Matrix3<f64>],
     energy: &'a mut [f64],
@@ -316,7 +336,7 @@ struct Chunk<'a> {
 type ChunkError = (usize, Option<ProjectionError>);
 
 /// Dispatch to the AVX2 build of [`chunk_kernel`] when the CPU has it.
-fn project_chunk(f: &[Matrix3<f64>; LANES], c: Chunk<'_>) -> Result<(), ChunkError> {
+fn project_chunk(f: &LaneMatrix, c: Chunk<'_>) -> Result<(), ChunkError> {
     #[cfg(target_arch = "x86_64")]
     {
         if std::arch::is_x86_feature_detected!("avx2") {
@@ -329,7 +349,7 @@ fn project_chunk(f: &[Matrix3<f64>; LANES], c: Chunk<'_>) -> Result<(), ChunkErr
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn chunk_avx2(f: &[Matrix3<f64>; LANES], c: Chunk<'_>) -> Result<(), ChunkError> {
+unsafe fn chunk_avx2(f: &LaneMatrix, c: Chunk<'_>) -> Result<(), ChunkError> {
     chunk_kernel(f, c)
 }
 
@@ -339,12 +359,19 @@ unsafe fn chunk_avx2(f: &[Matrix3<f64>; LANES], c: Chunk<'_>) -> Result<(), Chun
 /// Everything is inlined into one function so the AVX2 build covers all of it and the
 /// per-lane arrays stay in registers or on this frame.
 #[inline(always)]
-fn chunk_kernel(f: &[Matrix3<f64>; LANES], mut c: Chunk<'_>) -> Result<(), ChunkError> {
+fn chunk_kernel(f: &LaneMatrix, mut c: Chunk<'_>) -> Result<(), ChunkError> {
     let len = c.out.len();
-    let mut v0 = [Matrix3::identity(); LANES];
-    v0[..len].copy_from_slice(c.v_warm);
+    // Unused lanes of the last chunk start from V = I, as their F = I (so they keep it).
+    for (i, row) in c.v_warm.iter_mut().enumerate() {
+        for (j, lanes) in row.iter_mut().enumerate() {
+            for lane in &mut lanes[len..] {
+                *lane = if i == j { 1.0 } else { 0.0 };
+            }
+        }
+    }
     // Structure-of-arrays, read lane by lane below (no array of `Svd3` is built).
-    let svds = svd::batch_soa(f, &v0);
+    let svds = svd::batch_lanes(f, c.v_warm);
+    *c.v_warm = svds.v;
     let targets = if c.w_vol.iter().any(|&w| w > 0.0) {
         let mut sig = [Vector3::zeros(); LANES];
         for (k, s) in sig.iter_mut().enumerate() {
@@ -359,7 +386,6 @@ fn chunk_kernel(f: &[Matrix3<f64>; LANES], mut c: Chunk<'_>) -> Result<(), Chunk
         None
     };
     for k in 0..len {
-        c.v_warm[k] = svds.v_of(k);
         let s = svds.sigma_of(k);
         let mut diag = Vector3::repeat(c.w_rot[k]);
         let mut en = 0.5 * c.w_rot[k] * (s - Vector3::repeat(1.0)).norm_squared();
@@ -385,4 +411,71 @@ fn chunk_kernel(f: &[Matrix3<f64>; LANES], mut c: Chunk<'_>) -> Result<(), Chunk
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::kernel::svd::{lane_matrix, svd3};
+
+    /// A deformed state of `model`: a shear and a stretch plus a per-vertex wobble.
+    fn deformed(model: &Model, amount: f64) -> Vec<Vector3<f64>> {
+        model
+            .rest
+            .iter()
+            .enumerate()
+            .map(|(i, x)| {
+                let wobble = Vector3::new((i as f64 * 1.3).sin(), (i as f64 * 0.7).cos(), (i as f64 * 2.1).sin());
+                Matrix3::new(
+                    1.0 + amount,
+                    0.3 * amount,
+                    0.0,
+                    0.0,
+                    1.0 - 0.5 * amount,
+                    0.2 * amount,
+                    0.0,
+                    0.0,
+                    1.0,
+                ) * x
+                    + wobble * 0.02 * amount
+            })
+            .collect()
+    }
+
+    /// Each tet's output is its own `w p` from the one-tet SVD (to round-off: the batch sweeps
+    /// until every lane has converged), on a mesh whose last chunk is partial, over several
+    /// local steps; each tet's warm start is its own last `V`, and the unused lanes keep `I`.
+    #[test]
+    fn every_tet_gets_its_own_projection_and_warm_start() {
+        let model = crate::model::fixtures::free_box([3, 1, 1], [0.6, 0.2, 0.2]).unwrap();
+        let n = model.tets.len();
+        assert!(!n.is_multiple_of(LANES), "{n} tets fill every chunk");
+        let mut set = Elasticity::new(&model);
+        let mut per_tet = vec![Matrix3::zeros(); n];
+        let mut record = vec![TetSvd::default(); n];
+        for step in 1..=3 {
+            let q = deformed(&model, 0.1 * step as f64);
+            let mut ctx = ProjectContext {
+                per_tet: &mut per_tet,
+                activations: &[],
+                record: Some(&mut record),
+            };
+            set.project(&model, &q, &mut ctx).unwrap();
+            for t in 0..n {
+                let f = model.tet_deformation(t, &q);
+                let svd = svd3(&f);
+                let mut p = svd.rotation() * model.w_rot[t];
+                if model.w_vol[t] > 0.0 {
+                    p += svd.compose(&volume::nearest_product(&svd.sigma, 1.0).unwrap()) * model.w_vol[t];
+                }
+                assert!((per_tet[t] - p).norm() <= 1e-10 * p.norm(), "step {step} tet {t}");
+                let warm = lane_matrix(&set.v_warm[t / LANES], t % LANES);
+                assert_eq!(warm, record[t].svd.v, "step {step} tet {t}: warm start");
+            }
+            let last = &set.v_warm[n / LANES];
+            for k in n % LANES..LANES {
+                assert_eq!(lane_matrix(last, k), Matrix3::identity(), "unused lane {k}");
+            }
+        }
+    }
 }

@@ -320,7 +320,9 @@ unsafe fn batch_avx2(f: &[Matrix3<f64>; LANES], v0: &[Matrix3<f64>; LANES]) -> [
 }
 
 /// One scalar per lane.
-type Lane = [f64; LANES];
+pub(crate) type Lane = [f64; LANES];
+/// One 3 x 3 matrix per lane, `m[i][j][lane]`.
+pub(crate) type LaneMatrix = [[Lane; 3]; 3];
 
 /// `LANES` decompositions in structure-of-arrays form (`u[i][j][lane]`), as the batched kernel
 /// computes them: the local step reads its lanes from here without first gathering each into
@@ -404,7 +406,7 @@ impl SoaSvd {
 /// Lane `k` of a structure-of-arrays matrix (written out: nalgebra's `from_fn` is not always
 /// inlined into the AVX2 kernel).
 #[inline(always)]
-fn lane_matrix(m: &[[Lane; 3]; 3], k: usize) -> Matrix3<f64> {
+pub(crate) fn lane_matrix(m: &LaneMatrix, k: usize) -> Matrix3<f64> {
     Matrix3::new(
         m[0][0][k], m[0][1][k], m[0][2][k], m[1][0][k], m[1][1][k], m[1][2][k], m[2][0][k], m[2][1][k], m[2][2][k],
     )
@@ -429,37 +431,51 @@ pub(crate) fn batch_generic(f: &[Matrix3<f64>; LANES], v0: &[Matrix3<f64>; LANES
 #[inline(always)]
 #[allow(clippy::needless_range_loop)] // lane loops over parallel arrays
 pub(crate) fn batch_soa(f: &[Matrix3<f64>; LANES], v0: &[Matrix3<f64>; LANES]) -> SoaSvd {
+    // (Plain loops: a profile of a run bound by the local step showed `try_from_fn` frames,
+    // 5.5% of it, for the arrays this kernel and its caller built with `std::array::from_fn`.)
+    let mut fm = [[[0.0f64; LANES]; 3]; 3];
+    let mut v = [[[0.0f64; LANES]; 3]; 3];
+    for i in 0..3 {
+        for j in 0..3 {
+            for k in 0..LANES {
+                fm[i][j][k] = f[k][(i, j)];
+                v[i][j][k] = v0[k][(i, j)];
+            }
+        }
+    }
+    batch_lanes(&fm, &v)
+}
+
+/// [`batch_soa`] with its inputs already in structure-of-arrays form, `f[i][j][lane]` and
+/// `v0[i][j][lane]` (the local step gathers each tet's `F` there and keeps its warm starts
+/// there between steps).
+#[inline(always)]
+#[allow(clippy::needless_range_loop)] // lane loops over parallel arrays
+pub(crate) fn batch_lanes(fm: &LaneMatrix, v0: &LaneMatrix) -> SoaSvd {
     // One sum is non-finite iff an entry is (or, harmlessly, the sum overflows): cheaper than
     // testing 144 entries one by one. Nine sums, one per entry position, so the additions
     // form nine short chains instead of one of 144.
     let mut total = [0.0f64; 9];
-    for m in f.iter().chain(v0.iter()) {
-        for (t, x) in total.iter_mut().zip(m.iter()) {
-            *t += x * 0.0;
+    for m in [fm, v0] {
+        for i in 0..3 {
+            for j in 0..3 {
+                for k in 0..LANES {
+                    total[3 * i + j] += m[i][j][k] * 0.0;
+                }
+            }
         }
     }
     if !total.iter().sum::<f64>().is_finite() {
         let mut out = SoaSvd::ZERO;
         for k in 0..LANES {
-            out.set(k, &svd3_warm(&f[k], &v0[k]));
+            out.set(k, &svd3_warm(&lane_matrix(fm, k), &lane_matrix(v0, k)));
         }
         return out;
     }
     const L: usize = LANES;
     // Everything below is structure-of-arrays (`m[i][j][lane]`) and branch-free per lane, so
     // it vectorises; only lanes that need the one-sided polish leave for the scalar code.
-    // (Plain loops: a profile of a run bound by the local step showed `try_from_fn` frames,
-    // 5.5% of it, for the arrays this kernel and its caller built with `std::array::from_fn`.)
-    let mut fm = [[[0.0f64; L]; 3]; 3];
-    let mut v = [[[0.0f64; L]; 3]; 3];
-    for i in 0..3 {
-        for j in 0..3 {
-            for k in 0..L {
-                fm[i][j][k] = f[k][(i, j)];
-                v[i][j][k] = v0[k][(i, j)];
-            }
-        }
-    }
+    let mut v = *v0;
     // B0 = F V0, then S = B0^T B0 = V0^T F^T F V0 (six entries).
     let mut b = [[[0.0f64; L]; 3]; 3];
     for i in 0..3 {
@@ -557,9 +573,10 @@ pub(crate) fn batch_soa(f: &[Matrix3<f64>; LANES], v0: &[Matrix3<f64>; LANES]) -
     for k in 0..L {
         if scalar[k] {
             let vm = Matrix3::from_fn(|i, j| v[i][j][k]);
-            let (uk, sk) = orthonormal_factor(&(f[k] * vm));
+            let fk = lane_matrix(fm, k);
+            let (uk, sk) = orthonormal_factor(&(fk * vm));
             let svd = if sk[1] * ILL_CONDITIONED < sk[0] {
-                one_sided_polish(&f[k], &vm)
+                one_sided_polish(&fk, &vm)
             } else {
                 Svd3 {
                     u: uk,
