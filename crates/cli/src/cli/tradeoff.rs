@@ -77,7 +77,7 @@ pub(crate) struct TradeoffArgs {
     #[arg(long, value_parser = choice::<diffsoft_harness::tradeoff::TimeAxis>(), default_value = "cpu")]
     time_axis: diffsoft_harness::tradeoff::TimeAxis,
     /// Repeat each forward run until this many CPU seconds are measured.
-    #[arg(long, default_value_t = 0.2, value_parser = super::numbers::non_negative)]
+    #[arg(long, default_value_t = diffsoft_harness::tradeoff::DEFAULT_MIN_TIMING_S, value_parser = super::numbers::non_negative)]
     min_timing_s: f64,
     /// Run only shard K of N (0 <= K < N): writes a partial report for `diffsoft merge`.
     #[arg(long, value_name = "K/N")]

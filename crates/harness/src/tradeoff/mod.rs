@@ -160,8 +160,13 @@ fn default_loss() -> String {
 fn default_targets() -> Vec<f64> {
     vec![1e-2, 1e-4, 1e-6]
 }
+/// Default of [`TradeoffSpec::min_timing_s`]: the thread CPU clock reads to the nanosecond
+/// ([`trajectory::thread_cpu_s`]), so a run is repeated only to average short runs' noise, not
+/// to outlast a clock tick (the 0.2 s of the tick-granular clock used before).
+pub const DEFAULT_MIN_TIMING_S: f64 = 0.05;
+
 fn default_min_timing_s() -> f64 {
-    0.2
+    DEFAULT_MIN_TIMING_S
 }
 fn default_model_tolerance() -> f64 {
     1e-8

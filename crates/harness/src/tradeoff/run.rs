@@ -297,8 +297,8 @@ fn run_row(ctx: &Ctx<'_>, refs: &HashMap<RefKey, RefStates>, index: usize, setti
         }
     };
     row.work = Some(first.work);
-    // Repeat until min_timing_s is measured: the thread CPU clock advances in scheduler ticks
-    // (4 ms here), so short runs are timed by their total over many runs.
+    // Repeat until min_timing_s is measured: short runs are timed by their total over several
+    // runs, which averages their run-to-run noise.
     let mut walls = vec![first.wall_s];
     let mut cpu_total = first.cpu_s;
     let measured = |walls: &[f64], cpu: Option<f64>| cpu.unwrap_or_else(|| walls.iter().sum());
