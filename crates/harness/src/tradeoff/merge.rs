@@ -271,7 +271,7 @@ pub fn finalize(parts: Vec<TradeoffPartial>, paths: &[String]) -> Result<SceneTr
             gradient_parameters.join(", "),
             spec.loss
         ),
-        timing: "each setting and reference runs on one thread (its own one-thread rayon pool); `workers` settings run at once; a setting's forward run is repeated until min_timing_s of CPU time is measured (the thread CPU clock, CLOCK_THREAD_CPUTIME_ID, read to the nanosecond); cpu_s is the total over the runs / runs, wall_s the median run; thread CPU time is not inflated by the concurrent settings or other processes, wall time is; the fronts use the time_axis".into(),
+        timing: "each setting and reference runs on one thread (its own one-thread rayon pool); `workers` settings run at once; a setting's forward run is repeated until min_timing_s of CPU time is measured (the thread CPU clock, CLOCK_THREAD_CPUTIME_ID, read to the nanosecond); cpu_s is the total over the runs / runs, wall_s the median run; thread CPU time does not count the time a thread waits for a core, wall time does, but both move with what the concurrent settings do to the shared caches and memory (settings doing identical work differ by about 1.2x in the median); the fronts use the time_axis".into(),
         workers,
         shards: parts.len(),
         resolution,

@@ -14,8 +14,9 @@
 //!
 //! Every setting and every reference runs single-threaded on its own one-thread pool, and as
 //! many run at once as there are workers ([`crate::pool`]), so results are bit-identical for any worker
-//! count or shard split, and the recorded thread CPU time is not inflated by the concurrent
-//! settings. A sweep splits into shards (`--shard K/N`, [`super::shard`]); [`merge`] reassembles
+//! count or shard split, and the recorded thread CPU time does not count the time a setting
+//! waits for a core (it still moves with what the concurrent settings do to the shared caches and
+//! memory: settings doing identical work differ by about 1.2x in the median). A sweep splits into shards (`--shard K/N`, [`super::shard`]); [`merge`] reassembles
 //! the partial reports into the report of the unsharded run.
 
 mod assess;
