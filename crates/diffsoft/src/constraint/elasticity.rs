@@ -15,7 +15,7 @@ use super::{
     VectorPair,
 };
 use crate::kernel::linearization::TetLinearization;
-use crate::kernel::svd::{self, svd3_warm_batch, LaneMatrix, LANES};
+use crate::kernel::svd::{self, svd3_warm_batch, LaneMatrix, IDENTITY_LANES, LANES};
 use crate::kernel::{volume, ProjectionError};
 use crate::model::Model;
 
@@ -303,17 +303,6 @@ fn linearize_chunk(
     }
     Ok(())
 }
-
-/// Every lane `I` (the warm start of a tet never decomposed, and `F` of an unused lane).
-const IDENTITY_LANES: LaneMatrix = {
-    let mut m = [[[0.0; LANES]; 3]; 3];
-    let mut i = 0;
-    while i < 3 {
-        m[i][i] = [1.0; LANES];
-        i += 1;
-    }
-    m
-};
 
 /// Whether a tet has no projective elasticity (both weights zero: a tet of a hyperelastic
 /// body, whose kind owns its parameter adjoints).

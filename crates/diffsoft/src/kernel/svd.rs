@@ -324,6 +324,17 @@ pub(crate) type Lane = [f64; LANES];
 /// One 3 x 3 matrix per lane, `m[i][j][lane]`.
 pub(crate) type LaneMatrix = [[Lane; 3]; 3];
 
+/// The identity in every lane (a warm start never decomposed, the `F` of an unused lane).
+pub(crate) const IDENTITY_LANES: LaneMatrix = {
+    let mut m = [[[0.0; LANES]; 3]; 3];
+    let mut i = 0;
+    while i < 3 {
+        m[i][i] = [1.0; LANES];
+        i += 1;
+    }
+    m
+};
+
 /// `LANES` decompositions in structure-of-arrays form (`u[i][j][lane]`), as the batched kernel
 /// computes them: the local step reads its lanes from here without first gathering each into
 /// an [`Svd3`].
