@@ -61,6 +61,19 @@ def test_missing_files_are_file_errors(tmp_path):
     raised(diffsoft.FileError, OSError, diffsoft.bounds, tmp_path / "missing.obj", 1.0, 1.0, 0.01, match="missing.obj")
 
 
+def test_initial_positions_set_from_python_get_the_scenes_start_checks(ground):
+    """Positions given with ``set('initial_positions')`` are checked like a scene file's own
+    start: a box pushed 5 m into the ground is an ``InputError`` naming the positions and the
+    obstacle (it was run, and the first steps launched the box at hundreds of m/s); lifted
+    clear of the ground it runs."""
+    q = np.asarray(ground.get("initial_positions"))
+    ground.set("initial_positions", q - [0.0, 5.0, 0.0])
+    for run in (lambda: ground.simulate(2), lambda: ground.grad(2, "final_com.y", ["youngs_modulus"])):
+        raised(diffsoft.InputError, ValueError, run, match="initial positions given.*inside obstacle")
+    ground.set("initial_positions", q + [0.0, 0.5, 0.0])
+    assert np.isfinite(np.asarray(ground.simulate(2).positions)).all()
+
+
 def test_bad_input_is_input_error(beam, tmp_path):
     raised(diffsoft.InputError, ValueError, beam.set, "youngs", 1.0, match="unknown parameter 'youngs'")
     raised(diffsoft.InputError, ValueError, beam.grad, 3, "final_com.y", ["youngs"], match="unknown parameter")

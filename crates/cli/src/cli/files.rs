@@ -63,21 +63,30 @@ pub(crate) fn save<T: serde::Serialize>(path: &Path, report: &T, inputs: &[&Path
     Ok(())
 }
 
+/// Write a mesh in the format its extension names (TetGen: the `.node` and `.ele` pair), each
+/// file atomically ([`diffsoft::report::write_atomic`]: never seen half-written; a link is
+/// written through, a device in place), after checking that every file of the set can be
+/// written, so that a pair is not left half-replaced.
 pub(crate) fn write_mesh(m: &mesh::TetMesh, out: &Path, gmsh_version: &str) -> Result<()> {
     let ext = out.extension().and_then(|e| e.to_str()).unwrap_or("");
-    let write = |p: &Path, s: String| std::fs::write(p, s).with_context(|| format!("cannot write {}", p.display()));
-    match ext {
-        "obj" => write(out, mesh::write::obj(m)),
+    let files: Vec<(PathBuf, String)> = match ext {
+        "obj" => vec![(out.to_path_buf(), mesh::write::obj(m))],
         "node" | "ele" => {
             let (node, ele) = mesh::write::tetgen(m, 0);
-            write(&out.with_extension("node"), node)?;
-            write(&out.with_extension("ele"), ele)
+            vec![(out.with_extension("node"), node), (out.with_extension("ele"), ele)]
         }
         "msh" => match gmsh_version {
-            "2.2" => write(out, mesh::write::gmsh22(m)),
-            "4.1" => write(out, mesh::write::gmsh41(m)),
+            "2.2" => vec![(out.to_path_buf(), mesh::write::gmsh22(m))],
+            "4.1" => vec![(out.to_path_buf(), mesh::write::gmsh41(m))],
             v => bail!("--gmsh-version must be 2.2 or 4.1, got {v}"),
         },
-        _ => bail!("output must end in .obj, .node or .msh: {}", out.display()),
+        _ => bail!("--out must end in .obj, .node, .ele or .msh: {}", out.display()),
+    };
+    for (p, _) in &files {
+        diffsoft::output::check_writable(p).with_context(|| format!("--out {}", out.display()))?;
     }
+    for (p, text) in &files {
+        diffsoft::report::write_atomic(p, text.as_bytes()).with_context(|| format!("cannot write {}", p.display()))?;
+    }
+    Ok(())
 }

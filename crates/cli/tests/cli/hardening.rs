@@ -874,6 +874,79 @@ fn duplicates_are_errors_and_tiny_directions_are_directions() {
     check(&scene, "no file extension (expected .obj");
 }
 
+/// Values beyond reason in a scene file are errors naming the element and the field, in both
+/// formats: a scale that is negative or leaves the mesh's volumes outside f64's range (bodies,
+/// cloths, obstacle meshes), a joint position far beyond its body, a key given twice with
+/// different values (the paper format kept the last); harmless oddities are notes.
+#[test]
+fn scales_joints_and_repeated_keys_beyond_reason_are_errors_naming_the_field() {
+    let dir = tmp_dir("hard-ranges");
+    let refused = |scene: &Path, wanted: &[&str]| {
+        let o = diffsoft(&["simulate", scene.to_str().unwrap(), "--steps", "1"]);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(1), "{err}");
+        for w in wanted {
+            assert!(err.contains(w), "{w}: {err}");
+        }
+    };
+    write(&dir, "tri.obj", "v -1 0 -1\nv 1 0 -1\nv 0 0 1\nf 1 2 3\n");
+    for (scale, what) in [("-1", "scale must be finite and positive, got -1"), ("1e300", "outside 1e-90 to 1e90 m")] {
+        let scene = cube_scene(
+            &dir,
+            DENSITY,
+            &format!(r#", "obstacles": [{{ "name": "floor", "mesh": {{ "file": "tri.obj", "scale": {scale} }}, "friction": 0.3 }}]"#),
+        );
+        refused(&scene, &["obstacle 'floor' mesh", what]);
+    }
+    for scale in ["1e200", "1e-200"] {
+        let scene = cube_scene(&dir, &format!(r#", "density": 1000, "scale": {scale}"#), "");
+        refused(&scene, &["body 'c'", &format!("scale {scale}"), "rescale the units"]);
+    }
+    // A joint 1e300 m away; at 10 m it is used.
+    for (x, ok) in [("1e300", false), ("10", true)] {
+        let scene = cube_scene(
+            &dir,
+            &format!(
+                r#", "density": 1000, "skeleton": {{ "bones": [{{ "name": "root", "joint": {{ "free": {{}} }}, "vertices": {{ "indices": [0] }} }},
+                    {{ "name": "arm", "parent": "root", "joint": {{ "rotational": {{ "position": [{x}, 0, 0], "axis": [0, 0, 1] }} }}, "vertices": {{ "indices": [4] }} }}] }}"#
+            ),
+            "",
+        );
+        let o = diffsoft(&["simulate", scene.to_str().unwrap(), "--steps", "1"]);
+        if ok {
+            assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+        } else {
+            refused(&scene, &["body 'c': bone 'arm': joint position", "beyond 1e8 times"]);
+        }
+    }
+    // The paper format: a key given twice with different values, and an attachment stiffness
+    // without vertices (the scene's own directory layout: `bridgesus/bridgesus.json` names its
+    // mesh as `bridgesus/...`).
+    let paper = dir.join("bridgesus");
+    std::fs::create_dir_all(&paper).unwrap();
+    let src = root().join("verification/paper/bridgesus");
+    for f in ["bridgesus.json", "bridgesus200_tet_cen.obj"] {
+        std::fs::copy(src.join(f), paper.join(f)).unwrap();
+    }
+    let text = std::fs::read_to_string(paper.join("bridgesus.json")).unwrap();
+    let twice = text.replacen("\"Youngs Modulus\"", "\"Youngs Modulus\" : 5e3, \"Youngs Modulus\"", 1);
+    assert_ne!(twice, text);
+    refused(
+        &write(&paper, "twice.json", &twice),
+        &["twice.json", "key \"Youngs Modulus\" is given twice in one object with different values", "line "],
+    );
+    let start = text.find("\"Attach Verts\"").unwrap();
+    let end = start + text[start..].find("\"Attach Stiffness\"").unwrap();
+    let lone = format!("{}{}", &text[..start], text[end..].replacen("1e20", "-1", 1));
+    let o = diffsoft(&["simulate", write(&paper, "lone.json", &lone).to_str().unwrap(), "--steps", "1"]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(
+        stdout(&o).contains("\"Attach Stiffness\" -1 without \"Attach Verts\" attaches nothing; ignored"),
+        "{}",
+        stdout(&o)
+    );
+}
+
 /// Two bodies that start through each other, with collisions on, are refused before the first
 /// step, naming both and the depth; touching or within the collision thickness is fine.
 #[test]

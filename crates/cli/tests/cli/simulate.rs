@@ -151,3 +151,24 @@ fn a_body_too_soft_for_its_weight_is_noted_and_its_folding_warned_about() {
         assert_eq!(folded > 0, soft, "{folded}");
     }
 }
+
+/// Chebyshev with certification off at a step where it needs more inner iterations than its cap
+/// runs unchecked, as `certify: off` says (it was an internal error), and says what it costs.
+#[test]
+fn chebyshev_with_certification_off_runs_unchecked() {
+    let dir = tmp_dir("cli-chebyshev-off");
+    let scene = crate::common::cube_scene(
+        &dir,
+        r#", "density": 1000"#,
+        r#", "solver": { "solver": "chebyshev", "certify": "off", "inner_max_iterations": 2 }"#,
+    );
+    let out = Command::new(env!("CARGO_BIN_EXE_diffsoft"))
+        .args(["simulate", scene.to_str().unwrap(), "--steps", "1"])
+        .output()
+        .unwrap();
+    let (stdout, stderr) = (String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+    assert!(!stderr.contains("panicked") && !stderr.contains("internal error"), "{stderr}");
+    assert!(out.status.success(), "{stderr}");
+    assert!(stdout.contains("above the cap of 2"), "{stdout}");
+    assert!(stdout.contains("certification off: the iteration runs unchecked"), "{stdout}");
+}

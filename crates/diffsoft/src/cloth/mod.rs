@@ -322,6 +322,33 @@ pub(crate) fn prepare(spec: &ClothSpec) -> Result<Prepared, InputError> {
             return Err(bad(format!("vertex {i} is not finite: {v:?}")));
         }
     }
+    // A triangle given twice (by its vertices, or by their positions through repeated
+    // vertices) would count its stiffness and mass twice.
+    let place = |i: usize| {
+        let v = &s.vertices[i];
+        [v.x, v.y, v.z].map(|c| (c + 0.0).to_bits())
+    };
+    let mut by_vertices = std::collections::HashMap::with_capacity(s.triangles.len());
+    let mut by_place = std::collections::HashMap::with_capacity(s.triangles.len());
+    for (t, tri) in s.triangles.iter().enumerate() {
+        if tri.iter().any(|&v| v >= n) {
+            continue; // reported below
+        }
+        let mut key = *tri;
+        key.sort_unstable();
+        if let Some(first) = by_vertices.insert(key, t) {
+            return Err(bad(format!(
+                "triangle {t} repeats triangle {first} (the same three vertices {tri:?})"
+            )));
+        }
+        let mut key = tri.map(place);
+        key.sort_unstable();
+        if let Some(first) = by_place.insert(key, t) {
+            return Err(bad(format!(
+                "triangle {t} (vertices {tri:?}) lies on triangle {first}: their corners are at the same three positions (merge the repeated vertices)"
+            )));
+        }
+    }
     let mut used = vec![false; n];
     let mut geometry = Vec::with_capacity(s.triangles.len());
     let mut mass = vec![0.0; n];
@@ -572,6 +599,18 @@ mod tests {
         s.triangles.push([0, 1, 1]);
         let e = prepare(&ClothSpec::new("c", s, 1.0, 0.0, 1.0)).unwrap_err().to_string();
         assert!(e.contains("triangle 2 repeats a vertex"), "{e}");
+        // A triangle given twice, by its vertices or by their positions.
+        let mut s = grid(1, 1, 1.0);
+        let t = s.triangles[0];
+        s.triangles.push([t[2], t[0], t[1]]);
+        let e = prepare(&ClothSpec::new("c", s, 1.0, 0.0, 1.0)).unwrap_err().to_string();
+        assert!(e.contains("triangle 2 repeats triangle 0"), "{e}");
+        let mut s = grid(1, 1, 1.0);
+        let t = s.triangles[1];
+        s.vertices.push(s.vertices[t[0]]);
+        s.triangles.push([4, t[1], t[2]]);
+        let e = prepare(&ClothSpec::new("c", s, 1.0, 0.0, 1.0)).unwrap_err().to_string();
+        assert!(e.contains("triangle 2 (vertices [4,") && e.contains("lies on triangle 1"), "{e}");
         let mut s = grid(1, 1, 1.0);
         s.vertices.push(Vector3::zeros());
         let e = prepare(&ClothSpec::new("c", s, 1.0, 0.0, 1.0)).unwrap_err().to_string();

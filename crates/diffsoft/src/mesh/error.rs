@@ -70,6 +70,17 @@ pub enum MeshErrorKind {
         /// The earlier tet it repeats.
         first: usize,
     },
+    /// Two tets have their corners at the same four positions through different vertices (the
+    /// mesh repeats vertices there): the same solid would count twice.
+    #[error("tet {tet} lies on tet {first}: their corners are at the same four positions (vertices {vertices:?} of tet {tet} repeat those of tet {first} at the same places; merge the repeated vertices)")]
+    CoincidentTet {
+        /// 0-based tet number in file order.
+        tet: usize,
+        /// The earlier tet it lies on.
+        first: usize,
+        /// The later tet's vertices, in the file's numbering.
+        vertices: [i64; 4],
+    },
     /// A tet has zero or near-zero volume.
     #[error("tet {tet}: degenerate (volume {volume:e}; 6*sqrt(2)*|V|/l_rms^3 = {quality:e} is below {threshold:e})")]
     DegenerateTet {

@@ -217,6 +217,18 @@ impl TetMesh {
             }
             seen.insert(key, t);
         }
+        // The same check by position: corners at the same four places (bit for bit, -0 as 0).
+        let place = |i: usize| raw.nodes[i].map(|c| (c + 0.0).to_bits());
+        let mut seen = std::collections::HashMap::with_capacity(raw.tets.len());
+        for (t, tet) in raw.tets.iter().enumerate() {
+            let mut key = tet.map(place);
+            key.sort_unstable();
+            if let Some(&first) = seen.get(&key) {
+                let vertices = tet.map(|i| raw.node_ids[i]);
+                return Err(err_at(t, MeshErrorKind::CoincidentTet { tet: t, first, vertices }));
+            }
+            seen.insert(key, t);
+        }
         // Drop nodes that no tet uses; keep file ids of the rest.
         const UNUSED: usize = usize::MAX;
         let mut new_index = vec![UNUSED; raw.nodes.len()];

@@ -391,7 +391,9 @@ fn bones_from_file(
                 if crate::base::unit_vector(a).is_none() {
                     return Err(invalid(format!("bone '{}': joint axis must be non-zero", b.name)));
                 }
-                let mut r = Rotational::new(finite3(scene, "joint position", position)?, a);
+                let p = finite3(scene, "joint position", position)?;
+                joint_position_near(&format!("bone '{}'", b.name), &p, &mesh.vertices).map_err(&invalid)?;
+                let mut r = Rotational::new(p, a);
                 r.limits = limits(l)?;
                 r.set_coordinates(&[initial("angle", "rad", *angle, r.limits)?]);
                 Box::new(r)
@@ -567,11 +569,10 @@ fn placement(
         )));
     }
     let t = finite3(scene, &format!("{who}: translate"), translate)?;
-    let (lo, hi) = vertices.iter().fold(
-        (Vector3::repeat(f64::INFINITY), Vector3::repeat(f64::NEG_INFINITY)),
-        |(lo, hi), v| (lo.inf(v), hi.sup(v)),
-    );
-    let size = (hi - lo).amax() * scale;
+    let size = scaled_size(who, scale, vertices).map_err(|m| SceneError::Invalid {
+        path: scene.to_string(),
+        message: m,
+    })?;
     if size.is_finite() && size > 0.0 && t.amax() > 1e8 * size {
         return Err(invalid(format!(
             "translate {} m is beyond 1e8 times the {} m size of its mesh: the placed coordinates would lose the mesh's shape",
@@ -591,6 +592,56 @@ fn finite3(scene: &str, what: &str, v: &[f64; 3]) -> Result<Vector3<f64>, SceneE
             message: format!("{what} must be finite, got {v:?}"),
         })
     }
+}
+
+/// Largest and smallest size (m) a scaled mesh may span: its element volumes (size cubed) and
+/// the products of stiffness with them stay inside f64's range, with room to spare.
+const MESH_SIZE_RANGE: (f64, f64) = (1e-90, 1e90);
+
+/// The size (largest bounding-box side, m) of `vertices` scaled by `scale`, which must be
+/// finite and positive and leave the mesh between [`MESH_SIZE_RANGE`]'s bounds: beyond them
+/// volumes over- or underflow and the elements read as degenerate. Errors name `who`.
+pub(crate) fn scaled_size(who: &str, scale: f64, vertices: &[Vector3<f64>]) -> Result<f64, String> {
+    if !(scale.is_finite() && scale > 0.0) {
+        return Err(format!("{who}: scale must be finite and positive, got {}", crate::base::number(scale)));
+    }
+    let (lo, hi) = vertices.iter().fold(
+        (Vector3::repeat(f64::INFINITY), Vector3::repeat(f64::NEG_INFINITY)),
+        |(lo, hi), v| (lo.inf(v), hi.sup(v)),
+    );
+    let size = (hi - lo).amax() * scale;
+    let (min, max) = MESH_SIZE_RANGE;
+    if vertices.is_empty() || (size.is_finite() && (min..=max).contains(&size)) {
+        return Ok(size);
+    }
+    Err(format!(
+        "{who}: scale {} makes the mesh {} m across, outside {min:e} to {max:e} m, where its element sizes leave f64's range; rescale the units",
+        crate::base::number(scale),
+        crate::base::number(size)
+    ))
+}
+
+/// A joint at `p` (m) for a body whose mesh has `vertices`: within 1e8 times the mesh's size of
+/// the mesh's bounding box (the rule of a body's `translate`: further out, lever arms of that
+/// length keep fewer than about 8 significant digits of the body's shape). Errors name `who`.
+pub(crate) fn joint_position_near(who: &str, p: &Vector3<f64>, vertices: &[Vector3<f64>]) -> Result<(), String> {
+    let (lo, hi) = vertices.iter().fold(
+        (Vector3::repeat(f64::INFINITY), Vector3::repeat(f64::NEG_INFINITY)),
+        |(lo, hi), v| (lo.inf(v), hi.sup(v)),
+    );
+    let size = (hi - lo).amax();
+    if !(size.is_finite() && size > 0.0) {
+        return Ok(());
+    }
+    let outside = (p - hi).sup(&(lo - p)).max();
+    if outside > 1e8 * size {
+        return Err(format!(
+            "{who}: joint position {p:?} m is {} m from the body's mesh, beyond 1e8 times its {} m size: its lever arms would lose the mesh's shape",
+            crate::base::number(outside),
+            crate::base::number(size)
+        ));
+    }
+    Ok(())
 }
 
 fn from_diffsoft(path: &Path, file: SceneFile, solver_gives_dt: bool) -> Result<Scene, SceneError> {
@@ -691,9 +742,9 @@ fn from_diffsoft(path: &Path, file: SceneFile, solver_gives_dt: bool) -> Result<
                 Arc::new(plane) as Arc<dyn Shape>
             }
             (None, Some(m)) => {
-                let s = surface_of(&scene, dir, &m.file, &format!("obstacle '{name}' mesh"))?
-                    .0
-                    .scaled(m.scale);
+                let s = surface_of(&scene, dir, &m.file, &format!("obstacle '{name}' mesh"))?.0;
+                scaled_size(&format!("obstacle '{name}' mesh"), m.scale, &s.vertices).map_err(&invalid)?;
+                let s = s.scaled(m.scale);
                 Arc::new(
                     TriMeshObstacle::new(s.vertices, s.triangles)
                         .map_err(|e| invalid(format!("obstacle '{name}': {e}")))?,

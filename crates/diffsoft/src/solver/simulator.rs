@@ -186,7 +186,7 @@ impl Simulator {
         system: Arc<System>,
     ) -> Result<Self, SolverError> {
         settings.validate()?;
-        check_initial_state(&model)?;
+        check_initial_state(&model, model.rest())?;
         let scheme = Self::first_scheme(&settings);
         let (iteration, certificate) = iteration::build(&model, &settings, &system)?;
         let n = model.n();
@@ -271,8 +271,22 @@ impl Simulator {
         self.set_state_from(&q, &v)
     }
 
-    /// Replace the state by copies of `q` and `v` (no allocation).
-    pub fn set_state_from(&mut self, q: &[Vector3<f64>], v: &[Vector3<f64>]) -> Result<(), SolverError> {
+    /// Start the run from `q` and `v` instead of the model's rest positions and initial
+    /// velocities: the positions get the checks of a model's own initial state (no vertex inside
+    /// an obstacle, no body through another, as [`Simulator::new`] makes on the rest
+    /// positions), then [`Simulator::set_state_from`]. A state the run itself reached (a
+    /// checkpoint) is restored with [`Simulator::set_state_from`] alone.
+    pub fn set_initial_state(&mut self, q: &[Vector3<f64>], v: &[Vector3<f64>]) -> Result<(), SolverError> {
+        self.check_state(q, v)?;
+        check_initial_state(&self.model, q).map_err(|e| match e {
+            SolverError::Input(e) => SolverError::Input(e.context("the initial positions given")),
+            e => e,
+        })?;
+        self.set_state_from(q, v)
+    }
+
+    /// Positions and velocities with the model's vertex count, finite.
+    fn check_state(&self, q: &[Vector3<f64>], v: &[Vector3<f64>]) -> Result<(), SolverError> {
         if q.len() != self.model.n() || v.len() != self.model.n() {
             return Err(SolverError::input(format!(
                 "state has {} positions and {} velocities, the model {} vertices",
@@ -284,6 +298,12 @@ impl Simulator {
         if !q.iter().chain(v).all(|x| x.iter().all(|c| c.is_finite())) {
             return Err(SolverError::input("state has non-finite entries"));
         }
+        Ok(())
+    }
+
+    /// Replace the state by copies of `q` and `v` (no allocation).
+    pub fn set_state_from(&mut self, q: &[Vector3<f64>], v: &[Vector3<f64>]) -> Result<(), SolverError> {
+        self.check_state(q, v)?;
         self.state.q.copy_from_slice(q);
         self.state.v.copy_from_slice(v);
         // A new state has no history: BDF2's next step is implicit Euler (or see
@@ -554,15 +574,14 @@ impl Simulator {
     }
 }
 
-/// Refuse a model whose initial state has a vertex inside a one-sided obstacle (deeper than
-/// 1e-6 of the length scale below its surface): the first step would push it out at whatever
-/// speed that takes (a body flattened and launched at hundreds of m/s) while the run reports
-/// no penetration. The error names the body, its vertex, the obstacle and the depth.
-fn check_initial_state(model: &Model) -> Result<(), SolverError> {
-    check_initial_overlap(model)?;
+/// Refuse initial positions `q` of `model` with a vertex inside a one-sided obstacle (deeper
+/// than 1e-6 of the length scale below its surface): the first step would push it out at
+/// whatever speed that takes (a body flattened and launched at hundreds of m/s) while the run
+/// reports no penetration. The error names the body, its vertex, the obstacle and the depth.
+fn check_initial_state(model: &Model, q: &[Vector3<f64>]) -> Result<(), SolverError> {
+    check_initial_overlap(model, q)?;
     let tolerance = 1e-6 * model.length_scale();
-    if let Some((depth, [a, b], k)) =
-        crate::contact::initial_crossing(&model.obstacles, &model.tets, model.rest(), tolerance)
+    if let Some((depth, [a, b], k)) = crate::contact::initial_crossing(&model.obstacles, &model.tets, q, tolerance)
     {
         let body = model
             .bodies
@@ -574,7 +593,7 @@ fn check_initial_state(model: &Model) -> Result<(), SolverError> {
             model.obstacles[k].name, model.obstacles[k].thickness
         )));
     }
-    let Some((depth, v, k)) = crate::contact::initial_penetration(&model.obstacles, model.rest(), tolerance) else {
+    let Some((depth, v, k)) = crate::contact::initial_penetration(&model.obstacles, q, tolerance) else {
         return Ok(());
     };
     let (body, local) = model
@@ -597,12 +616,12 @@ fn check_initial_state(model: &Model) -> Result<(), SolverError> {
 /// With collisions between bodies on, no body may start through another deeper than the
 /// collision thickness: the first step would push them apart at whatever speed that takes, or
 /// lock the crossing surfaces together.
-fn check_initial_overlap(model: &Model) -> Result<(), SolverError> {
+fn check_initial_overlap(model: &Model, q: &[Vector3<f64>]) -> Result<(), SolverError> {
     let Some(col) = model.collision() else {
         return Ok(());
     };
     let ranges: Vec<_> = model.bodies.iter().map(|b| b.tets.clone()).collect();
-    if let Some(i) = crate::contact::pair::overlap::inside(col, &model.tets, &ranges, model.rest()) {
+    if let Some(i) = crate::contact::pair::overlap::inside(col, &model.tets, &ranges, q) {
         let (a, b) = (&col.names[i.body], &col.names[i.other]);
         let point = match (i.vertex, i.tet) {
             (Some(v), _) if i.triangle => format!("the centre of a surface triangle at vertex {v} of the model"),
@@ -615,7 +634,7 @@ fn check_initial_overlap(model: &Model) -> Result<(), SolverError> {
             i.depth, col.settings.thickness
         )));
     }
-    let Some(c) = crate::contact::pair::Detector::default().deepest_crossing(col, model.rest()) else {
+    let Some(c) = crate::contact::pair::Detector::default().deepest_crossing(col, q) else {
         return Ok(());
     };
     if c.depth <= col.settings.thickness {

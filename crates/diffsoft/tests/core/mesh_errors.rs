@@ -367,3 +367,24 @@ fn gmsh_astronomical_declared_counts_are_errors() {
         );
     }
 }
+
+/// A tet whose corners sit at the same four positions as another's, through repeated vertices,
+/// is refused like a tet that repeats another's vertices (the solid would count twice), naming
+/// both tets, the file's vertices and the line; tets that share only a face's positions (a
+/// crack in the mesh) load.
+#[test]
+fn a_tet_lying_on_another_through_repeated_vertices_is_refused() {
+    let e = obj_err("coincident", &format!("{TET_V}v 0 0 0\nt 0 1 2 3\nt 4 1 3 2\n"));
+    assert_line(&e, 7);
+    assert!(
+        matches!(&e.kind, MeshErrorKind::CoincidentTet { tet: 1, first: 0, vertices } if *vertices == [4, 1, 3, 2]),
+        "{e}"
+    );
+    assert!(e.to_string().contains("merge the repeated vertices"), "{e}");
+    // -0 and 0 are one place.
+    let e = obj_err("coincident_zero", &format!("{TET_V}v -0 0 -0\nt 0 1 2 3\nt 4 1 3 2\n"));
+    assert!(matches!(&e.kind, MeshErrorKind::CoincidentTet { .. }), "{e}");
+    let dir = tmp_dir("crack");
+    let path = write(&dir, "crack.obj", &format!("{TET_V}v 0 0 0\nv 1 1 1\nt 0 1 2 3\nt 4 1 2 5\n"));
+    assert_eq!(mesh::load(&path).unwrap().mesh.num_tets(), 2);
+}

@@ -341,6 +341,7 @@ pub fn import(path: &Path, value: &Value, opts: LoadOptions) -> Result<Scene, Sc
             youngs_modulus: cx.number(mj, "Youngs Modulus", 2e5, &w)?,
             poisson_ratio: cx.number(mj, "Poisson Ratio", 0.4, &w)?,
         };
+        super::scaled_size(&w, scale, &loaded.mesh.vertices).map_err(|m| cx.invalid(m))?;
         let m = loaded.mesh.scaled(scale);
         let name = Path::new(file)
             .file_stem()
@@ -371,6 +372,8 @@ pub fn import(path: &Path, value: &Value, opts: LoadOptions) -> Result<Scene, Sc
             } else {
                 spec.attachments = verts.into_iter().map(|v| (v, stiffness)).collect();
             }
+        } else if let Some(k) = mj.get("Attach Stiffness") {
+            cx.notes.push(format!("{w}: \"Attach Stiffness\" {k} without \"Attach Verts\" attaches nothing; ignored"));
         }
         if let Some(bones) = mj.get("Bones") {
             let (list, notes) = paper_bones(&cx, &w, bones, &loaded.mesh, &loaded.info)?;
@@ -494,7 +497,9 @@ fn paper_cloth(cx: &mut Ctx<'_>, k: usize, cj: &Value) -> Result<crate::cloth::C
             "{w}: no \"Scale\": scale 1 (the reference's default for cloth is 0.05, which would shrink {file} to a twentieth of the scene it is modelled in)"
         ));
     }
-    let surface = mesh::surface::load_obj(&path)?.scaled(scale);
+    let surface = mesh::surface::load_obj(&path)?;
+    super::scaled_size(&w, scale, &surface.vertices).map_err(|m| cx.invalid(m))?;
+    let surface = surface.scaled(scale);
     let area_density = cx.number(cj, "Area Density", 1.5, &w)?;
     let stretching = cx.number(cj, "Stretching", 200.0, &w)?;
     let bending = cx.number(cj, "Bending", 0.0, &w)?;
@@ -527,6 +532,8 @@ fn paper_cloth(cx: &mut Ctx<'_>, k: usize, cj: &Value) -> Result<crate::cloth::C
         } else {
             spec.attachments = ids.into_iter().map(|v| (v, stiffness)).collect();
         }
+    } else if let Some(k) = cj.get("Attach Stiffness") {
+        cx.notes.push(format!("{w}: \"Attach Stiffness\" {k} without \"Attach Verts\" attaches nothing; ignored"));
     }
     Ok(spec)
 }
@@ -583,7 +590,9 @@ fn paper_bones(
                 if crate::base::unit_vector(axis).is_none() {
                     return Err(cx.invalid(format!("{w}: Bones[{k}]: rotational joint with a zero axis")));
                 }
-                Box::new(Rotational::new(vec3(b, "Joint Pos", k)?, axis))
+                let p = vec3(b, "Joint Pos", k)?;
+                super::joint_position_near(&format!("{w}: Bones[{k}]"), &p, &mesh.vertices).map_err(|m| cx.invalid(m))?;
+                Box::new(Rotational::new(p, axis))
             }
             "PRISMATIC" => {
                 let axis = vec3(b, "Joint Axis", k)?;
