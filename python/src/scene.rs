@@ -72,8 +72,14 @@ impl Scene {
         for (k, v) in settings.iter() {
             let key: String = k.extract()?;
             let value: serde_json::Value = match v.cast::<PyFloat>() {
-                // JSON has no NaN or infinity: `Settings::set` refuses them as null.
-                Ok(f) if !f.value().is_finite() => serde_json::Value::Null,
+                // JSON has no NaN or infinity: refused here, naming the value as given (an
+                // unknown name is left to `Settings::set`, which says so).
+                Ok(f) if !f.value().is_finite() && diffsoft::Settings::describe(&key).is_some() => {
+                    return Err(errors::value(format!(
+                        "configure({key}={}): must be a finite number",
+                        f.value()
+                    )))
+                }
                 _ => {
                     let text: String = json.call_method1("dumps", (v,))?.extract()?;
                     serde_json::from_str(&text).map_err(errors::other)?

@@ -42,7 +42,8 @@ def test_configure_checks_each_setting_and_changes_nothing_on_error(beam):
     for kwargs, message in [
         ({"dt": -1.0}, "time step must be finite and positive"),
         ({"tolerance": -1.0}, "tolerance must be finite and >= 0"),
-        ({"dt": float("nan")}, "dt must be a finite number"),
+        ({"dt": float("nan")}, r"configure\(dt=NaN\): must be a finite number"),
+        ({"tolerance": float("inf")}, r"configure\(tolerance=inf\): must be a finite number"),
         ({"max_iterations": 50, "damping": 2.0}, "damping must be in"),
         ({"time_step": 0.005}, "unknown setting 'time_step'"),
     ]:

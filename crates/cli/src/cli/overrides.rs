@@ -53,7 +53,10 @@ impl SolverOverrides {
         }
         for (name, value) in given {
             if let Some(v) = value {
-                settings.set(name, v)?;
+                // The error names the flag as the user typed it.
+                settings
+                    .set(name, v.clone())
+                    .map_err(|e| anyhow::anyhow!("--{} {v}: {e}", name.replace('_', "-")))?;
             }
         }
         Ok(())

@@ -91,7 +91,8 @@ pub(crate) fn simulate(
         );
     }
     for (name, a) in activations {
-        sim.set_activation(name, *a).map_err(|e| fail(&mut run_dir, e.into()))?;
+        sim.set_activation(name, *a)
+            .map_err(|e| fail(&mut run_dir, anyhow::anyhow!("--activation {name}={a}: {e}")))?;
         say!("activation  {name} held at {a}");
     }
     let frames = match (&run_dir, out.every) {

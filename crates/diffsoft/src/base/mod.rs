@@ -11,6 +11,7 @@
 //! * [`cancel`]: cooperative cancellation of long calls (a token polled before every step).
 //! * [`unit_vector`]: directions from input (axes, normals, fibres) normalised without overflow.
 //! * [`tasks`]: independent tasks on all cores, each single-threaded (the batches).
+//! * `input_file`: input text files read one way (devices refused, a byte-order mark dropped).
 //! * [`memory`]: sizes from files and flags checked against overflow and the machine's memory
 //!   before anything is allocated for them.
 
@@ -18,6 +19,7 @@ mod body;
 pub mod cancel;
 mod choice;
 mod error;
+pub(crate) mod input_file;
 mod material;
 pub mod memory;
 mod schedule;

@@ -540,12 +540,11 @@ pub fn parse_tetgen_str(
 }
 
 fn read_text(path: &Path) -> Result<String, MeshError> {
-    let bytes = std::fs::read(path)
-        .map_err(|e| MeshError::file(&path.display().to_string(), MeshErrorKind::Io(e.to_string())))?;
-    String::from_utf8(bytes).map_err(|e| {
-        MeshError::file(
-            &path.display().to_string(),
-            MeshErrorKind::UnsupportedFormat(format!("not UTF-8 text (binary files are not supported): {e}")),
-        )
+    crate::base::input_file::read_text(path).map_err(|e| {
+        let shown = path.display().to_string();
+        match e.kind() {
+            std::io::ErrorKind::InvalidData => MeshError::file(&shown, MeshErrorKind::UnsupportedFormat(e.to_string())),
+            _ => MeshError::file(&shown, MeshErrorKind::Io(e.to_string())),
+        }
     })
 }

@@ -46,27 +46,7 @@ pub fn check_writable(path: &Path) -> std::io::Result<()> {
     std::fs::remove_file(&probe).map_err(named)
 }
 
-/// What a non-regular file is, in words, for error messages.
-pub(crate) fn kind_of(t: &std::fs::FileType) -> &'static str {
-    use std::os::unix::fs::FileTypeExt as _;
-    if t.is_file() {
-        "a regular file"
-    } else if t.is_dir() {
-        "a directory"
-    } else if t.is_symlink() {
-        "a symbolic link"
-    } else if t.is_fifo() {
-        "a named pipe (FIFO)"
-    } else if t.is_char_device() {
-        "a character device"
-    } else if t.is_block_device() {
-        "a block device"
-    } else if t.is_socket() {
-        "a socket"
-    } else {
-        "not a regular file"
-    }
-}
+pub(crate) use crate::base::input_file::kind_of;
 
 /// Make `dir` a directory for outputs the command names itself (a run's frames, the schemas):
 /// created if missing; an existing path that is not a directory (a file, a device, a FIFO) is

@@ -280,7 +280,10 @@ impl RunSummary {
     /// let summary = RunSummary::of(&steps);
     /// assert_eq!((summary.steps, summary.converged_steps), (2, 2));
     /// assert!((summary.simulated_time - 0.02).abs() < 1e-12);
-    /// assert_eq!(RunSummary::of(&[]).steps, 0);
+    /// let none = RunSummary::of(&[]);
+    /// assert_eq!(none.steps, 0);
+    /// // Zero, not -0 (printed "-0.000" for a run that failed before its first step).
+    /// assert!(none.wall_time_s.is_sign_positive() && none.mean_iterations.is_sign_positive());
     /// # Ok::<(), Box<dyn std::error::Error>>(())
     /// ```
     pub fn of(steps: &[StepStats]) -> Self {
@@ -290,9 +293,10 @@ impl RunSummary {
         Self {
             steps: steps.len(),
             simulated_time: steps.last().map_or(0.0, |s| s.time),
-            wall_time_s: ms.iter().sum::<f64>() / 1e3,
+            // Folds from +0 (an empty f64 sum is -0, printed "-0.000" for a run of no steps).
+            wall_time_s: ms.iter().fold(0.0, |a, b| a + b) / 1e3,
             median_ms_per_step: median,
-            mean_iterations: steps.iter().map(|s| s.iterations as f64).sum::<f64>() / steps.len().max(1) as f64,
+            mean_iterations: steps.iter().fold(0.0, |a, s| a + s.iterations as f64) / steps.len().max(1) as f64,
             converged_steps: steps.iter().filter(|s| s.converged).count(),
             steps_with_capped_solves: steps.iter().filter(|s| s.capped_solves > 0).count(),
             steps_with_pair_crossings: steps.iter().filter(|s| s.pair_crossings > 0).count(),

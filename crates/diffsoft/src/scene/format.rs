@@ -65,8 +65,15 @@ pub struct SceneFile {
 impl SceneFile {
     /// The solver settings with the time step, from `solver.dt` or the top-level `time_step`
     /// (`solver_gives_dt`: whether the `solver` section has a `dt` key); an error unless
-    /// exactly one of them is given.
+    /// exactly one of them is given, or when a setting is out of its range (naming it).
     pub fn settings(&self, solver_gives_dt: bool) -> Result<Settings, String> {
+        let s = self.settings_as_given(solver_gives_dt)?;
+        // Checked here, so that the error names the scene file and its `solver` block.
+        s.validate().map_err(|e| format!("solver: {}", e.to_string().trim_start_matches("invalid input: ")))?;
+        Ok(s)
+    }
+
+    fn settings_as_given(&self, solver_gives_dt: bool) -> Result<Settings, String> {
         match (self.time_step, solver_gives_dt) {
             (Some(dt), false) => Ok(Settings {
                 dt,

@@ -251,7 +251,7 @@ pub fn from_value(value: serde_json::Value, path: &Path) -> Result<Scene, SceneE
 pub fn load(path: impl AsRef<Path>, opts: LoadOptions) -> Result<Scene, SceneError> {
     let path = path.as_ref();
     let shown = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|e| SceneError::Io {
+    let text = crate::base::input_file::read_text(path).map_err(|e| SceneError::Io {
         path: shown.clone(),
         message: e.to_string(),
     })?;
