@@ -71,7 +71,7 @@ impl<'de> Visitor<'de> for UniqueVisitor {
                 Some(first) if *first == v => {}
                 Some(first) => {
                     return Err(A::Error::custom(format!(
-                        "key \"{key}\" is given twice in one object with different values ({first}, then {v}): which applies is ambiguous; remove one"
+                        "key \"{key}\" is given twice in one object with different values ({first}, then {v}): which applies is ambiguous; remove one (the later one ends)"
                     )))
                 }
                 None => {
@@ -134,8 +134,9 @@ mod tests {
     /// serde_json's own.
     #[test]
     fn a_key_given_twice_is_refused_where_it_repeats() {
-        let e = parse_lenient("{\n\"E\": 2e5,\n\"m\": {\"E\": 1},\n\"E\": 5e3\n}").unwrap_err();
+        let e = parse_lenient("{\n\"E\": 2e5,\n\"m\": {\"E\": 1},\n\"E\": 5e3,\n\"z\": 0\n}").unwrap_err();
         assert_eq!(e.line(), 4, "{e}");
+        assert!(e.to_string().ends_with("(the later one ends) at line 4 column 8"), "{e}");
         assert!(e.to_string().contains("key \"E\" is given twice in one object with different values (200000.0, then 5000.0)"), "{e}");
         let v = parse_lenient("{\"t\": 1, \"E\": [1, 2], \"t\": 1}").unwrap();
         assert_eq!(v, serde_json::json!({"t": 1, "E": [1, 2]}));
