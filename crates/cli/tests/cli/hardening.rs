@@ -890,11 +890,16 @@ fn scales_joints_and_repeated_keys_beyond_reason_are_errors_naming_the_field() {
         }
     };
     write(&dir, "tri.obj", "v -1 0 -1\nv 1 0 -1\nv 0 0 1\nf 1 2 3\n");
-    for (scale, what) in [("-1", "scale must be finite and positive, got -1"), ("1e300", "outside 1e-90 to 1e90 m")] {
+    for (scale, what) in [
+        ("-1", "scale must be finite and positive, got -1"),
+        ("1e300", "outside 1e-90 to 1e90 m"),
+    ] {
         let scene = cube_scene(
             &dir,
             DENSITY,
-            &format!(r#", "obstacles": [{{ "name": "floor", "mesh": {{ "file": "tri.obj", "scale": {scale} }}, "friction": 0.3 }}]"#),
+            &format!(
+                r#", "obstacles": [{{ "name": "floor", "mesh": {{ "file": "tri.obj", "scale": {scale} }}, "friction": 0.3 }}]"#
+            ),
         );
         refused(&scene, &["obstacle 'floor' mesh", what]);
     }
@@ -933,12 +938,21 @@ fn scales_joints_and_repeated_keys_beyond_reason_are_errors_naming_the_field() {
     assert_ne!(twice, text);
     refused(
         &write(&paper, "twice.json", &twice),
-        &["twice.json", "key \"Youngs Modulus\" is given twice in one object with different values", "line "],
+        &[
+            "twice.json",
+            "key \"Youngs Modulus\" is given twice in one object with different values",
+            "line ",
+        ],
     );
     let start = text.find("\"Attach Verts\"").unwrap();
     let end = start + text[start..].find("\"Attach Stiffness\"").unwrap();
     let lone = format!("{}{}", &text[..start], text[end..].replacen("1e20", "-1", 1));
-    let o = diffsoft(&["simulate", write(&paper, "lone.json", &lone).to_str().unwrap(), "--steps", "1"]);
+    let o = diffsoft(&[
+        "simulate",
+        write(&paper, "lone.json", &lone).to_str().unwrap(),
+        "--steps",
+        "1",
+    ]);
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     assert!(
         stdout(&o).contains("\"Attach Stiffness\" -1 without \"Attach Verts\" attaches nothing; ignored"),

@@ -166,9 +166,18 @@ fn chebyshev_with_certification_off_runs_unchecked() {
         .args(["simulate", scene.to_str().unwrap(), "--steps", "1"])
         .output()
         .unwrap();
-    let (stdout, stderr) = (String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
-    assert!(!stderr.contains("panicked") && !stderr.contains("internal error"), "{stderr}");
+    let (stdout, stderr) = (
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr),
+    );
+    assert!(
+        !stderr.contains("panicked") && !stderr.contains("internal error"),
+        "{stderr}"
+    );
     assert!(out.status.success(), "{stderr}");
     assert!(stdout.contains("above the cap of 2"), "{stdout}");
-    assert!(stdout.contains("certification off: the iteration runs unchecked"), "{stdout}");
+    assert!(
+        stdout.contains("certification off: the iteration runs unchecked"),
+        "{stdout}"
+    );
 }

@@ -63,7 +63,10 @@ mod tests {
     #[test]
     fn devices_and_directories_are_refused_and_a_byte_order_mark_dropped() {
         let e = read_text(Path::new("/dev/zero")).unwrap_err();
-        assert!(e.to_string().contains("is a character device, not a file to read"), "{e}");
+        assert!(
+            e.to_string().contains("is a character device, not a file to read"),
+            "{e}"
+        );
         let e = read_text(Path::new("/")).unwrap_err();
         assert!(e.to_string().contains("is a directory"), "{e}");
         let dir = std::env::temp_dir().join(format!("diffsoft-input-text-{}", std::process::id()));

@@ -610,7 +610,10 @@ mod tests {
         s.vertices.push(s.vertices[t[0]]);
         s.triangles.push([4, t[1], t[2]]);
         let e = prepare(&ClothSpec::new("c", s, 1.0, 0.0, 1.0)).unwrap_err().to_string();
-        assert!(e.contains("triangle 2 (vertices [4,") && e.contains("lies on triangle 1"), "{e}");
+        assert!(
+            e.contains("triangle 2 (vertices [4,") && e.contains("lies on triangle 1"),
+            "{e}"
+        );
         let mut s = grid(1, 1, 1.0);
         s.vertices.push(Vector3::zeros());
         let e = prepare(&ClothSpec::new("c", s, 1.0, 0.0, 1.0)).unwrap_err().to_string();

@@ -225,7 +225,14 @@ impl TetMesh {
             key.sort_unstable();
             if let Some(&first) = seen.get(&key) {
                 let vertices = tet.map(|i| raw.node_ids[i]);
-                return Err(err_at(t, MeshErrorKind::CoincidentTet { tet: t, first, vertices }));
+                return Err(err_at(
+                    t,
+                    MeshErrorKind::CoincidentTet {
+                        tet: t,
+                        first,
+                        vertices,
+                    },
+                ));
             }
             seen.insert(key, t);
         }

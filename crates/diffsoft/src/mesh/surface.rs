@@ -53,7 +53,8 @@ impl TriSurface {
 pub fn load_obj(path: impl AsRef<Path>) -> Result<TriSurface, MeshError> {
     let path = path.as_ref();
     let shown = path.display().to_string();
-    let text = crate::base::input_file::read_text(path).map_err(|e| MeshError::file(&shown, MeshErrorKind::Io(e.to_string())))?;
+    let text = crate::base::input_file::read_text(path)
+        .map_err(|e| MeshError::file(&shown, MeshErrorKind::Io(e.to_string())))?;
     parse_obj(&shown, &text)
 }
 

@@ -69,7 +69,8 @@ impl SceneFile {
     pub fn settings(&self, solver_gives_dt: bool) -> Result<Settings, String> {
         let s = self.settings_as_given(solver_gives_dt)?;
         // Checked here, so that the error names the scene file and its `solver` block.
-        s.validate().map_err(|e| format!("solver: {}", e.to_string().trim_start_matches("invalid input: ")))?;
+        s.validate()
+            .map_err(|e| format!("solver: {}", e.to_string().trim_start_matches("invalid input: ")))?;
         Ok(s)
     }
 

@@ -136,11 +136,21 @@ mod tests {
     fn a_key_given_twice_is_refused_where_it_repeats() {
         let e = parse_lenient("{\n\"E\": 2e5,\n\"m\": {\"E\": 1},\n\"E\": 5e3,\n\"z\": 0\n}").unwrap_err();
         assert_eq!(e.line(), 4, "{e}");
-        assert!(e.to_string().ends_with("(the later one ends) at line 4 column 8"), "{e}");
-        assert!(e.to_string().contains("key \"E\" is given twice in one object with different values (200000.0, then 5000.0)"), "{e}");
+        assert!(
+            e.to_string().ends_with("(the later one ends) at line 4 column 8"),
+            "{e}"
+        );
+        assert!(
+            e.to_string()
+                .contains("key \"E\" is given twice in one object with different values (200000.0, then 5000.0)"),
+            "{e}"
+        );
         let v = parse_lenient("{\"t\": 1, \"E\": [1, 2], \"t\": 1}").unwrap();
         assert_eq!(v, serde_json::json!({"t": 1, "E": [1, 2]}));
         let text = r#"{"a": {"k": 1}, "b": {"k": [true, null, -3, 18446744073709551615, 1.5e-300, "s"]}}"#;
-        assert_eq!(parse_lenient(text).unwrap(), serde_json::from_str::<Value>(text).unwrap());
+        assert_eq!(
+            parse_lenient(text).unwrap(),
+            serde_json::from_str::<Value>(text).unwrap()
+        );
     }
 }

@@ -603,7 +603,10 @@ const MESH_SIZE_RANGE: (f64, f64) = (1e-90, 1e90);
 /// volumes over- or underflow and the elements read as degenerate. Errors name `who`.
 pub(crate) fn scaled_size(who: &str, scale: f64, vertices: &[Vector3<f64>]) -> Result<f64, String> {
     if !(scale.is_finite() && scale > 0.0) {
-        return Err(format!("{who}: scale must be finite and positive, got {}", crate::base::number(scale)));
+        return Err(format!(
+            "{who}: scale must be finite and positive, got {}",
+            crate::base::number(scale)
+        ));
     }
     let (lo, hi) = vertices.iter().fold(
         (Vector3::repeat(f64::INFINITY), Vector3::repeat(f64::NEG_INFINITY)),

@@ -581,8 +581,7 @@ impl Simulator {
 fn check_initial_state(model: &Model, q: &[Vector3<f64>]) -> Result<(), SolverError> {
     check_initial_overlap(model, q)?;
     let tolerance = 1e-6 * model.length_scale();
-    if let Some((depth, [a, b], k)) = crate::contact::initial_crossing(&model.obstacles, &model.tets, q, tolerance)
-    {
+    if let Some((depth, [a, b], k)) = crate::contact::initial_crossing(&model.obstacles, &model.tets, q, tolerance) {
         let body = model
             .bodies
             .iter()

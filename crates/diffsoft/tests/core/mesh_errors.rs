@@ -385,6 +385,10 @@ fn a_tet_lying_on_another_through_repeated_vertices_is_refused() {
     let e = obj_err("coincident_zero", &format!("{TET_V}v -0 0 -0\nt 0 1 2 3\nt 4 1 3 2\n"));
     assert!(matches!(&e.kind, MeshErrorKind::CoincidentTet { .. }), "{e}");
     let dir = tmp_dir("crack");
-    let path = write(&dir, "crack.obj", &format!("{TET_V}v 0 0 0\nv 1 1 1\nt 0 1 2 3\nt 4 1 2 5\n"));
+    let path = write(
+        &dir,
+        "crack.obj",
+        &format!("{TET_V}v 0 0 0\nv 1 1 1\nt 0 1 2 3\nt 4 1 2 5\n"),
+    );
     assert_eq!(mesh::load(&path).unwrap().mesh.num_tets(), 2);
 }

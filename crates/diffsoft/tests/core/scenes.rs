@@ -216,19 +216,37 @@ fn initial_positions_given_to_a_run_are_checked_like_the_scenes_own() {
     use nalgebra::Vector3;
     let case = diffsoft::testing::ground_contact(2).unwrap();
     let v0 = case.model.initial_velocity().to_vec();
-    let shifted = |dy: f64| -> Vec<Vector3<f64>> { case.model.rest().iter().map(|q| q + Vector3::new(0.0, dy, 0.0)).collect() };
+    let shifted = |dy: f64| -> Vec<Vector3<f64>> {
+        case.model
+            .rest()
+            .iter()
+            .map(|q| q + Vector3::new(0.0, dy, 0.0))
+            .collect()
+    };
     let sunk = Controls {
         initial: Some((shifted(-5.0), v0.clone())),
         ..Controls::default()
     };
-    let e = diff::rollout(&case.model, &case.settings, 2, &sunk).unwrap_err().to_string();
+    let e = diff::rollout(&case.model, &case.settings, 2, &sunk)
+        .unwrap_err()
+        .to_string();
     for want in ["initial positions given", "inside obstacle", "body '"] {
         assert!(e.contains(want), "{want}: {e}");
     }
-    let e = diff::gradient(&case.model, &case.settings, 2, &sunk, case.loss.as_ref(), diff::Options::default())
-        .unwrap_err()
-        .to_string();
-    assert!(e.contains("initial positions given") && e.contains("inside obstacle"), "{e}");
+    let e = diff::gradient(
+        &case.model,
+        &case.settings,
+        2,
+        &sunk,
+        case.loss.as_ref(),
+        diff::Options::default(),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        e.contains("initial positions given") && e.contains("inside obstacle"),
+        "{e}"
+    );
     let lifted = Controls {
         initial: Some((shifted(0.5), v0)),
         ..Controls::default()

@@ -373,7 +373,9 @@ pub fn import(path: &Path, value: &Value, opts: LoadOptions) -> Result<Scene, Sc
                 spec.attachments = verts.into_iter().map(|v| (v, stiffness)).collect();
             }
         } else if let Some(k) = mj.get("Attach Stiffness") {
-            cx.notes.push(format!("{w}: \"Attach Stiffness\" {k} without \"Attach Verts\" attaches nothing; ignored"));
+            cx.notes.push(format!(
+                "{w}: \"Attach Stiffness\" {k} without \"Attach Verts\" attaches nothing; ignored"
+            ));
         }
         if let Some(bones) = mj.get("Bones") {
             let (list, notes) = paper_bones(&cx, &w, bones, &loaded.mesh, &loaded.info)?;
@@ -533,7 +535,9 @@ fn paper_cloth(cx: &mut Ctx<'_>, k: usize, cj: &Value) -> Result<crate::cloth::C
             spec.attachments = ids.into_iter().map(|v| (v, stiffness)).collect();
         }
     } else if let Some(k) = cj.get("Attach Stiffness") {
-        cx.notes.push(format!("{w}: \"Attach Stiffness\" {k} without \"Attach Verts\" attaches nothing; ignored"));
+        cx.notes.push(format!(
+            "{w}: \"Attach Stiffness\" {k} without \"Attach Verts\" attaches nothing; ignored"
+        ));
     }
     Ok(spec)
 }
@@ -591,7 +595,8 @@ fn paper_bones(
                     return Err(cx.invalid(format!("{w}: Bones[{k}]: rotational joint with a zero axis")));
                 }
                 let p = vec3(b, "Joint Pos", k)?;
-                super::joint_position_near(&format!("{w}: Bones[{k}]"), &p, &mesh.vertices).map_err(|m| cx.invalid(m))?;
+                super::joint_position_near(&format!("{w}: Bones[{k}]"), &p, &mesh.vertices)
+                    .map_err(|m| cx.invalid(m))?;
                 Box::new(Rotational::new(p, axis))
             }
             "PRISMATIC" => {
