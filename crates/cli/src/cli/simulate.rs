@@ -82,8 +82,24 @@ pub(crate) fn simulate(
         }
         e
     };
-    let mut sim =
-        diffsoft::solver::Simulator::new(sc.model, sc.settings.clone()).map_err(|e| fail(&mut run_dir, e.into()))?;
+    // Inputs near the ends of f64's range, named when the set-up or a step fails numerically.
+    let extremes = diffsoft::diff::params::extreme_inputs(&sc.model, sc.settings.dt);
+    let numerical = |e: &diffsoft::SolverError| {
+        use diffsoft::SolverError as E;
+        matches!(
+            e,
+            E::Certification(_) | E::Factorization(_) | E::NonFinite(_) | E::Diverged(_) | E::Projection { .. }
+        )
+    };
+    let with_extremes = |e: diffsoft::SolverError| -> anyhow::Error {
+        if numerical(&e) && !extremes.is_empty() {
+            anyhow::anyhow!("{e} (inputs at the edge of floating point: {})", extremes.join(", "))
+        } else {
+            e.into()
+        }
+    };
+    let mut sim = diffsoft::solver::Simulator::new(sc.model, sc.settings.clone())
+        .map_err(|e| fail(&mut run_dir, with_extremes(e)))?;
     say!("solver      {}", sim.certificate().message);
     if sc.settings.integrator == diffsoft::solver::Integrator::Bdf2 {
         say!(
@@ -153,11 +169,10 @@ pub(crate) fn simulate(
                 } else {
                     format!("step {}: {text}", k + 1)
                 };
-                log.error = Some(match e {
-                    diffsoft::SolverError::NonFinite(_) | diffsoft::SolverError::Diverged(_) => {
-                        diffsoft::diff::params::name_extreme_inputs(text, sim.model(), sim.settings().dt)
-                    }
-                    _ => text,
+                log.error = Some(if numerical(&e) {
+                    diffsoft::diff::params::name_extreme_inputs(text, sim.model(), sim.settings().dt)
+                } else {
+                    text
                 });
                 break;
             }

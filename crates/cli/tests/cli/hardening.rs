@@ -924,6 +924,22 @@ fn scales_joints_and_repeated_keys_beyond_reason_are_errors_naming_the_field() {
             refused(&scene, &["body 'c': bone 'arm': joint position", "beyond 1e8 times"]);
         }
     }
+    // A time step of 1e300 fails in the set-up; the error names it.
+    let text = std::fs::read_to_string(cube_scene(&dir, DENSITY, "")).unwrap();
+    let huge = write(
+        &dir,
+        "huge_dt.json",
+        &text.replace("\"time_step\": 0.01", "\"time_step\": 1e300"),
+    );
+    for solver in ["auto", "direct"] {
+        let o = diffsoft(&["simulate", huge.to_str().unwrap(), "--steps", "1", "--solver", solver]);
+        assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+        assert!(
+            stderr(&o).contains("(inputs at the edge of floating point: time_step = 1e300)"),
+            "{solver}: {}",
+            stderr(&o)
+        );
+    }
     // The paper format: a key given twice with different values, and an attachment stiffness
     // without vertices (the scene's own directory layout: `bridgesus/bridgesus.json` names its
     // mesh as `bridgesus/...`).

@@ -42,55 +42,78 @@ fn pick(points: &[Point], i: usize) -> Pick {
     }
 }
 
+/// What a row computed, for telling rows that did identical work apart from the rest: its time
+/// step, integrator, iteration counts and every trajectory error bit for bit (and, for a
+/// gradient's cost, its gradient values). Rows with equal keys ran the same iterations to the
+/// same states: Anderson mixing that never engaged because every step converged in its first
+/// iteration, say.
+fn same_work_key(r: &Row, gradient: bool) -> Option<Vec<u64>> {
+    let w = r.work?;
+    let t = r.trajectory?;
+    let mut key = vec![
+        r.setting.dt_divisor as u64,
+        r.setting.integrator as u64,
+        w.steps as u64,
+        w.iterations as u64,
+        w.global_iterations as u64,
+        w.unconverged_steps as u64,
+    ];
+    key.extend([t.max_vertex_error, t.rms_vertex_error, t.com_error, t.energy_drift].map(f64::to_bits));
+    if gradient {
+        key.extend(r.gradient.values.as_ref()?.iter().map(|v| v.to_bits()));
+    }
+    Some(key)
+}
+
+/// One point per distinct computation among the rows `keep` selects: rows that did identical
+/// work ([`same_work_key`]) differ in measured cost by timing noise alone (about 1.2x in the
+/// median between two concurrent workers), so they form one point, named by the group's first
+/// row in the grid's order (the spec's family order, simplest first) and costed at the group's
+/// smallest measurement. Without this, which of two identical computations a front or a
+/// recommendation named flipped from run to run.
+fn distinct_points(
+    rows: &[Row],
+    keep: impl Fn(&Row) -> bool,
+    cost: impl Fn(&Row) -> Option<f64>,
+    error: impl Fn(&Row) -> Option<f64>,
+    gradient: bool,
+) -> Vec<Point> {
+    let mut out: Vec<Point> = Vec::new();
+    let mut group = std::collections::HashMap::new();
+    for r in rows.iter().filter(|r| r.status == Status::Ran && keep(r)) {
+        let (Some(time), Some(error)) = (cost(r), error(r)) else {
+            continue;
+        };
+        let key = same_work_key(r, gradient);
+        if let Some(&i) = key.as_ref().and_then(|k| group.get(k)) {
+            let p: &mut Point = &mut out[i];
+            p.time = p.time.min(time);
+            continue;
+        }
+        if let Some(k) = key {
+            group.insert(k, out.len());
+        }
+        out.push(Point {
+            id: r.id.clone(),
+            time,
+            error,
+        });
+    }
+    out
+}
+
 pub(super) fn fronts(
     spec: &TradeoffSpec,
     rows: &[Row],
     grefs: &[GradientReference],
 ) -> (Fronts, Vec<Point>, Vec<Point>) {
-    let points: Vec<Point> = rows
-        .iter()
-        .filter(|r| r.status == Status::Ran)
-        .filter_map(|r| {
-            Some(Point {
-                id: r.id.clone(),
-                time: forward_cost(spec, r)?,
-                error: r.trajectory?.max_relative,
-            })
-        })
-        .collect();
-    let gpoints: Vec<Point> = rows
-        .iter()
-        .filter(|r| r.status == Status::Ran)
-        .filter_map(|r| {
-            Some(Point {
-                id: r.id.clone(),
-                time: gradient_cost(spec, r)?,
-                error: r.gradient.error?,
-            })
-        })
-        .collect();
-    let solver_points: Vec<Point> = rows
-        .iter()
-        .filter(|r| r.status == Status::Ran)
-        .filter_map(|r| {
-            Some(Point {
-                id: r.id.clone(),
-                time: forward_cost(spec, r)?,
-                error: r.trajectory?.solver_max_relative,
-            })
-        })
-        .collect();
-    let gsolver_points: Vec<Point> = rows
-        .iter()
-        .filter(|r| r.status == Status::Ran)
-        .filter_map(|r| {
-            Some(Point {
-                id: r.id.clone(),
-                time: gradient_cost(spec, r)?,
-                error: r.gradient.solver_error?,
-            })
-        })
-        .collect();
+    let all = |_: &Row| true;
+    let forward = |r: &Row| forward_cost(spec, r);
+    let backward = |r: &Row| gradient_cost(spec, r);
+    let points = distinct_points(rows, all, forward, |r| Some(r.trajectory?.max_relative), false);
+    let gpoints = distinct_points(rows, all, backward, |r| r.gradient.error, true);
+    let solver_points = distinct_points(rows, all, forward, |r| Some(r.trajectory?.solver_max_relative), false);
+    let gsolver_points = distinct_points(rows, all, backward, |r| r.gradient.solver_error, true);
     let gradient_note = if gpoints.is_empty() {
         Some(if spec.gradient_dt_divisors.is_empty() {
             "no gradients requested for this scene (gradient_dt_divisors is empty)".to_string()
@@ -110,9 +133,9 @@ pub(super) fn fronts(
     };
     let time_meaning = match spec.time_axis {
         TimeAxis::Cpu => {
-            "thread CPU seconds per simulated second, one thread (wall time where CPU time is unavailable)"
+            "thread CPU seconds per simulated second, one thread (wall time where CPU time is unavailable); rows that did identical work (the same iterations, bit-identical errors) are one point, named by the first in the grid's order, at their smallest cost"
         }
-        TimeAxis::Iterations => "local-global iterations per simulated second (deterministic)",
+        TimeAxis::Iterations => "local-global iterations per simulated second (deterministic); rows that did identical work are one point, named by the first in the grid's order",
     };
     let f = Fronts {
         time_axis: spec.time_axis,
@@ -216,28 +239,21 @@ pub(super) fn recommend(
     order: Option<(f64, Row)>,
     fr: &Fronts,
 ) -> Vec<Recommendation> {
-    let at_h: Vec<Point> = rows
-        .iter()
-        .filter(|r| r.status == Status::Ran && r.setting.dt_divisor == 1)
-        .filter_map(|r| {
-            Some(Point {
-                id: r.id.clone(),
-                time: forward_cost(spec, r)?,
-                error: r.trajectory?.solver_max_relative,
-            })
-        })
-        .collect();
-    let grad_at_h: Vec<Point> = rows
-        .iter()
-        .filter(|r| r.status == Status::Ran && r.setting.dt_divisor == 1)
-        .filter_map(|r| {
-            Some(Point {
-                id: r.id.clone(),
-                time: gradient_cost(spec, r)?,
-                error: r.gradient.solver_error?,
-            })
-        })
-        .collect();
+    let at_scene_dt = |r: &Row| r.setting.dt_divisor == 1;
+    let at_h = distinct_points(
+        rows,
+        at_scene_dt,
+        |r| forward_cost(spec, r),
+        |r| Some(r.trajectory?.solver_max_relative),
+        false,
+    );
+    let grad_at_h = distinct_points(
+        rows,
+        at_scene_dt,
+        |r| gradient_cost(spec, r),
+        |r| r.gradient.solver_error,
+        true,
+    );
     let none = |pts: &[Point], target: f64, what: &str| -> String {
         match pareto::most_accurate(pts) {
             Some(i) => format!(
@@ -500,4 +516,65 @@ pub(super) fn verdicts(
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A row that ran, with the cost, iterations, one error and gradient value given.
+    fn row(index: usize, id: &str, cost: f64, iterations: usize, error: f64, gradient: f64) -> Row {
+        serde_json::from_value(serde_json::json!({
+            "index": index, "id": id,
+            "setting": { "family": "direct", "knob": { "cap": 3 }, "dt_divisor": 1, "integrator": "implicit_euler" },
+            "dt": 0.01, "steps": 10, "status": "ran", "message": null, "solver_used": "direct",
+            "certificate": null, "resolved_to": null,
+            "work": { "steps": 10, "iterations": iterations, "global_iterations": 0, "unconverged_steps": 0 },
+            "timing": { "setup_s": 0.0, "runs": 1, "wall_s": cost, "cpu_s": cost, "wall_s_per_sim_s": cost, "cpu_s_per_sim_s": cost },
+            "trajectory": {
+                "max_vertex_error": error, "rms_vertex_error": error, "com_error": error,
+                "max_relative": error, "rms_relative": error, "com_relative": error,
+                "solver_max_relative": error, "solver_rms_relative": error,
+                "energy_drift": 0.0, "energy_drift_error": 0.0
+            },
+            "gradient": { "values": [gradient], "message": null, "wall_s": cost, "cpu_s": cost, "error": error, "solver_error": error }
+        }))
+        .unwrap()
+    }
+
+    /// Rows that did identical work are one point, named by the first in the grid's order at
+    /// the smallest cost of the group, whichever of them measured faster; rows that differ in
+    /// iterations, errors or (for gradients) gradient values stay points of their own.
+    #[test]
+    fn identical_work_is_one_point_named_by_the_first_row() {
+        let pts = |rows: &[Row], gradient: bool| {
+            let cost = |r: &Row| Some(r.timing?.cpu_s_per_sim_s.unwrap());
+            distinct_points(rows, |_| true, cost, |r| Some(r.trajectory?.max_relative), gradient)
+        };
+        for (a, b) in [(2.0, 1.5), (1.5, 2.0)] {
+            let rows = [
+                row(0, "direct", a, 30, 1e-3, 1.0),
+                row(1, "anderson", b, 30, 1e-3, 1.0),
+                row(2, "other", 1.8, 30, 2e-3, 1.0),
+            ];
+            let p = pts(&rows, false);
+            assert_eq!(
+                p.iter().map(|p| (p.id.as_str(), p.time)).collect::<Vec<_>>(),
+                [("direct", 1.5), ("other", 1.8)]
+            );
+            let fastest = pareto::fastest_within(&p, 1e-2).map(|i| p[i].id.as_str());
+            assert_eq!(fastest, Some("direct"));
+        }
+        let rows = [
+            row(0, "direct", 2.0, 30, 1e-3, 1.0),
+            row(1, "anderson", 1.5, 31, 1e-3, 1.0),
+        ];
+        assert_eq!(pts(&rows, false).len(), 2, "different iterations");
+        let rows = [
+            row(0, "direct", 2.0, 30, 1e-3, 1.0),
+            row(1, "anderson", 1.5, 30, 1e-3, 1.0 + 1e-15),
+        ];
+        assert_eq!(pts(&rows, false).len(), 1);
+        assert_eq!(pts(&rows, true).len(), 2, "different gradients");
+    }
 }
