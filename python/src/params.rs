@@ -50,7 +50,18 @@ pub struct Inputs {
 }
 
 impl Inputs {
-    /// The library's controls.
+    /// The library's controls for a run the user asked for: initial positions set from Python
+    /// get the checks of a scene's own start first (`check_initial_positions`: no vertex inside
+    /// an obstacle, no body through another), an `InputError` naming them otherwise.
+    pub fn checked_controls(&self, model: &Model) -> PyResult<Controls> {
+        if let Some(q) = &self.q0 {
+            diffsoft::solver::check_initial_positions(model, q).map_err(errors::solver)?;
+        }
+        Ok(self.controls(model))
+    }
+
+    /// The library's controls, unchecked (the gradient-check harness perturbs a start that
+    /// touches an obstacle on purpose).
     pub fn controls(&self, model: &Model) -> Controls {
         let initial = (self.q0.is_some() || self.v0.is_some()).then(|| {
             (

@@ -94,7 +94,7 @@ impl Scene {
     ) -> PyResult<diffsoft::Gradient> {
         Self::check_steps(steps)?;
         let loss = diff::loss::by_name(loss).map_err(errors::diff)?;
-        let controls = self.inputs.controls(&self.inner.model);
+        let controls = self.inputs.checked_controls(&self.inner.model)?;
         diff::gradient(
             &self.inner.model,
             &self.inner.settings,
@@ -112,7 +112,7 @@ impl Scene {
     /// A rollout (the library's call, without the GIL).
     pub fn rollout(&self, steps: usize) -> PyResult<diff::Rollout> {
         Self::check_steps(steps)?;
-        let controls = self.inputs.controls(&self.inner.model);
+        let controls = self.inputs.checked_controls(&self.inner.model)?;
         diff::rollout(&self.inner.model, &self.inner.settings, steps, &controls).map_err(errors::diff)
     }
 }

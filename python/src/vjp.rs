@@ -56,7 +56,7 @@ impl Scene {
         mode: Mode,
         allow_unconverged: bool,
     ) -> PyResult<diffsoft::Gradient> {
-        let controls = self.inputs.controls(&self.inner.model);
+        let controls = self.inputs.checked_controls(&self.inner.model)?;
         diff::vjp(
             &self.inner.model,
             &self.inner.settings,

@@ -315,7 +315,7 @@ pub(crate) fn forward(
     } = keep;
     loss.validate(model)?;
     if let Some((q, v)) = &controls.initial {
-        sim.set_initial_state(q, v)?;
+        sim.set_state_from(q, v)?;
     }
     let mut recording = None;
     if record_contacts {

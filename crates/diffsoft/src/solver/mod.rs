@@ -77,7 +77,7 @@ pub use global::{GlobalStats, SolverKind};
 pub use integrator::Integrator;
 pub use settings::{Settings, MAX_ANDERSON};
 pub(crate) use simulator::Checkpoint;
-pub use simulator::Simulator;
+pub use simulator::{check_initial_positions, Simulator};
 pub use stats::StepStats;
 pub use system::Systems;
 

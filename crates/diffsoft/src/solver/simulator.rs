@@ -278,10 +278,7 @@ impl Simulator {
     /// checkpoint) is restored with [`Simulator::set_state_from`] alone.
     pub fn set_initial_state(&mut self, q: &[Vector3<f64>], v: &[Vector3<f64>]) -> Result<(), SolverError> {
         self.check_state(q, v)?;
-        check_initial_state(&self.model, q).map_err(|e| match e {
-            SolverError::Input(e) => SolverError::Input(e.context("the initial positions given")),
-            e => e,
-        })?;
+        check_initial_positions(&self.model, q)?;
         self.set_state_from(q, v)
     }
 
@@ -572,6 +569,39 @@ impl Simulator {
         self.certificate = cert;
         Ok(())
     }
+}
+
+/// The checks [`Simulator::new`] makes on a model's rest positions, for positions `q` a run is
+/// to start from instead (no vertex inside an obstacle deeper than 1e-6 of the length scale, no
+/// body through another): what a caller that sets a run's initial positions (Python's
+/// `set("initial_positions")`) runs before the run. [`Controls::initial`] is not checked by the
+/// rollout itself: finite-difference checks perturb a start that touches the ground on purpose.
+/// The error names the positions, the body, its vertex and the obstacle.
+///
+/// [`Controls::initial`]: crate::diff::Controls::initial
+///
+/// ```
+/// use diffsoft::solver::check_initial_positions;
+///
+/// let model = diffsoft::testing::ground_contact(1)?.model;
+/// assert!(check_initial_positions(&model, model.rest()).is_ok());
+/// let sunk: Vec<_> = model.rest().iter().map(|q| q - nalgebra::Vector3::new(0.0, 5.0, 0.0)).collect();
+/// let e = check_initial_positions(&model, &sunk).unwrap_err().to_string();
+/// assert!(e.contains("the initial positions given") && e.contains("inside obstacle 'ground'"), "{e}");
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+pub fn check_initial_positions(model: &Model, q: &[Vector3<f64>]) -> Result<(), SolverError> {
+    if q.len() != model.n() || !q.iter().all(|x| x.iter().all(|c| c.is_finite())) {
+        return Err(SolverError::input(format!(
+            "the initial positions given: {} positions for {} vertices, or a non-finite one",
+            q.len(),
+            model.n()
+        )));
+    }
+    check_initial_state(model, q).map_err(|e| match e {
+        SolverError::Input(e) => SolverError::Input(e.context("the initial positions given")),
+        e => e,
+    })
 }
 
 /// Refuse initial positions `q` of `model` with a vertex inside a one-sided obstacle (deeper

@@ -206,13 +206,13 @@ fn paper_muscle_files_refuse_negative_numbers() {
     );
 }
 
-/// Initial positions given to a run (Python's `set('initial_positions')`, `Controls::initial`)
-/// get the checks the scene's own initial state gets: a body pushed into the ground is refused,
-/// naming the positions, the body and the obstacle, for the forward pass and the gradient; the
-/// same positions lifted clear of it run.
+/// Initial positions a run is to start from get the checks the scene's own initial state gets
+/// (`check_initial_positions`, `Simulator::set_initial_state`; Python's `set('initial_positions')`
+/// runs them before each run): a body pushed into the ground is refused, naming the positions,
+/// the body and the obstacle; the same positions lifted clear of it run.
 #[test]
 fn initial_positions_given_to_a_run_are_checked_like_the_scenes_own() {
-    use diffsoft::diff::{self, Controls};
+    use diffsoft::solver::{check_initial_positions, Simulator};
     use nalgebra::Vector3;
     let case = diffsoft::testing::ground_contact(2).unwrap();
     let v0 = case.model.initial_velocity().to_vec();
@@ -223,33 +223,19 @@ fn initial_positions_given_to_a_run_are_checked_like_the_scenes_own() {
             .map(|q| q + Vector3::new(0.0, dy, 0.0))
             .collect()
     };
-    let sunk = Controls {
-        initial: Some((shifted(-5.0), v0.clone())),
-        ..Controls::default()
-    };
-    let e = diff::rollout(&case.model, &case.settings, 2, &sunk)
+    let e = check_initial_positions(&case.model, &shifted(-5.0))
         .unwrap_err()
         .to_string();
-    for want in ["initial positions given", "inside obstacle", "body '"] {
+    for want in ["initial positions given", "inside obstacle 'ground'", "body '"] {
         assert!(e.contains(want), "{want}: {e}");
     }
-    let e = diff::gradient(
-        &case.model,
-        &case.settings,
-        2,
-        &sunk,
-        case.loss.as_ref(),
-        diff::Options::default(),
-    )
-    .unwrap_err()
-    .to_string();
+    let mut sim = Simulator::new(case.model.clone(), case.settings.clone()).unwrap();
+    let e = sim.set_initial_state(&shifted(-5.0), &v0).unwrap_err().to_string();
     assert!(
         e.contains("initial positions given") && e.contains("inside obstacle"),
         "{e}"
     );
-    let lifted = Controls {
-        initial: Some((shifted(0.5), v0)),
-        ..Controls::default()
-    };
-    assert!(diff::rollout(&case.model, &case.settings, 2, &lifted).is_ok());
+    assert_eq!(sim.state().q, case.model.rest(), "a refused state is not taken");
+    sim.set_initial_state(&shifted(0.5), &v0).unwrap();
+    assert!(check_initial_positions(&case.model, &shifted(0.5)[1..]).is_err());
 }
