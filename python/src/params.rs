@@ -51,8 +51,8 @@ pub struct Inputs {
 
 impl Inputs {
     /// The library's controls for a run the user asked for: initial positions set from Python
-    /// get the checks of a scene's own start first (`check_initial_positions`: no vertex inside
-    /// an obstacle, no body through another), an `InputError` naming them otherwise.
+    /// get the obstacle checks of a scene's own start first (`check_initial_positions`: no
+    /// vertex inside an obstacle, no edge through one), an `InputError` naming them otherwise.
     pub fn checked_controls(&self, model: &Model) -> PyResult<Controls> {
         if let Some(q) = &self.q0 {
             diffsoft::solver::check_initial_positions(model, q).map_err(errors::solver)?;

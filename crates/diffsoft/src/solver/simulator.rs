@@ -272,9 +272,8 @@ impl Simulator {
     }
 
     /// Start the run from `q` and `v` instead of the model's rest positions and initial
-    /// velocities: the positions get the checks of a model's own initial state (no vertex inside
-    /// an obstacle, no body through another, as [`Simulator::new`] makes on the rest
-    /// positions), then [`Simulator::set_state_from`]. A state the run itself reached (a
+    /// velocities: the positions get the obstacle checks of a model's own initial state
+    /// ([`check_initial_positions`]), then [`Simulator::set_state_from`]. A state the run itself reached (a
     /// checkpoint) is restored with [`Simulator::set_state_from`] alone.
     pub fn set_initial_state(&mut self, q: &[Vector3<f64>], v: &[Vector3<f64>]) -> Result<(), SolverError> {
         self.check_state(q, v)?;
@@ -571,12 +570,15 @@ impl Simulator {
     }
 }
 
-/// The checks [`Simulator::new`] makes on a model's rest positions, for positions `q` a run is
-/// to start from instead (no vertex inside an obstacle deeper than 1e-6 of the length scale, no
-/// body through another): what a caller that sets a run's initial positions (Python's
-/// `set("initial_positions")`) runs before the run. [`Controls::initial`] is not checked by the
-/// rollout itself: finite-difference checks perturb a start that touches the ground on purpose.
-/// The error names the positions, the body, its vertex and the obstacle.
+/// The obstacle checks [`Simulator::new`] makes on a model's rest positions, for positions `q`
+/// a run is to start from instead (no vertex inside an obstacle deeper than 1e-6 of the length
+/// scale, no edge through one): what a caller that sets a run's initial positions (Python's
+/// `set("initial_positions")`) runs before the run. Overlap between bodies is not checked here:
+/// a state a run itself reached (a soft ball folded against a cloth) can fail the point-in-tet
+/// test of [`Simulator::new`] while its surfaces do not cross, and continuing a run from its
+/// last state must work. [`Controls::initial`] is not checked by the rollout itself:
+/// finite-difference checks perturb a start that touches the ground on purpose. The error names
+/// the positions, the body, its vertex and the obstacle.
 ///
 /// [`Controls::initial`]: crate::diff::Controls::initial
 ///
@@ -598,7 +600,7 @@ pub fn check_initial_positions(model: &Model, q: &[Vector3<f64>]) -> Result<(), 
             model.n()
         )));
     }
-    check_initial_state(model, q).map_err(|e| match e {
+    check_obstacles_at_start(model, q).map_err(|e| match e {
         SolverError::Input(e) => SolverError::Input(e.context("the initial positions given")),
         e => e,
     })
@@ -610,6 +612,11 @@ pub fn check_initial_positions(model: &Model, q: &[Vector3<f64>]) -> Result<(), 
 /// reports no penetration. The error names the body, its vertex, the obstacle and the depth.
 fn check_initial_state(model: &Model, q: &[Vector3<f64>]) -> Result<(), SolverError> {
     check_initial_overlap(model, q)?;
+    check_obstacles_at_start(model, q)
+}
+
+/// The obstacle part of [`check_initial_state`].
+fn check_obstacles_at_start(model: &Model, q: &[Vector3<f64>]) -> Result<(), SolverError> {
     let tolerance = 1e-6 * model.length_scale();
     if let Some((depth, [a, b], k)) = crate::contact::initial_crossing(&model.obstacles, &model.tets, q, tolerance) {
         let body = model

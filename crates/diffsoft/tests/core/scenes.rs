@@ -206,10 +206,11 @@ fn paper_muscle_files_refuse_negative_numbers() {
     );
 }
 
-/// Initial positions a run is to start from get the checks the scene's own initial state gets
-/// (`check_initial_positions`, `Simulator::set_initial_state`; Python's `set('initial_positions')`
-/// runs them before each run): a body pushed into the ground is refused, naming the positions,
-/// the body and the obstacle; the same positions lifted clear of it run.
+/// Initial positions a run is to start from get the obstacle checks the scene's own initial
+/// state gets (`check_initial_positions`, `Simulator::set_initial_state`; Python's
+/// `set('initial_positions')` runs them before each run): a body pushed into the ground is
+/// refused, naming the positions, the body and the obstacle; the same positions lifted clear of
+/// it run.
 #[test]
 fn initial_positions_given_to_a_run_are_checked_like_the_scenes_own() {
     use diffsoft::solver::{check_initial_positions, Simulator};
