@@ -594,6 +594,14 @@ fn finite3(scene: &str, what: &str, v: &[f64; 3]) -> Result<Vector3<f64>, SceneE
     }
 }
 
+/// The corners of the bounding box of `vertices` (infinite, inverted, when there are none).
+fn bounds(vertices: &[Vector3<f64>]) -> (Vector3<f64>, Vector3<f64>) {
+    vertices.iter().fold(
+        (Vector3::repeat(f64::INFINITY), Vector3::repeat(f64::NEG_INFINITY)),
+        |(lo, hi), v| (lo.inf(v), hi.sup(v)),
+    )
+}
+
 /// Largest and smallest size (m) a scaled mesh may span: its element volumes (size cubed) and
 /// the products of stiffness with them stay inside f64's range, with room to spare.
 const MESH_SIZE_RANGE: (f64, f64) = (1e-90, 1e90);
@@ -608,10 +616,7 @@ pub(crate) fn scaled_size(who: &str, scale: f64, vertices: &[Vector3<f64>]) -> R
             crate::base::number(scale)
         ));
     }
-    let (lo, hi) = vertices.iter().fold(
-        (Vector3::repeat(f64::INFINITY), Vector3::repeat(f64::NEG_INFINITY)),
-        |(lo, hi), v| (lo.inf(v), hi.sup(v)),
-    );
+    let (lo, hi) = bounds(vertices);
     let size = (hi - lo).amax() * scale;
     let (min, max) = MESH_SIZE_RANGE;
     if vertices.is_empty() || (size.is_finite() && (min..=max).contains(&size)) {
@@ -628,10 +633,7 @@ pub(crate) fn scaled_size(who: &str, scale: f64, vertices: &[Vector3<f64>]) -> R
 /// the mesh's bounding box (the rule of a body's `translate`: further out, lever arms of that
 /// length keep fewer than about 8 significant digits of the body's shape). Errors name `who`.
 pub(crate) fn joint_position_near(who: &str, p: &Vector3<f64>, vertices: &[Vector3<f64>]) -> Result<(), String> {
-    let (lo, hi) = vertices.iter().fold(
-        (Vector3::repeat(f64::INFINITY), Vector3::repeat(f64::NEG_INFINITY)),
-        |(lo, hi), v| (lo.inf(v), hi.sup(v)),
-    );
+    let (lo, hi) = bounds(vertices);
     let size = (hi - lo).amax();
     if !(size.is_finite() && size > 0.0) {
         return Ok(());
