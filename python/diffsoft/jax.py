@@ -28,6 +28,7 @@ import numpy as np
 
 from ._diffsoft import Scene, scalar_parameters, simulate_batch, vjp_batch
 from ._errors import InputError
+from ._real import check_real
 
 _SCALARS = frozenset(scalar_parameters())
 
@@ -102,6 +103,8 @@ def simulate(
     ``allow_unconverged``.
     """
     params = dict(params or {})
+    for name, value in params.items():
+        check_real(name, value)
     names = tuple(params)
     dtype = jnp.result_type(float)
     values = tuple(jnp.asarray(params[n], dtype=dtype) for n in names)

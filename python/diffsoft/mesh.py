@@ -9,6 +9,7 @@ body's ``mesh`` takes in ``diffsoft.Scene.from_dict``::
 
 from __future__ import annotations
 
+import operator
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -19,6 +20,10 @@ from . import _diffsoft
 from ._errors import InputError, UnsupportedError
 
 __all__ = ["box", "check_surface", "tetrahedralize"]
+
+# The most tets ``tetrahedralize`` is asked for through ``max_volume`` (the library's own
+# scenes reach 5e4; a bound that needs more than this is a unit slip, not a mesh).
+_MAX_TETS = 5e7
 
 
 def box(
@@ -31,13 +36,54 @@ def box(
     and its minimum corner at ``origin``, each cell split into six tets around its diagonal
     (``split="kuhn"``) or five (``"five"``): ``{"vertices": (n, 3) float64, "tets": (m, 4)
     int64}``."""
-    c = [int(x) for x in cells]
-    s = [float(x) for x in size]
-    o = [float(x) for x in origin]
-    if len(c) != 3 or len(s) != 3 or len(o) != 3:
-        raise InputError("box: cells, size and origin take three values each")
+    c = [_cell_count(x, k) for k, x in enumerate(_three(cells, "cells"))]
+    s = [_real(x, f"size[{k}]") for k, x in enumerate(_three(size, "size"))]
+    o = [_real(x, f"origin[{k}]") for k, x in enumerate(_three(origin, "origin"))]
+    extent = max(abs(x) for x in s) if all(np.isfinite(s)) else 0.0
+    far = [k for k in range(3) if not abs(o[k]) <= 1e8 * extent]
+    if far and extent > 0:
+        raise InputError(
+            f"box: origin[{far[0]}] = {o[far[0]]:g} lies more than 1e8 box sizes ({extent:g}) from 0: "
+            "the vertices would lose the box's shape in rounding"
+        )
     vertices, tets = _diffsoft.mesh_box((c[0], c[1], c[2]), (s[0], s[1], s[2]), (o[0], o[1], o[2]), split)
     return {"vertices": vertices, "tets": tets}
+
+
+def _three(values: Any, name: str) -> list[Any]:
+    """Three values of a box argument, refusing a string (whose characters would be read as
+    the values) and any other length."""
+    if isinstance(values, (str, bytes)) or not isinstance(values, (Sequence, np.ndarray)):
+        raise InputError(f"box: {name} takes three values, got {type(values).__name__} {values!r}")
+    out = list(values)
+    if len(out) != 3:
+        raise InputError(f"box: {name} takes three values, got {len(out)}")
+    return out
+
+
+def _cell_count(x: Any, k: int) -> int:
+    """A cell count: an integer (a NumPy one too) of at least 1, never a bool, a float or a
+    string (``int()`` would truncate 2.7 to 2 and read ``"3"``)."""
+    if isinstance(x, (bool, np.bool_)):
+        raise InputError(f"box: cells[{k}] must be an integer, got a bool")
+    try:
+        n = operator.index(x)
+    except TypeError:
+        raise InputError(f"box: cells[{k}] must be an integer, got {type(x).__name__} {x!r}") from None
+    if n < 1:
+        raise InputError(f"box: cells[{k}] must be at least 1, got {n}")
+    return n
+
+
+def _real(x: Any, name: str, function: str = "box") -> float:
+    """A real number given to ``function`` as ``name`` (its range is checked by the caller or
+    the library): never a bool, a string or a complex number, which ``float()`` would read."""
+    if isinstance(x, (bool, np.bool_, str, bytes, complex, np.complexfloating)):
+        raise InputError(f"{function}: {name} must be a real number, got {type(x).__name__} {x!r}")
+    try:
+        return float(x)
+    except (TypeError, ValueError):
+        raise InputError(f"{function}: {name} must be a real number, got {type(x).__name__} {x!r}") from None
 
 
 def _surface_arrays(vertices: ArrayLike, faces: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
@@ -160,12 +206,25 @@ def tetrahedralize(
     inconsistently oriented or self-intersecting surfaces raise ``InputError``. Returns
     ``{"vertices": (n, 3) float64, "tets": (m, 4) int64}``."""
     v, f = _surface_arrays(vertices, faces)
-    if max_volume is not None and not (np.isfinite(max_volume) and max_volume > 0):
-        raise InputError(f"max_volume must be finite and positive, got {max_volume}")
+    if max_volume is not None:
+        max_volume = _real(max_volume, "max_volume", "tetrahedralize")
+        if not (np.isfinite(max_volume) and max_volume > 0):
+            raise InputError(f"tetrahedralize: max_volume must be finite and positive, got {max_volume}")
+    min_ratio = _real(min_ratio, "min_ratio", "tetrahedralize")
     if not (np.isfinite(min_ratio) and min_ratio > 1.0):
-        raise InputError(f"min_ratio must be finite and above 1, got {min_ratio}")
+        raise InputError(f"tetrahedralize: min_ratio must be finite and above 1, got {min_ratio}")
     if check:
         check_surface(v, f)
+    if max_volume is not None:
+        # The enclosed volume (divergence theorem over the closed surface) over the bound is the
+        # fewest tets that can meet it.
+        a, b, c = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
+        enclosed = abs(float(np.einsum("ij,ij->i", a, np.cross(b, c)).sum())) / 6.0
+        if enclosed / max_volume > _MAX_TETS:
+            raise InputError(
+                f"tetrahedralize: max_volume {max_volume:g} would need at least {enclosed / max_volume:.3g} tets "
+                f"for the enclosed volume {enclosed:.6g} (at most {_MAX_TETS:.0e})"
+            )
     try:
         import tetgen  # type: ignore[import-not-found, import-untyped, unused-ignore]
     except ImportError as e:
@@ -186,6 +245,16 @@ def tetrahedralize(
     elems = np.ascontiguousarray(elems, dtype=np.int64)
     if elems.ndim != 2 or elems.shape[1] != 4 or len(elems) == 0:
         raise InputError(f"TetGen returned no tets (elements of shape {elems.shape})")
+    if max_volume is not None:
+        p = nodes[elems]
+        volumes = np.abs(np.einsum("ij,ij->i", p[:, 1] - p[:, 0], np.cross(p[:, 2] - p[:, 0], p[:, 3] - p[:, 0]))) / 6.0
+        worst = int(np.argmax(volumes))
+        # TetGen's own volume test works in its rounding; a tet more than 1% over was not bounded.
+        if volumes[worst] > 1.01 * max_volume:
+            raise InputError(
+                f"tetrahedralize: TetGen did not meet max_volume {max_volume:g}: tet {worst} has volume "
+                f"{volumes[worst]:.6g} (of {len(elems)} tets)"
+            )
     return {"vertices": nodes, "tets": elems}
 
 

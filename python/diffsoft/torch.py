@@ -29,6 +29,7 @@ import torch
 
 from ._diffsoft import Scene, scalar_parameters, simulate_batch, vjp_batch
 from ._errors import InputError
+from ._real import check_real
 
 _SCALARS = frozenset(scalar_parameters())
 
@@ -245,7 +246,12 @@ def simulate(
     steps miss a positive tolerance warns (``ConvergenceWarning``) and its backward raises
     ``ConvergenceError`` unless ``allow_unconverged``.
     """
+    if mode not in ("unrolled", "implicit"):
+        # Checked before the forward runs, as the JAX wrapper does (its backward would refuse it).
+        raise InputError(f"mode '{mode}': expected 'unrolled' or 'implicit'")
     params = dict(params or {})
+    for name, value in params.items():
+        check_real(name, value)
     names = tuple(params)
     tensors = tuple(
         v if isinstance(v, torch.Tensor) else torch.as_tensor(v, dtype=torch.float64) for v in params.values()

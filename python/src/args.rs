@@ -30,8 +30,8 @@ fn items<'py>(v: &Bound<'py, PyAny>, name: &str, what: &str) -> PyResult<Vec<Bou
     seq.try_iter()?.collect()
 }
 
-/// `v` as a list of names (`params`), named `name` in errors: a list or tuple of str. A bare
-/// str is refused with the list it likely meant.
+/// `v` as a list of names (`params`), named `name` in errors: a list or tuple of str, each
+/// once. A bare str is refused with the list it likely meant.
 pub(crate) fn names(v: &Bound<'_, PyAny>, name: &str) -> PyResult<Vec<String>> {
     if v.is_instance_of::<PyString>() {
         let shown = v.repr().map_or_else(|_| "?".to_string(), |r| r.to_string());
@@ -39,14 +39,24 @@ pub(crate) fn names(v: &Bound<'_, PyAny>, name: &str) -> PyResult<Vec<String>> {
             "{name} must be a list of names, got str {shown} (for one name, write [{shown}])"
         )));
     }
-    items(v, name, "a list of names")?
+    let names: Vec<String> = items(v, name, "a list of names")?
         .iter()
         .enumerate()
         .map(|(k, x)| {
             x.extract::<String>()
                 .map_err(|_| PyTypeError::new_err(format!("{name}[{k}] must be a str, got {}", described(x))))
         })
-        .collect()
+        .collect::<PyResult<_>>()?;
+    // A repeat would come back as one entry of the result: refused, as the CLI refuses a
+    // repeated `--param`.
+    for (k, n) in names.iter().enumerate() {
+        if let Some(first) = names[..k].iter().position(|m| m == n) {
+            return Err(crate::errors::value(format!(
+                "{name}[{k}]: '{n}' is already {name}[{first}]; give each name once"
+            )));
+        }
+    }
+    Ok(names)
 }
 
 /// `v` as a list of dicts (`values` of the batches), named `name` in errors.

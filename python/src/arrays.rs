@@ -42,6 +42,7 @@ pub fn matrix<'py>(py: Python<'py>, rows: &[Vec<f64>], cols: usize) -> PyResult<
 /// converted by numpy first); every entry must be finite.
 pub fn read(name: &str, value: &Bound<'_, PyAny>) -> PyResult<(Vec<f64>, Vec<usize>)> {
     let np = value.py().import("numpy")?;
+    real_numbers(name, value)?;
     let arr = np
         .call_method1("ascontiguousarray", (value, "float64"))
         .map_err(|e| errors::value(format!("{name}: not an array of numbers ({e})")))?;
@@ -55,6 +56,68 @@ pub fn read(name: &str, value: &Bound<'_, PyAny>) -> PyResult<(Vec<f64>, Vec<usi
         )));
     }
     Ok((data, shape))
+}
+
+/// Refuse what numpy would quietly turn into numbers that were never given: `None` (NaN),
+/// bools (0 and 1), complex numbers (their real part), text (parsed), dates and times (their
+/// ticks), and a masked array's masked entries (whatever lies under the mask).
+pub fn real_numbers(name: &str, value: &Bound<'_, PyAny>) -> PyResult<()> {
+    let refuse = |what: &str| Err(errors::value(format!("{name}: got {what}, expected real numbers")));
+    if value.is_none() {
+        return refuse("None");
+    }
+    if value.is_instance_of::<pyo3::types::PyBool>() {
+        return refuse("a bool");
+    }
+    let np = value.py().import("numpy")?;
+    let ma = np.getattr("ma")?;
+    if ma.call_method1("isMaskedArray", (value,))?.is_truthy()? {
+        let masked: usize = ma.call_method1("count_masked", (value,))?.extract()?;
+        if masked > 0 {
+            return Err(errors::value(format!(
+                "{name}: a masked array with {masked} masked entries (give the values to use: `.filled(x)`)"
+            )));
+        }
+    }
+    let Ok(arr) = np.call_method1("asarray", (value,)) else {
+        // What numpy cannot read is reported by the conversion that follows.
+        return Ok(());
+    };
+    let kind: String = arr.getattr("dtype")?.getattr("kind")?.extract()?;
+    match kind.as_str() {
+        "f" | "i" | "u" => Ok(()),
+        "b" => refuse("bools"),
+        "c" => refuse("complex numbers"),
+        "U" | "S" => refuse("text"),
+        "M" | "m" => refuse("dates or times"),
+        "O" => {
+            // Objects (Decimals, mixed lists): numpy converts numbers; None would become NaN.
+            let items = arr.call_method0("ravel")?.call_method0("tolist")?;
+            for (k, item) in items.try_iter()?.enumerate() {
+                let item = item?;
+                if item.is_none() {
+                    return Err(errors::value(format!(
+                        "{name}: entry {k} (flat index) is None, expected a real number"
+                    )));
+                }
+                if item.is_instance_of::<pyo3::types::PyBool>() {
+                    return Err(errors::value(format!(
+                        "{name}: entry {k} (flat index) is a bool, expected a real number"
+                    )));
+                }
+            }
+            Ok(())
+        }
+        other => refuse(&format!("numpy values of kind '{other}'")),
+    }
+}
+
+/// A real number: a Python or numpy number, or a 0-d array; refused as [`real_numbers`] says.
+pub fn read_scalar(name: &str, value: &Bound<'_, PyAny>) -> PyResult<f64> {
+    real_numbers(name, value)?;
+    value
+        .extract::<f64>()
+        .map_err(|_| errors::value(format!("{name}: expected a number")))
 }
 
 /// An `(rows, 3)` array of vectors.

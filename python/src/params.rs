@@ -103,14 +103,8 @@ impl Value {
     pub fn read(model: &Model, name: &str, value: &Bound<'_, PyAny>) -> PyResult<Self> {
         Ok(match Name::parse(name)? {
             Name::Scalar(p) => {
-                // `True` is an int to Python, not a modulus.
-                if value.is_instance_of::<pyo3::types::PyBool>() {
-                    return Err(errors::value(format!("{name}: expected a number, got a bool")));
-                }
-                let v: f64 = value
-                    .extract()
-                    .map_err(|_| errors::value(format!("{name}: expected a number")))?;
-                Value::Scalar(p, v)
+                // `True` is an int to Python, not a modulus; a complex number is not a real one.
+                Value::Scalar(p, arrays::read_scalar(name, value)?)
             }
             Name::Array(a @ (ArrayParam::InitialPositions | ArrayParam::InitialVelocities)) => {
                 Value::Vectors(a, arrays::read_vectors(name, value, model.n())?)
@@ -203,7 +197,12 @@ pub fn derivative<'py>(py: Python<'py>, model: &Model, g: &Gradient, name: Name)
             ArrayParam::InitialVelocities => arrays::vectors(py, g.v0.clone())?,
             ArrayParam::YoungsModulusPerTet => arrays::array(py, g.youngs_modulus(model), &[model.tets().len()])?,
             ArrayParam::AttachmentTargets => arrays::vectors(py, g.attachment_targets.clone())?,
-            ArrayParam::Activations => arrays::matrix(py, &g.activations, groups(model))?,
+            ArrayParam::Activations => {
+                if groups(model) == 0 {
+                    return Err(errors::value("activations: the scene has no actuators"));
+                }
+                arrays::matrix(py, &g.activations, groups(model))?
+            }
             ArrayParam::Torques => {
                 if dofs(model) == 0 {
                     return Err(errors::value("torques: the scene has no skeleton"));

@@ -64,11 +64,10 @@ impl Scene {
     /// section and the CLI's overrides), each checked as it is set; on an error the settings
     /// are unchanged.
     #[pyo3(signature = (**settings))]
-    fn configure(slf: &Bound<'_, Self>, py: Python<'_>, settings: Option<&Bound<'_, PyDict>>) -> PyResult<()> {
+    fn configure(slf: &Bound<'_, Self>, settings: Option<&Bound<'_, PyDict>>) -> PyResult<()> {
         let mut this = busy(slf, "configure")?;
         let Some(settings) = settings else { return Ok(()) };
         let mut next = this.inner.settings.clone();
-        let json = py.import("json")?;
         for (k, v) in settings.iter() {
             let key: String = k.extract()?;
             let value: serde_json::Value = match v.cast::<PyFloat>() {
@@ -80,10 +79,7 @@ impl Scene {
                         f.value()
                     )))
                 }
-                _ => {
-                    let text: String = json.call_method1("dumps", (v,))?.extract()?;
-                    serde_json::from_str(&text).map_err(errors::other)?
-                }
+                _ => crate::pyjson::to_json_for(&v, &format!("configure({key})"))?,
             };
             next.set(&key, value).map_err(errors::solver)?;
         }

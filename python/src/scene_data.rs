@@ -20,7 +20,7 @@ use crate::scene_core::Scene;
 use crate::scene_source::{Data, PaperFiles, Source};
 
 /// Version of the state `__reduce__` writes (checked when it is read back).
-const STATE_VERSION: u32 = 1;
+const STATE_VERSION: u32 = 2;
 
 /// `Scene.from_dict`: a scene from its document; relative mesh paths resolve against
 /// `base_dir` (the working directory when `None`).
@@ -170,23 +170,30 @@ fn load_paper(py: Python<'_>, paper: &Bound<'_, PyDict>) -> PyResult<lib_scene::
         }
         let scene_dir = root.join(&dir);
         std::fs::create_dir_all(&scene_dir).map_err(io)?;
-        for (key, bytes) in &files {
-            let p = Path::new(key);
-            if p.is_absolute() || p.components().any(|c| !matches!(c, std::path::Component::Normal(_))) {
-                return Err(errors::value(format!(
-                    "scene state: file '{key}' leaves the scene's directory"
-                )));
-            }
-            let target = root.join(p);
-            if let Some(parent) = target.parent() {
-                std::fs::create_dir_all(parent).map_err(io)?;
-            }
+        // Each carried file under a directory of its own, keeping its file name (the mesh
+        // readers go by the extension); the scene's names map to these paths and nothing else.
+        let mut carried = std::collections::HashMap::new();
+        for (k, (key, bytes)) in files.iter().enumerate() {
+            let file_name = Path::new(key)
+                .file_name()
+                .and_then(|n| n.to_str())
+                .filter(|n| Path::new(n).components().count() == 1)
+                .unwrap_or("file");
+            let holder = root.join(format!("carried-{k}"));
+            std::fs::create_dir_all(&holder).map_err(io)?;
+            let target = holder.join(file_name);
             std::fs::write(&target, bytes).map_err(io)?;
+            carried.insert(key.clone(), target);
         }
         let path = scene_dir.join(&name);
         std::fs::write(&path, &text).map_err(io)?;
-        py.detach(|| crate::fork::install(|| lib_scene::load(&path, lib_scene::LoadOptions::default())))
-            .map_err(errors::scene)
+        let doc = lib_scene::json::parse_lenient(&text).map_err(|e| errors::value(format!("scene state: {e}")))?;
+        py.detach(|| {
+            crate::fork::install(|| {
+                lib_scene::paper::import_carried(&path, &doc, lib_scene::LoadOptions::default(), &carried)
+            })
+        })
+        .map_err(errors::scene)
     })();
     let _ = std::fs::remove_dir_all(&root);
     result

@@ -19,8 +19,8 @@ pub(crate) enum Source {
     Paper(Arc<PaperFiles>),
 }
 
-/// A paper-format scene as files: its text and every file it names, relative to a root (the
-/// scene's parent directory, where the paper's files resolve first).
+/// A paper-format scene as files: its text and every file it names, each under the name the
+/// scene gives it.
 #[derive(Debug)]
 pub(crate) struct PaperFiles {
     /// The scene's directory name under the root.
@@ -29,7 +29,7 @@ pub(crate) struct PaperFiles {
     pub(crate) name: String,
     /// The scene file's text.
     pub(crate) text: String,
-    /// `(path relative to the root, contents)`.
+    /// `(name as the scene gives it, contents)`.
     pub(crate) files: Vec<(String, Vec<u8>)>,
 }
 
@@ -80,31 +80,21 @@ pub(crate) fn source_of_file(path: &Path, format: SceneFormat) -> Result<Source,
             Ok(Source::Document(Arc::new(doc)))
         }
         SceneFormat::Paper => {
-            let root = dir.parent().unwrap_or(dir);
             let dir_name = dir
                 .file_name()
                 .map_or("scene".into(), |n| n.to_string_lossy().into_owned());
             let mut names = Vec::new();
             strings(&doc, &mut names);
+            // Every string that names a file by the importer's own search, carried under the
+            // name as written (a relative name, one through `..`, or an absolute one): the
+            // rebuilt scene resolves its names through these files alone.
             let mut files: Vec<(String, Vec<u8>)> = Vec::new();
             for s in names {
-                let p = Path::new(&s);
-                // The paper importer's search order (`paper::Context::resolve`); names that
-                // leave the directory tree are not carried.
-                if s.is_empty()
-                    || p.is_absolute()
-                    || p.components().any(|c| !matches!(c, std::path::Component::Normal(_)))
-                {
+                if files.iter().any(|(k, _)| *k == s) {
                     continue;
                 }
-                let mut candidates = vec![(root.join(p), s.clone()), (dir.join(p), format!("{dir_name}/{s}"))];
-                if let Some(n) = p.file_name() {
-                    candidates.push((dir.join(n), format!("{dir_name}/{}", n.to_string_lossy())));
-                }
-                if let Some((found, key)) = candidates.into_iter().find(|(c, _)| c.is_file()) {
-                    if !files.iter().any(|(k, _)| *k == key) {
-                        files.push((key, std::fs::read(found).map_err(io)?));
-                    }
+                if let Some(found) = lib_scene::paper::find_file(&abs, &s) {
+                    files.push((s, std::fs::read(found).map_err(io)?));
                 }
             }
             let name = path

@@ -146,6 +146,85 @@ def test_lists_are_named_when_refused(beam):
     assert len(diffsoft.simulate_batch(beam, 1, ({}, {}))) == 2
 
 
+def test_values_numpy_would_quietly_convert_are_refused(beam):
+    """None, bools, complex numbers, text, dates and masked entries are refused naming the
+    parameter (numpy turned them into NaN, 0/1, the real part, parsed numbers, ticks and
+    whatever lay under the mask); numbers of every real dtype still read."""
+    n = beam.n_vertices
+    masked = np.ma.masked_array(np.zeros((n, 3)))
+    masked[0, 1] = np.ma.masked
+    bad = {
+        "None": None,
+        "bools": np.ones((n, 3), dtype=bool),
+        "complex numbers": np.zeros((n, 3)) + 1j,
+        "text": np.full((n, 3), "1"),
+        "dates or times": np.zeros((n, 3), dtype="timedelta64[s]"),
+        "entry 4 \\(flat index\\) is None": [[0.0, 0.0, 0.0], [0.0, None, 0.0]] + [[0.0] * 3] * (n - 2),
+        "a masked array with 1 masked entries": masked,
+    }
+    for what, value in bad.items():
+        with pytest.raises(diffsoft.InputError, match=f"initial_velocities: .*{what}"):
+            beam.set("initial_velocities", value)
+    for scalar in (True, np.bool_(True), np.complex128(1e5 + 7e4j), np.array(True)):
+        with pytest.raises(diffsoft.InputError, match="youngs_modulus: got"):
+            beam.set("youngs_modulus", scalar)
+    with pytest.raises(diffsoft.InputError, match="got None"):
+        beam.vjp(2, ["density"], None)
+    for good in (np.zeros((n, 3), dtype=np.float32), np.zeros((n, 3), dtype=np.int8), [[0] * 3] * n):
+        beam.set("initial_velocities", good)
+    beam.set("youngs_modulus", np.float32(2e4))
+    assert beam.get("youngs_modulus") == 2e4
+
+
+def test_configure_reads_numpy_numbers_and_names_the_setting(beam):
+    beam.configure(tolerance=np.float32(0.5), max_iterations=np.int64(50))
+    assert beam.settings["max_iterations"] == 50 and beam.settings["tolerance"] == float(np.float32(0.5))
+    with pytest.raises(diffsoft.InputError, match=r"configure\(max_iterations\): integer too large for a double"):
+        beam.configure(max_iterations=10**400)
+    with pytest.raises(diffsoft.InputError, match="max_iterations"):
+        beam.configure(max_iterations=2**64)
+    assert beam.settings["max_iterations"] == 50
+
+
+def test_a_parameter_named_twice_is_refused(beam):
+    for call in (
+        lambda: beam.grad(2, params=["density", "density"]),
+        lambda: diffsoft.grad_batch(beam, 2, "final_com.y", ["density", "youngs_modulus", "density"], [{}]),
+    ):
+        with pytest.raises(diffsoft.InputError, match=r"params\[\d\]: 'density' is already params\[0\]"):
+            call()
+
+
+def test_an_overflowing_backward_pass_is_refused_naming_it(beam):
+    """Cotangents too large for doubles: the adjoint overflows; the error says it is the
+    backward pass and what to do (it blamed "a non-finite position" of the forward before), and
+    no gradient with infinities comes back."""
+    c = np.ones((3, beam.n_vertices, 3))
+    for mode, scale in (("implicit", 1e160), ("unrolled", 1e308)):
+        with pytest.raises(diffsoft.SimulationError, match="the backward pass overflowed") as e:
+            beam.vjp(2, ["density"], c * scale, mode=mode)
+        assert "position" not in str(e.value)
+    beam.vjp(2, ["density"], c * 1e100, mode="implicit")
+
+
+def test_box_cells_and_arguments_are_read_exactly():
+    for cells, message in (
+        ((2.7, 1, 1), r"cells\[0\] must be an integer, got float 2.7"),
+        ((True, 1, 1), r"cells\[0\] must be an integer, got a bool"),
+        (("3", 1, 1), r"cells\[0\] must be an integer, got str '3'"),
+        ("222", "cells takes three values, got str '222'"),
+        ((-1, 1, 1), r"cells\[0\] must be at least 1, got -1"),
+        ((1, 1), "cells takes three values, got 2"),
+    ):
+        with pytest.raises(diffsoft.InputError, match=message):
+            diffsoft.mesh.box(cells, (1, 1, 1))
+    with pytest.raises(diffsoft.InputError, match=r"origin\[0\] = 1e\+308 lies more than 1e8 box sizes"):
+        diffsoft.mesh.box((1, 1, 1), (1, 1, 1), origin=(1e308, 0, 0))
+    with pytest.raises(diffsoft.InputError, match=r"size\[1\] must be a real number, got complex"):
+        diffsoft.mesh.box((1, 1, 1), (1, 1j, 1))
+    assert diffsoft.mesh.box((np.int64(2), 1, 1), (1, 1, 1))["tets"].shape == (12, 4)
+
+
 def test_input_refused_when_a_run_starts(beam):
     # A negative tolerance: refused by `configure` (settings are checked by name there) or, were
     # it let through, when the run starts; an InputError either way.

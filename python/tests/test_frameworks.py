@@ -66,6 +66,19 @@ def test_torch_velocities_output(beam):
     assert float(e.grad) == pytest.approx(central(f, 2e4, 20.0), rel=1e-5)
 
 
+def test_wrappers_refuse_bools_complex_numbers_and_a_bad_mode_before_running(beam):
+    """`True` or a complex tensor is not a modulus (torch and JAX converted them to 1 and the
+    real part); torch checks the mode before the forward, as JAX does."""
+    for value in (True, torch.tensor(True), torch.tensor(2e4 + 1j)):
+        with pytest.raises(diffsoft.InputError, match="youngs_modulus: got"):
+            diffsoft.torch.simulate(beam, 2, {"youngs_modulus": value})
+    for value in (True, jax.numpy.asarray(True), np.complex128(2e4)):
+        with pytest.raises(diffsoft.InputError, match="youngs_modulus: got"):
+            diffsoft.jax.simulate(beam, 2, {"youngs_modulus": value})
+    with pytest.raises(diffsoft.InputError, match="mode 'bogus'"):
+        diffsoft.torch.simulate(beam, 2, {"youngs_modulus": torch.tensor(2e4)}, mode="bogus")
+
+
 def test_jax_gradients_and_jit(beam):
     steps = 6
 

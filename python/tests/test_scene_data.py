@@ -162,7 +162,7 @@ def test_bad_scene_dicts_raise_input_errors_naming_the_place():
         (mesh_number, "a mesh is a file path or"),
         (nan_vertex, r"bodies\[0\]\.mesh\.vertices\[2\]\[1\]: NaN is not a finite number"),
         (index_out_of_range, "body 'beam' mesh.*99"),
-        (unknown_mesh_key, "inline mesh: unknown field `faces`"),
+        (unknown_mesh_key, r"bodies\[0\]\.mesh: inline mesh: faces: unknown field `faces`"),
         (unknown_key, "unknown field `colour`"),
         (flat_tet, "body 'beam' mesh"),
     ]
@@ -171,6 +171,56 @@ def test_bad_scene_dicts_raise_input_errors_naming_the_place():
             build(mutate)
     with pytest.raises(diffsoft.InputError, match="expected a dict"):
         diffsoft.Scene.from_dict([1, 2])  # type: ignore[arg-type]
+    # serde's messages get their place in the dict, inline meshes included.
+    typed = [
+        (lambda d: d.update(time_step=True), r"^<dict>: time_step: invalid type: boolean `true`, expected f64"),
+        (lambda d: d["bodies"][0].update(fixed={"indices": [0.0]}), r"bodies\[0\]\.fixed\.indices\[0\]: invalid type"),
+        (
+            lambda d: d["bodies"][0]["mesh"].update(tets=d["bodies"][0]["mesh"]["tets"].astype(float)),
+            r"bodies\[0\]\.mesh: inline mesh: tets\[0\]\[0\]: invalid type: floating point",
+        ),
+        (
+            lambda d: d["bodies"][0].update(fixed={"indices": [0], "box": {"min": [0, 0, 0], "max": [1, 1, 1]}}),
+            # (a dict's keys reach the reader sorted)
+            r'bodies\[0\]\.fixed: a vertex selection gives both "box" and "indices": give exactly one of',
+        ),
+        (lambda d: d["bodies"][0].update(fixed={}), r"bodies\[0\]\.fixed: a vertex selection is an empty object"),
+    ]
+    for mutate, message in typed:
+        with pytest.raises(diffsoft.InputError, match=message):
+            build(mutate)
+
+
+def test_scene_dicts_read_numbers_as_their_json_would_and_refuse_cycles():
+    """A long double is the double it rounds to, an int beyond 64 bits a double (as the digits
+    read in a scene file); a list that holds itself, or lists nested past serde_json's limit,
+    are errors naming the place (they overflowed the stack before)."""
+    d = beam_dict()
+    d["time_step"] = np.longdouble(repr(d["time_step"]))
+    d["bodies"][0]["mesh"]["vertices"] = d["bodies"][0]["mesh"]["vertices"].astype(np.longdouble)
+    same_run(diffsoft.Scene.from_dict(beam_dict()), diffsoft.Scene.from_dict(d), 3)
+    d = beam_dict()
+    d["bodies"][0]["material"]["youngs_modulus"] = 10**30
+    assert diffsoft.Scene.from_dict(d).get("youngs_modulus") == 1e30
+    d["bodies"][0]["material"]["youngs_modulus"] = 10**400
+    with pytest.raises(diffsoft.InputError, match=r"youngs_modulus: integer too large for a double"):
+        diffsoft.Scene.from_dict(d)
+    loop: list[Any] = []
+    loop.append(loop)
+    deep: Any = 0.0
+    for _ in range(10_000):
+        deep = [deep]
+    for bad in (loop, deep):
+        d = beam_dict()
+        d["bodies"][0]["extra"] = bad
+        with pytest.raises(
+            diffsoft.InputError, match=r"bodies\[0\]\.extra(\[0\])+: lists and dicts nest deeper than 128"
+        ):
+            diffsoft.Scene.from_dict(d)
+    d = beam_dict()
+    d["time_step"] = np.clongdouble(1 + 1j)
+    with pytest.raises(diffsoft.InputError, match="time_step: cannot be written in a scene"):
+        diffsoft.Scene.from_dict(d)
     with pytest.raises(diffsoft.FileError, match="no_such.obj"):
         d = beam_dict()
         d["bodies"][0]["mesh"] = "no_such.obj"
@@ -222,6 +272,34 @@ def test_pickled_scene_needs_no_files(tmp_path):
     same_run(cloth, restored[1], 5)
     with pytest.raises(diffsoft.UnsupportedError, match="paper's format"):
         paper.to_dict()
+
+
+def test_pickled_paper_scene_carries_files_named_through_dot_dot_and_absolute_paths(tmp_path, monkeypatch):
+    """A paper scene naming its mesh through `..` (or by an absolute path) carries that file:
+    unpickled where another file lies at that name relative to the temporary directory, or
+    where the original is gone, it is the same scene (it loaded whatever lay at
+    `$TMPDIR/../name`, or failed, before)."""
+    src = REPO / "verification/paper/bridgesus"
+    text = (src / "bridgesus.json").read_text()
+    (tmp_path / "shared").mkdir()
+    (tmp_path / "A").mkdir()
+    mesh = tmp_path / "shared" / "m.obj"
+    mesh.write_bytes((src / "bridgesus200_tet_cen.obj").read_bytes())
+    scenes = []
+    for name, ref in (("rel.json", "../shared/m.obj"), ("abs.json", str(mesh))):
+        path = tmp_path / "A" / name
+        path.write_text(text.replace("bridgesus/bridgesus200_tet_cen.obj", ref.replace("\\", "/")))
+        scenes.append(diffsoft.Scene.load(path))
+    blobs = [pickle.dumps(s) for s in scenes]
+    decoy = tmp_path / "tmp"
+    (decoy / "shared").mkdir(parents=True)
+    (decoy / "shared" / "m.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nt 0 1 2 3\n")
+    monkeypatch.setenv("TMPDIR", str(decoy))
+    mesh.unlink()
+    for scene, blob in zip(scenes, blobs):
+        again = pickle.loads(blob)
+        assert again.n_vertices == scene.n_vertices == 212
+        same_run(scene, again, 3)
 
 
 def test_runs_pickle_by_value():

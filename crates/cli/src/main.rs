@@ -146,9 +146,9 @@ enum Command {
         /// Output file: .obj, .node (writes .node + .ele) or .msh.
         #[arg(long)]
         out: PathBuf,
-        /// Gmsh version for .msh output.
-        #[arg(long, default_value = "4.1")]
-        gmsh_version: String,
+        /// Gmsh version for .msh output: 2.2 or 4.1 (the default).
+        #[arg(long)]
+        gmsh_version: Option<String>,
     },
     /// Simulate a scene (diffsoft or paper format), writing VTK frames and a JSON run log.
     #[command(allow_negative_numbers = true)]
@@ -373,6 +373,21 @@ fn main() {
         );
         std::process::exit(2);
     }
+    // Without --threads, rayon reads RAYON_NUM_THREADS: the same bound, naming the variable
+    // (50 000 threads took minutes to start; a value rayon cannot read it ignores).
+    if cli.threads.is_none() {
+        if let Some(t) = std::env::var("RAYON_NUM_THREADS")
+            .ok()
+            .and_then(|v| v.trim().parse::<usize>().ok())
+            .filter(|&t| t > MAX_THREADS)
+        {
+            warn!(
+                "error: RAYON_NUM_THREADS={t}: at most {MAX_THREADS} (this machine has {}); --threads N overrides it",
+                std::thread::available_parallelism().map_or(1, |n| n.get())
+            );
+            std::process::exit(2);
+        }
+    }
     let pool = match rayon::ThreadPoolBuilder::new()
         .num_threads(cli.threads.unwrap_or(0))
         .build()
@@ -482,7 +497,10 @@ fn run(command: Command) -> Result<()> {
                 bail!("--cells must be positive and --size finite and positive (got {cells:?}, {size:?})");
             }
             if !(0.0..0.5).contains(&jitter) {
-                bail!("--jitter must be in [0, 0.5) (fraction of the cell size), got {jitter}");
+                bail!(
+                    "--jitter must be in [0, 0.5) (fraction of the cell size), got {}",
+                    diffsoft::base::number(jitter)
+                );
             }
             let spec = BoxSpec::new([cells[0], cells[1], cells[2]], [size[0], size[1], size[2]])
                 .split(match split {
@@ -491,7 +509,7 @@ fn run(command: Command) -> Result<()> {
                 })
                 .jitter(jitter, seed);
             let m = spec.build()?;
-            write_mesh(&m, &out, &gmsh_version)?;
+            write_mesh(&m, &out, gmsh_version.as_deref())?;
             say!(
                 "wrote {} ({} vertices, {} tets)",
                 out.display(),

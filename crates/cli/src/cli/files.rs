@@ -67,15 +67,21 @@ pub(crate) fn save<T: serde::Serialize>(path: &Path, report: &T, inputs: &[&Path
 /// file atomically ([`diffsoft::report::write_atomic`]: never seen half-written; a link is
 /// written through, a device in place), after checking that every file of the set can be
 /// written, so that a pair is not left half-replaced.
-pub(crate) fn write_mesh(m: &mesh::TetMesh, out: &Path, gmsh_version: &str) -> Result<()> {
+pub(crate) fn write_mesh(m: &mesh::TetMesh, out: &Path, gmsh_version: Option<&str>) -> Result<()> {
     let ext = out.extension().and_then(|e| e.to_str()).unwrap_or("");
+    if let (Some(v), false) = (gmsh_version, ext == "msh") {
+        bail!(
+            "--gmsh-version {v}: applies to .msh output only, and --out {} is not one",
+            out.display()
+        );
+    }
     let files: Vec<(PathBuf, String)> = match ext {
         "obj" => vec![(out.to_path_buf(), mesh::write::obj(m))],
         "node" | "ele" => {
             let (node, ele) = mesh::write::tetgen(m, 0);
             vec![(out.with_extension("node"), node), (out.with_extension("ele"), ele)]
         }
-        "msh" => match gmsh_version {
+        "msh" => match gmsh_version.unwrap_or("4.1") {
             "2.2" => vec![(out.to_path_buf(), mesh::write::gmsh22(m))],
             "4.1" => vec![(out.to_path_buf(), mesh::write::gmsh41(m))],
             v => bail!("--gmsh-version must be 2.2 or 4.1, got {v}"),

@@ -80,7 +80,7 @@ fn param_long_help() -> String {
 /// A memory budget in MB as bytes.
 pub(crate) fn store_bytes(mb: f64) -> Result<usize> {
     if !(mb.is_finite() && mb >= 0.0) {
-        anyhow::bail!("--store-mb must be finite and >= 0, got {mb}");
+        anyhow::bail!("--store-mb must be finite and >= 0, got {}", diffsoft::base::number(mb));
     }
     Ok((mb * 1e6) as usize)
 }
@@ -93,7 +93,28 @@ pub(crate) fn grad(a: GradArgs) -> Result<()> {
     };
     preflight(a.json.as_deref(), &[&scene])?;
     if let Some(t) = a.implicit_tolerance.filter(|t| !(t.is_finite() && *t >= 0.0)) {
-        bail!("--implicit-tolerance must be finite and >= 0, got {t}");
+        bail!(
+            "--implicit-tolerance must be finite and >= 0, got {}",
+            diffsoft::base::number(t)
+        );
+    }
+    if let (Some(t), diffsoft::diff::Mode::Unrolled) = (a.implicit_tolerance, a.mode) {
+        bail!(
+            "--implicit-tolerance {}: applies to --mode implicit only (the unrolled backward has no tolerance)",
+            diffsoft::base::number(t)
+        );
+    }
+    let set_names: Vec<&str> = a
+        .set
+        .iter()
+        .map(|s| s.split_once('=').map_or(s.as_str(), |(n, _)| n).trim())
+        .collect();
+    if let Some(k) = (1..set_names.len()).find(|&k| set_names[..k].contains(&set_names[k])) {
+        bail!(
+            "--set {}: {} is set twice; give each parameter once",
+            a.set[k],
+            set_names[k]
+        );
     }
     let mut sc = diffsoft::scene::load(&scene, diffsoft::scene::LoadOptions::default())?;
     a.overrides.apply(&mut sc.settings)?;

@@ -470,6 +470,24 @@ fn counts_and_scales_beyond_reason_are_errors_naming_the_flag() {
     let o = diffsoft(&["--threads", "100000", "quality", "--mesh", m]);
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(stderr(&o).contains("--threads"), "{}", stderr(&o));
+    // The same bound for rayon's variable, which --threads overrides.
+    let bin = env!("CARGO_BIN_EXE_diffsoft");
+    let run = |args: &[&str]| {
+        std::process::Command::new(bin)
+            .args(args)
+            .env("RAYON_NUM_THREADS", "50000")
+            .output()
+            .unwrap()
+    };
+    let o = run(&["quality", "--mesh", m]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("RAYON_NUM_THREADS=50000: at most 4096"),
+        "{}",
+        stderr(&o)
+    );
+    let o = run(&["--threads", "1", "quality", "--mesh", m]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     let out = dir.join("huge.obj");
     let o = diffsoft(&[
         "generate",
@@ -1285,4 +1303,78 @@ fn schemas_never_write_through_links_or_into_fifos() {
     assert!(stderr(&o).contains("named pipe"), "{}", stderr(&o));
     let o = diffsoft(&["schemas", "--out", precious.to_str().unwrap()]);
     assert!(stderr(&o).contains("--out must name a directory"), "{}", stderr(&o));
+}
+
+/// A flag that would be ignored or overridden is refused, naming it: `--gmsh-version` for a
+/// mesh that is not `.msh`, `--implicit-tolerance` in unrolled mode, a `--set` of one
+/// parameter twice (the last one won); a scene's one-key object with two keys names both.
+#[test]
+fn flags_that_would_be_ignored_or_overridden_are_refused() {
+    let dir = tmp_dir("hard-ignored-flags");
+    let scene = cube_scene(&dir, DENSITY, "");
+    let s = scene.to_str().unwrap();
+    let obj = dir.join("g.obj");
+    let o = diffsoft(&[
+        "generate",
+        "--cells",
+        "1,1,1",
+        "--size",
+        "1,1,1",
+        "--gmsh-version",
+        "2.2",
+        "--out",
+        obj.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("--gmsh-version 2.2: applies to .msh output only"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!obj.exists());
+    let msh = dir.join("g.msh");
+    let o = diffsoft(&[
+        "generate",
+        "--cells",
+        "1,1,1",
+        "--size",
+        "1,1,1",
+        "--gmsh-version",
+        "2.2",
+        "--out",
+        msh.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(std::fs::read_to_string(&msh).unwrap().contains("2.2 0 8"));
+    let grad = |extra: &[&str]| {
+        let mut args = vec!["--threads", "1", "grad", s, "--steps", "2", "--param", "density"];
+        args.extend_from_slice(extra);
+        diffsoft(&args)
+    };
+    let o = grad(&["--implicit-tolerance", "1e-8"]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("--implicit-tolerance 1e-8: applies to --mode implicit only"),
+        "{}",
+        stderr(&o)
+    );
+    let o = grad(&["--set", "density=1000", "--set", " density=2000"]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(stderr(&o).contains("density is set twice"), "{}", stderr(&o));
+    assert!(grad(&["--set", "density=1000", "--set", "youngs_modulus=2e5"])
+        .status
+        .success());
+    let two = std::fs::read_to_string(&scene).unwrap().replacen(
+        r#""name""#,
+        r#""fixed": {"indices": [0], "box": {"min": [0, 0, 0], "max": [1, 1, 1]}}, "name""#,
+        1,
+    );
+    let bad = write(&dir, "two_keys.json", &two);
+    let o = diffsoft(&["simulate", bad.to_str().unwrap(), "--steps", "1"]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains(r#"bodies[0].fixed: a vertex selection gives both "indices" and "box": give exactly one of "indices", "box""#),
+        "{}",
+        stderr(&o)
+    );
 }

@@ -31,6 +31,13 @@ pub(crate) fn kind_of(t: &std::fs::FileType) -> &'static str {
 /// UTF-8, a leading byte-order mark removed. A directory, device or socket is an error saying
 /// what it is; errors do not repeat the path (callers name it).
 pub(crate) fn read_text(path: &Path) -> std::io::Result<String> {
+    if path.as_os_str().is_empty() {
+        // The system's "No such file or directory" after an empty name says nothing.
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::InvalidInput,
+            "the file name is empty",
+        ));
+    }
     let meta = std::fs::metadata(path)?;
     let t = meta.file_type();
     #[cfg(unix)]
@@ -69,6 +76,8 @@ mod tests {
         );
         let e = read_text(Path::new("/")).unwrap_err();
         assert!(e.to_string().contains("is a directory"), "{e}");
+        let e = read_text(Path::new("")).unwrap_err();
+        assert_eq!(e.to_string(), "the file name is empty");
         let dir = std::env::temp_dir().join(format!("diffsoft-input-text-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let p = dir.join("bom.obj");

@@ -163,5 +163,9 @@ pub fn vjp(
             g.v0[i] += c;
         }
     }
+    // The state-0 terms can overflow on their own (cotangents near the largest double).
+    if let Some(what) = g.first_non_finite() {
+        return Err(DiffError::NonFiniteGradient { what });
+    }
     Ok(g)
 }

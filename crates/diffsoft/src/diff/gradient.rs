@@ -516,7 +516,15 @@ pub fn gradient_on(
             &mut vbar,
             (&mut out_q, &mut out_v),
             &mut g,
-        )?;
+        )
+        .map_err(|e| match e {
+            // The forward's states are finite (checked as it ran): a non-finite value here is
+            // the adjoint's own, not "a position" as the solver's message would have it.
+            DiffError::Solver(SolverError::NonFinite(_)) => DiffError::NonFiniteGradient {
+                what: format!("the adjoint of step {}", step + 1),
+            },
+            e => e,
+        })?;
         if bdf2 {
             // The adjoint of (q_n, v_n) is this step's part plus the later step's (which read
             // them as its earlier state); this step's part for (q_{n-1}, v_{n-1}) waits.
@@ -537,5 +545,8 @@ pub fn gradient_on(
     }
     g.stats.backward_ms = t1.elapsed().as_secs_f64() * 1e3;
     g.stats.contact_ms = last.contact_ms;
+    if let Some(what) = g.first_non_finite() {
+        return Err(DiffError::NonFiniteGradient { what });
+    }
     Ok(g)
 }

@@ -149,6 +149,16 @@ pub enum DiffError {
         /// The allowed difference (m): 1e-6 of the model's length scale.
         allowed: f64,
     },
+    /// The backward pass produced a value beyond floating point (the loss's derivatives, or a
+    /// caller's cotangents, too large for doubles): no gradient is returned rather than one
+    /// with infinities or NaNs in it.
+    #[error(
+        "the backward pass overflowed: {what} is not finite (the loss's derivatives or the cotangents are too large for doubles; the gradient is linear in them: scale them down and the result up)"
+    )]
+    NonFiniteGradient {
+        /// Where: the adjoint solve of a step, or the first entry of the result that is not finite.
+        what: String,
+    },
     /// The forward simulation failed.
     #[error(transparent)]
     Solver(#[from] SolverError),
@@ -437,6 +447,30 @@ pub struct Gradient {
 }
 
 impl Gradient {
+    /// The first entry of the loss or the gradient that is not finite, named (`"dL/dv_0 of
+    /// vertex 3"`), if any.
+    pub(crate) fn first_non_finite(&self) -> Option<String> {
+        let vectors = |v: &[Vector3<f64>]| v.iter().position(|x| !x.iter().all(|e| e.is_finite()));
+        let scalars = |v: &[f64]| v.iter().position(|e| !e.is_finite());
+        let rows = |v: &[Vec<f64>]| v.iter().position(|r| r.iter().any(|e| !e.is_finite()));
+        if !self.loss.is_finite() {
+            return Some("the loss".into());
+        }
+        let found = [
+            vectors(&self.q0).map(|k| format!("dL/dq_0 of vertex {k}")),
+            vectors(&self.v0).map(|k| format!("dL/dv_0 of vertex {k}")),
+            scalars(&self.w_rot).map(|k| format!("dL/dw_rot of tet {k}")),
+            scalars(&self.w_vol).map(|k| format!("dL/dw_vol of tet {k}")),
+            scalars(&self.mass).map(|k| format!("dL/dm of vertex {k}")),
+            vectors(&self.accel).map(|k| format!("dL/da of vertex {k}")),
+            vectors(&self.attachment_targets).map(|k| format!("dL/d target of attachment {k}")),
+            rows(&self.activations).map(|k| format!("dL/d activation of step {k}")),
+            rows(&self.torques).map(|k| format!("dL/d torque of step {k}")),
+            scalars(&self.joints0).map(|k| format!("dL/dz_0 of joint coordinate {k}")),
+        ];
+        found.into_iter().flatten().next()
+    }
+
     /// `dL/dE_t` per tet (projective: `w_rot = E V/(1+nu)`, `w_vol = nu E V/(1+nu)`;
     /// hyperelastic: through the Lame parameters, whose adjoints are in the tet's `w_rot` and
     /// `w_vol` slots).

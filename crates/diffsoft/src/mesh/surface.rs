@@ -72,7 +72,9 @@ pub fn load_obj(path: impl AsRef<Path>) -> Result<TriSurface, MeshError> {
 pub fn parse_obj(name: &str, text: &str) -> Result<TriSurface, MeshError> {
     let mut cur = LineCursor::new(name, text, Some('#'));
     let mut vertices = Vec::new();
-    let mut faces: Vec<(usize, Vec<i64>)> = Vec::new();
+    // Each face with its line and the vertices read before it: a negative index counts back
+    // from the last vertex above its line (the OBJ rule), not from the end of the file.
+    let mut faces: Vec<(usize, i64, Vec<i64>)> = Vec::new();
     while let Some((line, content)) = cur.next_line() {
         let mut toks = content.split_whitespace();
         match toks.next() {
@@ -91,23 +93,23 @@ pub fn parse_obj(name: &str, text: &str) -> Result<TriSurface, MeshError> {
                     let first = tok.split('/').next().unwrap_or("");
                     idx.push(parse_int(name, line, first)?);
                 }
-                faces.push((line, idx));
+                faces.push((line, vertices.len() as i64, idx));
             }
             _ => {}
         }
     }
     let n = vertices.len() as i64;
     let mut triangles = Vec::new();
-    for (face, (line, idx)) in faces.into_iter().enumerate() {
+    for (face, (line, above, idx)) in faces.into_iter().enumerate() {
         let mut resolved = Vec::with_capacity(idx.len());
         for i in idx {
-            let r = if i > 0 { i - 1 } else { n + i };
+            let r = if i > 0 { i - 1 } else { above + i };
             if i == 0 || r < 0 || r >= n {
                 return Err(MeshError::at(
                     name,
                     line,
                     MeshErrorKind::Syntax(format!(
-                        "face {face}: vertex index {i} out of range (1..={n}, or negative relative indices)"
+                        "face {face}: vertex index {i} out of range (1..={n}, or -1..=-{above} counting back from the {above} vertices above this line)"
                     )),
                 ));
             }
@@ -138,6 +140,17 @@ mod tests {
         )
         .unwrap();
         assert_eq!(s.triangles, vec![[0, 1, 2], [0, 2, 3], [0, 1, 2]]);
+        // Negative indices count back from the vertices above their own line, not from the
+        // end of the file: here the first face is the first three vertices.
+        let s = parse_obj("rel.obj", "v 0 0 0\nv 1 0 0\nv 1 0 1\nf -3 -2 -1\nv 0 0 1\nf -2 -1 1\n").unwrap();
+        assert_eq!(s.triangles, vec![[0, 1, 2], [2, 3, 0]]);
+        let e = parse_obj("rel.obj", "v 0 0 0\nv 1 0 0\nf -3 -2 -1\nv 1 0 1\n").unwrap_err();
+        assert!(
+            e.to_string().contains(
+                "vertex index -3 out of range (1..=3, or -1..=-2 counting back from the 2 vertices above this line)"
+            ),
+            "{e}"
+        );
         let e = parse_obj("q.obj", "v 0 0 0\nv 1 0 0\nv 1 0 1\nf 1 2 5\n").unwrap_err();
         assert_eq!(e.location.line, Some(4));
     }

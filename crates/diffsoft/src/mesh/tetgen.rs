@@ -57,6 +57,7 @@ pub(crate) fn parse(node_path: &str, node_text: &str, ele_path: &str, ele_text: 
         raw.nodes.push(x);
         raw.node_ids.push(id);
     }
+    beyond_count(&mut cur, node_path, n_points, "nodes")?;
 
     // .ele header: <#tets> <nodes per tet (4 or 10)> <#attributes>
     let mut cur = LineCursor::new(ele_path, ele_text, Some('#'));
@@ -105,5 +106,22 @@ pub(crate) fn parse(node_path: &str, node_text: &str, ele_path: &str, ele_text: 
         raw.tets.push(tet);
         raw.tet_lines.push(line);
     }
+    beyond_count(&mut cur, ele_path, n_tets, "tets")?;
     Ok(raw)
+}
+
+/// Refuse content after the `count` entries a header announced (TetGen reads only those, so a
+/// file with more has a header that does not match it, and its extra entries would be dropped
+/// without a word).
+fn beyond_count(cur: &mut LineCursor<'_>, path: &str, count: usize, what: &str) -> Result<(), MeshError> {
+    match cur.next_line() {
+        None => Ok(()),
+        Some((line, _)) => Err(MeshError::at(
+            path,
+            line,
+            MeshErrorKind::Syntax(format!(
+                "more lines than the header's {count} {what}: correct the count in the header, or remove what follows"
+            )),
+        )),
+    }
 }

@@ -236,7 +236,7 @@ pub struct MuscleFile {
 }
 
 /// Selects tets of a body's mesh.
-#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
+#[derive(Debug, Clone, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case", deny_unknown_fields)]
 pub enum TetSelector {
     /// Every tet.
@@ -298,7 +298,7 @@ pub struct BoneFile {
 
 /// Joint types; positions and axes in scene coordinates (after the body's scale, rotation and
 /// translation).
-#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
+#[derive(Debug, Clone, schemars::JsonSchema)]
 #[serde(deny_unknown_fields, rename_all = "snake_case")]
 pub enum JointFile {
     /// 6-DoF free joint (a root).
@@ -374,7 +374,7 @@ impl Default for ConstraintsFile {
 
 /// A set of vertices: explicit indices (the mesh file's numbering) or those inside a box (in
 /// scene coordinates, after scale/rotate/translate).
-#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
+#[derive(Debug, Clone, schemars::JsonSchema)]
 #[serde(deny_unknown_fields, rename_all = "snake_case")]
 pub enum VertexSelector {
     /// Vertex ids as in the mesh file.
@@ -491,7 +491,7 @@ where
     use serde::de::Error;
     match serde_json::Value::deserialize(d)? {
         serde_json::Value::String(s) => Ok(Ok(PathBuf::from(s))),
-        v @ serde_json::Value::Object(_) => serde_json::from_value(v)
+        v @ serde_json::Value::Object(_) => super::json::typed_from_value(v)
             .map(Err)
             .map_err(|e| D::Error::custom(format!("inline mesh: {e}"))),
         other => Err(D::Error::custom(format!(

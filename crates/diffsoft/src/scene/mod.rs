@@ -14,6 +14,7 @@ pub mod format;
 pub mod inline;
 pub mod json;
 pub mod paper;
+mod tagged;
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -228,10 +229,8 @@ fn surface_of(
 pub fn from_value(value: serde_json::Value, path: &Path) -> Result<Scene, SceneError> {
     let shown = path.display().to_string();
     let solver_gives_dt = value.pointer("/solver/dt").is_some();
-    let file: SceneFile = serde_json::from_value(value).map_err(|e| SceneError::Syntax {
-        path: shown,
-        message: e.to_string(),
-    })?;
+    let file: SceneFile =
+        json::typed_from_value(value).map_err(|message| SceneError::Syntax { path: shown, message })?;
     from_diffsoft(path, file, solver_gives_dt)
 }
 
@@ -265,9 +264,9 @@ pub fn load(path: impl AsRef<Path>, opts: LoadOptions) -> Result<Scene, SceneErr
         .is_some_and(|s| s.starts_with("diffsoft.scene"));
     if is_diffsoft {
         // Strict: parse the text itself so errors carry line and column.
-        let file: SceneFile = serde_json::from_str(&text).map_err(|e| SceneError::Syntax {
+        let file: SceneFile = json::typed_from_str(&text).map_err(|message| SceneError::Syntax {
             path: shown.clone(),
-            message: e.to_string(),
+            message,
         })?;
         let solver_gives_dt = value.pointer("/solver/dt").is_some();
         from_diffsoft(path, file, solver_gives_dt)

@@ -182,6 +182,19 @@ fn tetgen_truncated_ele_file() {
     assert_line(&e, 3);
 }
 
+/// A header that announces fewer entries than the file holds is refused where the first extra
+/// entry is (TetGen would read only the announced ones, dropping the rest without a word).
+#[test]
+fn tetgen_files_longer_than_their_headers_are_refused() {
+    let e = tetgen_err("tgmoree", NODE, "1 4 0\n1 1 2 3 4\n2 2 3 4 5\n");
+    assert!(e.location.path.ends_with("m.ele"), "{e}");
+    assert_line(&e, 3);
+    assert!(e.to_string().contains("more lines than the header's 1 tets"), "{e}");
+    let e = tetgen_err("tgmoren", &NODE.replacen("5 3 0 0", "4 3 0 0", 1), "1 4 0\n1 1 2 3 4\n");
+    assert!(e.location.path.ends_with("m.node"), "{e}");
+    assert!(e.to_string().contains("more lines than the header's 4 nodes"), "{e}");
+}
+
 #[test]
 fn tetgen_index_out_of_range_and_bad_numbers() {
     let e = tetgen_err("tgoor", NODE, "1 4 0\n1 1 2 3 6\n");

@@ -30,6 +30,7 @@
 //! Every other key is either known and ignored (listed in the scene's notes with the reason) or
 //! an error naming it.
 
+use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 use nalgebra::Vector3;
@@ -140,6 +141,9 @@ struct Ctx<'a> {
     path: &'a Path,
     notes: Vec<String>,
     passive: bool,
+    /// Where each file name the scene gives was found when it was first read, for a scene
+    /// rebuilt from the files it carried (a pickled scene): names resolve only through it.
+    carried: Option<&'a HashMap<String, PathBuf>>,
 }
 
 impl Ctx<'_> {
@@ -212,22 +216,53 @@ impl Ctx<'_> {
             })
             .ok_or_else(|| self.invalid(format!("{where_}: \"{key}\" must be a list of vertex indices")))
     }
-    /// A file the scene names, relative to the paper's data root (the scene's parent
-    /// directory), the scene's own directory, or by its name beside the scene; from any working
-    /// directory (the scene path is made absolute first).
+    /// A file the scene names: through the carried files of a rebuilt scene, else as
+    /// [`find_file`] looks for it.
     fn resolve(&self, file: &str) -> Result<PathBuf, SceneError> {
-        let scene = std::path::absolute(self.path).unwrap_or_else(|_| self.path.to_path_buf());
-        let dir = scene.parent().unwrap_or(Path::new("."));
-        let mut candidates = vec![dir.parent().unwrap_or(dir).join(file), dir.join(file)];
-        if let Some(name) = Path::new(file).file_name() {
-            candidates.push(dir.join(name));
+        if let Some(carried) = self.carried {
+            return carried.get(file).cloned().ok_or_else(|| {
+                self.invalid(format!(
+                    "cannot find \"{file}\": this scene was rebuilt from the files it named when it was first read, and this name was not one of them"
+                ))
+            });
         }
-        candidates.dedup();
+        let candidates = file_candidates(self.path, file);
         candidates.iter().find(|p| p.is_file()).cloned().ok_or_else(|| {
             let looked: Vec<String> = candidates.iter().map(|p| p.display().to_string()).collect();
             self.invalid(format!("cannot find \"{file}\" (looked in {})", looked.join(", ")))
         })
     }
+}
+
+/// Where a paper scene at `scene` looks for a file it names `file`, in order: relative to the
+/// paper's data root (the scene's parent directory), to the scene's own directory, and by its
+/// name beside the scene; from any working directory (the scene path is made absolute first).
+fn file_candidates(scene: &Path, file: &str) -> Vec<PathBuf> {
+    let scene = std::path::absolute(scene).unwrap_or_else(|_| scene.to_path_buf());
+    let dir = scene.parent().unwrap_or(Path::new("."));
+    let mut candidates = vec![dir.parent().unwrap_or(dir).join(file), dir.join(file)];
+    if let Some(name) = Path::new(file).file_name() {
+        candidates.push(dir.join(name));
+    }
+    candidates.dedup();
+    candidates
+}
+
+/// The file a paper scene at `scene` means by `file`, where one exists ([`import`]'s search).
+///
+/// ```
+/// use std::path::Path;
+/// use diffsoft::scene::paper;
+///
+/// let scene = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../../verification/paper/bridgesus/bridgesus.json"));
+/// assert!(paper::find_file(scene, "bridgesus/bridgesus200_tet_cen.obj").is_some_and(|p| p.is_file()));
+/// assert!(paper::find_file(scene, "no such mesh.obj").is_none());
+/// ```
+pub fn find_file(scene: &Path, file: &str) -> Option<PathBuf> {
+    if file.is_empty() {
+        return None;
+    }
+    file_candidates(scene, file).into_iter().find(|p| p.is_file())
 }
 
 /// Import a parsed paper scene.
@@ -243,10 +278,32 @@ impl Ctx<'_> {
 /// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```
 pub fn import(path: &Path, value: &Value, opts: LoadOptions) -> Result<Scene, SceneError> {
+    import_with(path, value, opts, None)
+}
+
+/// Import a paper scene rebuilt from the files it named when it was first read: `carried` maps
+/// each name as the scene gives it to where that file now is, and no other file is looked for
+/// (a scene unpickled elsewhere must not pick up whatever lies at its names there).
+pub fn import_carried(
+    path: &Path,
+    value: &Value,
+    opts: LoadOptions,
+    carried: &HashMap<String, PathBuf>,
+) -> Result<Scene, SceneError> {
+    import_with(path, value, opts, Some(carried))
+}
+
+fn import_with(
+    path: &Path,
+    value: &Value,
+    opts: LoadOptions,
+    carried: Option<&HashMap<String, PathBuf>>,
+) -> Result<Scene, SceneError> {
     let mut cx = Ctx {
         path,
         notes: Vec::new(),
         passive: opts.passive,
+        carried,
     };
     let top = value
         .as_object()
