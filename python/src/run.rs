@@ -19,7 +19,8 @@ pub struct Run {
     /// Time of every state, float64 `(steps + 1,)`.
     #[pyo3(get)]
     times: Py<PyAny>,
-    /// The run log: summary, certificate, settings and every step's figures (as `run.json`).
+    /// The run's figures as the run log holds them (`run.json`'s summary, certificate, settings
+    /// and every step's figures; not its scene, provenance or frames, so no schema is claimed).
     #[pyo3(get)]
     stats: Py<PyAny>,
 }
@@ -28,8 +29,9 @@ impl Run {
     /// Arrays and log of `r`.
     pub fn new(py: Python<'_>, r: Rollout, settings: &Settings) -> PyResult<Self> {
         let (states, n) = (r.times.len(), r.n);
+        // The run log's figures of the run itself, as `run.json` holds them; not the file's
+        // other fields (scene, provenance, frames), so it claims no schema.
         let stats = serde_json::json!({
-            "schema": diffsoft::output::RUN_SCHEMA,
             "crate_version": diffsoft::report::CRATE_VERSION,
             "vertices": n,
             "settings": settings,

@@ -24,7 +24,8 @@ def test_simulate_shapes_and_initial_state(beam):
     assert run.velocities.shape == (6, 20, 3)
     np.testing.assert_array_equal(run.positions[0], beam.get("initial_positions"))
     np.testing.assert_allclose(run.times, np.arange(6) * beam.dt, rtol=1e-12)
-    assert run.stats["schema"] == "diffsoft.run/2"
+    # The run log's figures, not the whole file: no schema is claimed that it would not meet.
+    assert "schema" not in run.stats and {"summary", "certificate", "settings", "steps"} <= run.stats.keys()
     assert len(run.stats["steps"]) == 5 and run.stats["summary"]["steps"] == 5
     # The beam moves upwards (initial velocity 0.5 m/s) against gravity.
     assert run.positions[1, :, 1].mean() > run.positions[0, :, 1].mean()

@@ -195,8 +195,9 @@ fn median(mut v: Vec<f64>) -> f64 {
     v[v.len() / 2]
 }
 
+/// The mean; 0 for none (a fold from +0: an empty `sum` of f64 is -0, printed "-0.00").
 fn mean(v: &[f64]) -> f64 {
-    v.iter().sum::<f64>() / v.len().max(1) as f64
+    v.iter().fold(0.0, |a, b| a + b) / v.len().max(1) as f64
 }
 
 /// Largest `|sigma_i - 1|` over the tets at positions `q`.
@@ -218,10 +219,12 @@ pub fn run(scene_path: &Path, steps: usize, frames: Option<(&Path, usize)>) -> R
     let sc =
         scene::load(scene_path, LoadOptions::default()).with_context(|| format!("loading {}", scene_path.display()))?;
     let model = sc.model.clone();
-    let cloth = model.cloth().context("the scene has no cloth")?;
+    let cloth = model
+        .cloth()
+        .with_context(|| format!("{}: the scene has no cloth", scene_path.display()))?;
     let col = model
         .collision()
-        .context("the scene has no collisions between bodies")?;
+        .with_context(|| format!("{}: the scene has no collisions between bodies", scene_path.display()))?;
     let thickness = col.settings.thickness;
     let mut sim = Simulator::new(sc.model, sc.settings.clone())?;
     let mut writer = match frames {
@@ -554,10 +557,11 @@ pub fn table(r: &ClothReport) -> String {
         );
         let _ = writeln!(
             s,
-            "    max penetration {:.3e} m ({} crossing edge-face pairs); smallest distance {:.3e} m (thickness {:.0e} m); cloth stretch {:.3}..{:.3}, ball strain {:.3}",
+            "    max penetration {:.3e} m ({} crossing edge-face pairs); smallest distance {} (thickness {:.0e} m); cloth stretch {:.3}..{:.3}, ball strain {:.3}",
             p.max_penetration,
             p.intersections,
-            p.min_separation.unwrap_or(f64::NAN),
+            p.min_separation
+                .map_or("none measured (the surfaces never came within reach)".into(), |d| format!("{d:.3e} m")),
             p.thickness,
             p.cloth_stretch_range.smallest,
             p.cloth_stretch_range.largest,

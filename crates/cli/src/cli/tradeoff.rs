@@ -15,69 +15,69 @@ pub(crate) struct TradeoffArgs {
     #[arg(long, value_delimiter = ',')]
     cantilever: Option<Vec<usize>>,
     /// Instead of the options below: a sweep as JSON (a `tradeoff.scenes` entry of the suite;
-    /// scene paths relative to that file).
+    /// scene paths relative to that file); the grid's options are refused beside it.
     #[arg(long)]
     spec: Option<PathBuf>,
     /// Name in the report (default: the scene's file stem).
-    #[arg(long)]
+    #[arg(long, conflicts_with = "spec")]
     name: Option<String>,
     /// Simulated duration, in steps of the scene's time step h.
-    #[arg(long, default_value_t = 50, value_parser = super::numbers::at_least_one)]
+    #[arg(long, conflicts_with = "spec", default_value_t = 50, value_parser = super::numbers::at_least_one)]
     steps: usize,
     /// Grid time steps h/d.
-    #[arg(long, value_delimiter = ',', default_values_t = [1, 2, 4, 8])]
+    #[arg(long, conflicts_with = "spec", value_delimiter = ',', default_values_t = [1, 2, 4, 8])]
     dt_divisors: Vec<usize>,
     /// The reference runs at h/R.
-    #[arg(long, default_value_t = 16)]
+    #[arg(long, conflicts_with = "spec", default_value_t = 16)]
     reference_divisor: usize,
     /// Tolerance of the reference runs.
-    #[arg(long, default_value_t = 1e-12, value_parser = super::numbers::positive)]
+    #[arg(long, conflicts_with = "spec", default_value_t = 1e-12, value_parser = super::numbers::positive)]
     reference_tolerance: f64,
     /// Anderson memory of the reference trajectories (0: plain iteration).
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, conflicts_with = "spec", default_value_t = 0)]
     reference_anderson: usize,
     /// Solver families.
-    #[arg(long, value_parser = choice::<diffsoft_harness::tradeoff::Family>(), value_delimiter = ',', default_values = ["direct", "split", "chebyshev", "certified"])]
+    #[arg(long, conflicts_with = "spec", value_parser = choice::<diffsoft_harness::tradeoff::Family>(), value_delimiter = ',', default_values = ["direct", "split", "chebyshev", "certified"])]
     families: Vec<diffsoft_harness::tradeoff::Family>,
     /// Time integrators of the grid (bdf2 rows are named `bdf2/...`).
-    #[arg(long, value_parser = choice::<diffsoft::solver::Integrator>(), value_delimiter = ',', default_values = ["implicit_euler"])]
+    #[arg(long, conflicts_with = "spec", value_parser = choice::<diffsoft::solver::Integrator>(), value_delimiter = ',', default_values = ["implicit_euler"])]
     integrators: Vec<diffsoft::solver::Integrator>,
     /// Families run with the integrators after the first (default: every one of --families).
-    #[arg(long, value_parser = choice::<diffsoft_harness::tradeoff::Family>(), value_delimiter = ',')]
+    #[arg(long, conflicts_with = "spec", value_parser = choice::<diffsoft_harness::tradeoff::Family>(), value_delimiter = ',')]
     integrator_families: Vec<diffsoft_harness::tradeoff::Family>,
     /// Material models to compare on the scene (every body switched to each, Newton at every
     /// grid step, against neo_hookean at h/R); default none.
-    #[arg(long, value_parser = choice::<diffsoft::base::MaterialModel>(), value_delimiter = ',')]
+    #[arg(long, conflicts_with = "spec", value_parser = choice::<diffsoft::base::MaterialModel>(), value_delimiter = ',')]
     models: Vec<diffsoft::base::MaterialModel>,
     /// Newton tolerance of the model comparison.
-    #[arg(long, default_value_t = 1e-8, value_parser = super::numbers::positive)]
+    #[arg(long, conflicts_with = "spec", default_value_t = 1e-8, value_parser = super::numbers::positive)]
     model_tolerance: f64,
     /// Iteration caps of the newton family (default, or `''`: --caps).
-    #[arg(long, default_value = "")]
+    #[arg(long, conflicts_with = "spec", default_value = "")]
     newton_caps: List<usize>,
     /// Integrator of the h/R reference run (the total error of every setting).
-    #[arg(long, value_parser = choice::<diffsoft::solver::Integrator>(), default_value = "implicit_euler")]
+    #[arg(long, conflicts_with = "spec", value_parser = choice::<diffsoft::solver::Integrator>(), default_value = "implicit_euler")]
     reference_integrator: diffsoft::solver::Integrator,
     /// Iteration caps (tolerance 0), comma-separated; `--caps ''` for none.
-    #[arg(long, default_value = "1,3,10,30,100")]
+    #[arg(long, conflicts_with = "spec", default_value = "1,3,10,30,100")]
     caps: List<usize>,
     /// Tolerances, comma-separated; `--tolerances ''` for none.
-    #[arg(long, default_value = "1e-2,1e-4,1e-6,1e-8,1e-10")]
+    #[arg(long, conflicts_with = "spec", default_value = "1e-2,1e-4,1e-6,1e-8,1e-10")]
     tolerances: List<f64>,
     /// Time-step divisors whose settings also get a gradient (default: none).
-    #[arg(long, value_delimiter = ',')]
+    #[arg(long, conflicts_with = "spec", value_delimiter = ',')]
     gradient_dt_divisors: Vec<usize>,
     /// Loss of the gradients: final_com.x|y|z or mean_com.x|y|z.
-    #[arg(long, default_value = "final_com.y")]
+    #[arg(long, conflicts_with = "spec", default_value = "final_com.y")]
     loss: String,
     /// Target relative errors to recommend a setting for.
-    #[arg(long, value_delimiter = ',', default_values_t = [1e-2, 1e-4, 1e-6], value_parser = super::numbers::positive)]
+    #[arg(long, conflicts_with = "spec", value_delimiter = ',', default_values_t = [1e-2, 1e-4, 1e-6], value_parser = super::numbers::positive)]
     targets: Vec<f64>,
     /// Cost axis of the Pareto fronts: cpu (thread CPU time) or iterations (deterministic).
-    #[arg(long, value_parser = choice::<diffsoft_harness::tradeoff::TimeAxis>(), default_value = "cpu")]
+    #[arg(long, conflicts_with = "spec", value_parser = choice::<diffsoft_harness::tradeoff::TimeAxis>(), default_value = "cpu")]
     time_axis: diffsoft_harness::tradeoff::TimeAxis,
     /// Repeat each forward run until this many CPU seconds are measured.
-    #[arg(long, default_value_t = diffsoft_harness::tradeoff::DEFAULT_MIN_TIMING_S, value_parser = super::numbers::non_negative)]
+    #[arg(long, conflicts_with = "spec", default_value_t = diffsoft_harness::tradeoff::DEFAULT_MIN_TIMING_S, value_parser = super::numbers::non_negative)]
     min_timing_s: f64,
     /// Run only shard K of N (0 <= K < N): writes a partial report for `diffsoft merge`.
     #[arg(long, value_name = "K/N")]
@@ -125,15 +125,7 @@ pub(crate) fn tradeoff(args: TradeoffArgs) -> Result<()> {
     let input_paths: Vec<PathBuf> = spec.iter().chain(scene.iter()).cloned().collect();
     let inputs: Vec<&Path> = input_paths.iter().map(PathBuf::as_path).collect();
     preflight(json.as_deref(), &inputs)?;
-    // The reference runs take `steps x reference_divisor` steps and keep their states.
-    let reference_steps = steps
-        .checked_mul(reference_divisor)
-        .with_context(|| format!("--steps {steps} x --reference-divisor {reference_divisor} overflows"))?;
-    diffsoft::base::memory::check(
-        &format!("--steps {steps} at h/{reference_divisor}"),
-        reference_steps,
-        1024,
-    )?;
+    let spec_given = spec.is_some();
     let (spec, base) = match (spec, scene, cantilever) {
         (Some(path), None, None) => {
             let text = std::fs::read_to_string(&path).with_context(|| format!("cannot read {}", path.display()))?;
@@ -181,6 +173,22 @@ pub(crate) fn tradeoff(args: TradeoffArgs) -> Result<()> {
         }
         _ => bail!("--spec replaces the scene and the grid options: give one of a scene file, --cantilever, --spec"),
     };
+    // The reference runs take `steps x reference_divisor` steps and keep their states (the
+    // sweep's own numbers: a spec file's, not the command line's defaults).
+    let (steps, reference_divisor) = (spec.steps, spec.reference_divisor);
+    // Named as the user gave them: the spec file's fields, or the flags.
+    let (steps_name, divisor_name) = match inputs.first().filter(|_| input_paths.len() == 1 && spec_given) {
+        Some(file) => (format!("{}: steps", file.display()), "reference_divisor"),
+        None => ("--steps".to_string(), "--reference-divisor"),
+    };
+    let reference_steps = steps
+        .checked_mul(reference_divisor)
+        .with_context(|| format!("{steps_name} {steps} x {divisor_name} {reference_divisor} overflows"))?;
+    diffsoft::base::memory::check(
+        &format!("{steps_name} {steps} at h/{reference_divisor}"),
+        reference_steps,
+        1024,
+    )?;
     let workers = rayon::current_num_threads();
     match shard {
         Some(k) => {

@@ -958,6 +958,26 @@ fn scales_joints_and_repeated_keys_beyond_reason_are_errors_naming_the_field() {
             stderr(&o)
         );
     }
+    // A velocity or a torque at the edge of floating point: the failure names it, with its
+    // element (these messages named nothing before).
+    let fast = cube_scene(&dir, r#", "density": 1000, "initial_velocity": [0, -1e300, 0]"#, "");
+    let o = diffsoft(&["simulate", fast.to_str().unwrap(), "--steps", "2"]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("initial velocity of vertex 0 = -1e300"),
+        "{}",
+        stderr(&o)
+    );
+    let torque = cube_scene(
+        &dir,
+        r#", "density": 1000, "skeleton": { "bones": [{ "name": "root", "joint": { "free": {} }, "vertices": { "indices": [0] } },
+            { "name": "arm", "parent": "root", "joint": { "rotational": { "position": [0.5, 0, 0], "axis": [0, 0, 1] } },
+              "vertices": { "indices": [4] }, "torque": { "times": [0, 1], "values": [1e308, 1e308] } }] }"#,
+        "",
+    );
+    let o = diffsoft(&["simulate", torque.to_str().unwrap(), "--steps", "2"]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(stderr(&o).contains("torque of bone 'arm' = 1e308"), "{}", stderr(&o));
     // The paper format: a key given twice with different values, and an attachment stiffness
     // without vertices (the scene's own directory layout: `bridgesus/bridgesus.json` names its
     // mesh as `bridgesus/...`).
@@ -1364,6 +1384,18 @@ fn flags_that_would_be_ignored_or_overridden_are_refused() {
     assert!(grad(&["--set", "density=1000", "--set", "youngs_modulus=2e5"])
         .status
         .success());
+    // A spec file is the whole sweep: grid options beside it were silently dropped.
+    for flag in [&["--steps", "10"][..], &["--time-axis", "iterations"], &["--caps", "1"]] {
+        let mut args = vec!["tradeoff", "--spec", "sweep.json"];
+        args.extend_from_slice(flag);
+        let o = diffsoft(&args);
+        assert_eq!(o.status.code(), Some(2), "{flag:?}: {}", stderr(&o));
+        assert!(
+            stderr(&o).contains("cannot be used with") && stderr(&o).contains(flag[0]),
+            "{}",
+            stderr(&o)
+        );
+    }
     let two = std::fs::read_to_string(&scene).unwrap().replacen(
         r#""name""#,
         r#""fixed": {"indices": [0], "box": {"min": [0, 0, 0], "max": [1, 1, 1]}}, "name""#,
@@ -1377,4 +1409,30 @@ fn flags_that_would_be_ignored_or_overridden_are_refused() {
         "{}",
         stderr(&o)
     );
+}
+
+/// A body, bone or actuator with an empty (or blank) name is refused, naming what it is:
+/// nothing could address it (`--activation NAME=A`, `joint_angle.NAME`, logs).
+#[test]
+fn empty_names_are_refused() {
+    let dir = tmp_dir("hard-empty-names");
+    let text = std::fs::read_to_string(cube_scene(&dir, DENSITY, "")).unwrap();
+    let blank = write(
+        &dir,
+        "blank_body.json",
+        &text.replace(r#""name": "c""#, r#""name": "  ""#),
+    );
+    let bone = cube_scene(
+        &dir,
+        r#", "density": 1000, "skeleton": { "bones": [{ "name": "", "joint": { "free": {} }, "vertices": { "indices": [0] } }] }"#,
+        "",
+    );
+    for (scene, message) in [
+        (&blank, r#"a body has an empty name "  ""#),
+        (&bone, r#"a bone has an empty name """#),
+    ] {
+        let o = diffsoft(&["simulate", scene.to_str().unwrap(), "--steps", "1"]);
+        assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+        assert!(stderr(&o).contains(message), "{}", stderr(&o));
+    }
 }

@@ -202,6 +202,7 @@ impl Actuators {
         for spec in specs {
             let what = format!("body '{body}', actuator '{}'", spec.name);
             let bad = |m: String| Err(InputError::new(format!("{what}: {m}")));
+            crate::base::check_name("actuator", &spec.name).map_err(|e| e.context(&format!("body '{body}'")))?;
             if self.groups.iter().any(|g| g.name == spec.name) {
                 return bad("duplicate actuator name".into());
             }

@@ -11,6 +11,18 @@ pub struct InputError {
     out_of_memory: bool,
 }
 
+/// Refuse an empty (or blank) name of a `kind` (`"body"`, `"bone"`, ...): names address
+/// bodies, bones and actuators in parameters, losses, `--activation` and logs, and an empty one
+/// can be addressed by none of them.
+pub(crate) fn check_name(kind: &str, name: &str) -> Result<(), InputError> {
+    if name.trim().is_empty() {
+        return Err(InputError::new(format!(
+            "a {kind} has an empty name {name:?}: give it one (names address it in parameters, losses and logs)"
+        )));
+    }
+    Ok(())
+}
+
 impl InputError {
     /// An error with this message.
     ///

@@ -28,6 +28,7 @@ mod vector;
 
 pub use body::Body;
 pub use choice::Choice;
+pub(crate) use error::check_name;
 pub use error::number;
 pub use error::InputError;
 pub use material::{Material, MaterialModel};

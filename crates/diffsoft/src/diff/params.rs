@@ -258,9 +258,10 @@ pub fn scalar_names() -> Vec<&'static str> {
     scalars().map(|p| p.name).collect()
 }
 
-/// The scalar parameters of `model` (and its time step `dt`) whose values sit at the edge of
-/// floating point (magnitude above 1e100 or below 1e-100 but not zero), as `name = value`: the
-/// likely cause when a run turns non-finite, for its error message.
+/// The inputs of `model` (its scalar parameters, time step `dt`, initial velocities,
+/// attachments, torque and activation schedules) whose values sit at the edge of floating point
+/// (magnitude above 1e100 or below 1e-100 but not zero), as `name = value`, the first of each
+/// kind: the likely cause when a run turns non-finite, for its error message.
 ///
 /// ```
 /// use diffsoft::diff::params::extreme_inputs;
@@ -272,7 +273,9 @@ pub fn scalar_names() -> Vec<&'static str> {
 /// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```
 pub fn extreme_inputs(model: &Model, dt: f64) -> Vec<String> {
-    let extreme = |v: f64| v != 0.0 && !(1e-100..=1e100).contains(&v.abs());
+    fn extreme(v: f64) -> bool {
+        v != 0.0 && !(1e-100..=1e100).contains(&v.abs())
+    }
     let mut out: Vec<String> = scalars()
         .filter_map(Param::of)
         .filter_map(|p| {
@@ -284,6 +287,45 @@ pub fn extreme_inputs(model: &Model, dt: f64) -> Vec<String> {
         .collect();
     if extreme(dt) {
         out.push(format!("time_step = {dt:e}"));
+    }
+    // Per-vertex, per-attachment and scheduled inputs: the first extreme value of each kind
+    // (a cloth thrown at 1e300 m/s, a torque of 1e308 N m), named by its element.
+    fn first<K>(mut values: impl Iterator<Item = (K, f64)>) -> Option<(K, f64)> {
+        values.find(|(_, v)| extreme(*v))
+    }
+    let components = |v: &Vector3<f64>| [v.x, v.y, v.z];
+    let velocities = model.initial_velocity().iter().enumerate();
+    if let Some((i, v)) = first(velocities.flat_map(|(i, v)| components(v).map(|c| (i, c)))) {
+        out.push(format!("initial velocity of vertex {i} = {v:e}"));
+    }
+    let attachments = model.attachments().iter().enumerate();
+    if let Some((k, v)) = first(attachments.clone().map(|(k, a)| (k, a.weight))) {
+        out.push(format!("stiffness of attachment {k} = {v:e}"));
+    }
+    if let Some((k, v)) = first(attachments.flat_map(|(k, a)| components(&a.target).map(|c| (k, c)))) {
+        out.push(format!("target of attachment {k} = {v:e}"));
+    }
+    if let Some(skeleton) = model.skeleton() {
+        let torques = skeleton
+            .bones
+            .iter()
+            .filter_map(|b| Some((b, b.torque.as_ref()?)))
+            .flat_map(|(b, t)| t.values.iter().map(move |&v| (&b.name, v)));
+        if let Some((name, v)) = first(torques) {
+            out.push(format!("torque of bone '{name}' = {v:e}"));
+        }
+    }
+    if let Some(actuators) = model.actuators() {
+        let groups = actuators.groups.iter();
+        let activations = groups
+            .clone()
+            .flat_map(|g| g.activation.values.iter().map(move |&v| (&g.name, v)));
+        if let Some((name, v)) = first(activations) {
+            out.push(format!("activation of actuator '{name}' = {v:e}"));
+        }
+        if let Some((name, v)) = first(groups.map(|g| (&g.name, g.stiffness))) {
+            out.push(format!("stiffness of actuator '{name}' = {v:e}"));
+        }
     }
     out
 }

@@ -220,12 +220,14 @@ impl ModelBuilder {
             .map(|b| &b.name)
             .chain(self.cloths.iter().map(|c| &c.name))
         {
+            crate::base::check_name("body", name)?;
             if !names.insert(name.as_str()) {
                 return Err(InputError::new(format!("body name '{name}' is used twice")));
             }
         }
         let mut obstacle_names = std::collections::HashSet::new();
         for o in &self.obstacles {
+            crate::base::check_name("obstacle", &o.name)?;
             if !obstacle_names.insert(o.name.as_str()) {
                 return Err(InputError::new(format!("obstacle name '{}' is used twice", o.name)));
             }
@@ -412,6 +414,13 @@ impl ModelBuilder {
             if c.thickness >= length_scale {
                 return Err(too_thick("the collisions between bodies", c.thickness, length_scale));
             }
+            // Refused here, where the scene's file is named, rather than when a run is set up.
+            if let Some(b) = bones.first() {
+                return Err(InputError::new(format!(
+                    "collisions between bodies are not supported with a skeleton yet (bone '{}'): remove the scene's collisions or the skeleton",
+                    b.name
+                )));
+            }
         }
         let vertex_tets = VertexTets::new(rest.len(), &tets);
         let collision = match self.collision {
@@ -504,5 +513,22 @@ mod tests {
         );
         let e = build(1e-3, 1e300).unwrap_err().to_string();
         assert!(e.contains("the collisions between bodies: thickness 1e300 m"), "{e}");
+        // With a skeleton, collisions between bodies are refused when the model is built.
+        let mut a = cube("a", 0.0);
+        a.bones.push(crate::skeleton::BoneSpec {
+            name: "root".into(),
+            parent: None,
+            joint: Box::new(crate::skeleton::free::Free::default()),
+            vertices: vec![0],
+            torque: None,
+        });
+        let e = ModelBuilder::new()
+            .body(a)
+            .body(cube("b", 0.2))
+            .collisions(pair(1e-3))
+            .build()
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("not supported with a skeleton yet (bone 'root')"), "{e}");
     }
 }

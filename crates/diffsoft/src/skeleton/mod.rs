@@ -134,6 +134,7 @@ impl Skeleton {
     pub fn new(specs: Vec<BoneSpec>, rest: &[Vector3<f64>]) -> Result<Self, InputError> {
         let n = specs.len();
         for (i, s) in specs.iter().enumerate() {
+            crate::base::check_name("bone", &s.name)?;
             if let Some(p) = s.parent {
                 if p >= n {
                     return Err(InputError::new(format!(
