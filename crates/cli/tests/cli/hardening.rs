@@ -1333,18 +1333,21 @@ fn flags_that_would_be_ignored_or_overridden_are_refused() {
     let dir = tmp_dir("hard-ignored-flags");
     let scene = cube_scene(&dir, DENSITY, "");
     let s = scene.to_str().unwrap();
+    let generate = |out: &std::path::Path| {
+        diffsoft(&[
+            "generate",
+            "--cells",
+            "1,1,1",
+            "--size",
+            "1,1,1",
+            "--gmsh-version",
+            "2.2",
+            "--out",
+            out.to_str().unwrap(),
+        ])
+    };
     let obj = dir.join("g.obj");
-    let o = diffsoft(&[
-        "generate",
-        "--cells",
-        "1,1,1",
-        "--size",
-        "1,1,1",
-        "--gmsh-version",
-        "2.2",
-        "--out",
-        obj.to_str().unwrap(),
-    ]);
+    let o = generate(&obj);
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     assert!(
         stderr(&o).contains("--gmsh-version 2.2: applies to .msh output only"),
@@ -1353,17 +1356,7 @@ fn flags_that_would_be_ignored_or_overridden_are_refused() {
     );
     assert!(!obj.exists());
     let msh = dir.join("g.msh");
-    let o = diffsoft(&[
-        "generate",
-        "--cells",
-        "1,1,1",
-        "--size",
-        "1,1,1",
-        "--gmsh-version",
-        "2.2",
-        "--out",
-        msh.to_str().unwrap(),
-    ]);
+    let o = generate(&msh);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(std::fs::read_to_string(&msh).unwrap().contains("2.2 0 8"));
     let grad = |extra: &[&str]| {
