@@ -191,8 +191,9 @@ impl Scene {
 
     /// Simulate `steps` steps: positions and velocities of every state and the run log. Steps
     /// that stopped at `max_iterations` before meeting a positive tolerance raise a
-    /// `ConvergenceWarning` at the caller's line; steps that ended with bodies passing through
-    /// each other, or with inverted tets, a `UserWarning`.
+    /// `ConvergenceWarning` at the caller's line (another names an unconverged step that raised
+    /// the energy of a scene without an energy source); steps that ended with bodies passing
+    /// through each other, or with inverted tets, a `UserWarning`.
     fn simulate(slf: PyRef<'_, Self>, steps: &Bound<'_, PyAny>) -> PyResult<Run> {
         let steps = crate::args::count(steps, "steps", 1)?;
         let (py, s) = snapshot(slf);
@@ -200,6 +201,9 @@ impl Scene {
         // A tolerance of 0 asks for a fixed iteration count: no step is meant to converge.
         if s.inner.settings.tolerance > 0.0 && r.unconverged_steps() > 0 {
             crate::warn::unconverged(py)?;
+        }
+        if let Some(g) = diffsoft::output::solver_energy_gain(&s.inner.model, &r.stats) {
+            crate::warn::energy_gain(py, &g)?;
         }
         if r.interpenetrating_steps() > 0 {
             crate::warn::interpenetration(py)?;

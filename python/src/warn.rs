@@ -81,6 +81,20 @@ pub(crate) fn unconverged(py: Python<'_>) -> PyResult<()> {
     )
 }
 
+/// The `ConvergenceWarning` of a run with an unconverged step that raised the total energy of
+/// a scene without an energy source (`diffsoft::output::solver_energy_gain`): energy the
+/// solver made, not the physics.
+pub(crate) fn energy_gain(py: Python<'_>, g: &diffsoft::output::EnergyGain) -> PyResult<()> {
+    at_caller(
+        py,
+        &category(py, "ConvergenceWarning"),
+        &format!(
+            "diffsoft: step {} stopped at max_iterations and raised the total energy from {:.4e} J to {:.4e} J in a scene with no energy source (no actuators or joint torques): that energy is the solver's, not the physics'; lower dt or raise max_iterations (Scene.configure) until no step gains energy",
+            g.step, g.before, g.after
+        ),
+    )
+}
+
 /// The warning of a run whose steps ended with bodies passing through each other
 /// (`Scene.simulate`, `simulate_batch`): a `UserWarning`, since more iterations do not mend it.
 /// No count in the text, as for the other warnings: Python's filter shows it once per call site.

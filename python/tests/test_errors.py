@@ -207,6 +207,27 @@ def test_an_overflowing_backward_pass_is_refused_naming_it(beam):
     beam.vjp(2, ["density"], c * 1e100, mode="implicit")
 
 
+def test_a_capped_step_that_makes_energy_is_named():
+    """A near-incompressible neo-Hookean box landing on the ground: a step stopped at the cap
+    multiplies its energy; the ConvergenceWarning names the step and the energy (the same box
+    at nu = 0.3 is capped too, without it)."""
+
+    def box(nu: float) -> diffsoft.Scene:
+        material = {"youngs_modulus": 1e5, "poisson_ratio": nu, "model": "neo_hookean"}
+        body = {"name": "b", "mesh": diffsoft.mesh.box((2, 2, 2), (0.2, 0.2, 0.2)), "density": 1000}
+        body.update(translate=[0, 0.05, 0], initial_velocity=[0, -1, 0], material=material)
+        ground = {"name": "ground", "plane": {"point": [0, 0, 0], "normal": [0, 1, 0]}, "friction": 0.3}
+        return diffsoft.Scene.from_dict(
+            {"time_step": 0.01, "gravity": [0, -9.81, 0], "bodies": [body], "obstacles": [ground]}
+        )
+
+    for nu, named in ((0.4999999, True), (0.3, False)):
+        with pytest.warns(diffsoft.ConvergenceWarning) as seen:
+            box(nu).simulate(30)
+        said = [str(w.message) for w in seen]
+        assert any("raised the total energy" in m for m in said) == named, said
+
+
 def test_box_cells_and_arguments_are_read_exactly():
     for cells, message in (
         ((2.7, 1, 1), r"cells\[0\] must be an integer, got float 2.7"),

@@ -52,6 +52,7 @@ pub(crate) fn simulate(
         None => None,
     };
     let model_size = diffsoft::report::ModelSize::of(&sc.model);
+
     let bodies: Vec<diffsoft::output::BodyLog> = sc.model.bodies().iter().map(diffsoft::output::BodyLog::of).collect();
     let cloth = sc.model.cloth().map_or(Vec::new(), |c| c.bodies.clone());
     say!(
@@ -227,6 +228,13 @@ pub(crate) fn simulate(
             format!("{:.3e}", settings.tolerance)
                 .parse::<f64>()
                 .unwrap_or(settings.tolerance)
+        );
+    }
+    if let Some(diffsoft::output::EnergyGain { step, before, after }) =
+        diffsoft::output::solver_energy_gain(sim.model(), &log.steps)
+    {
+        say!(
+            "warning     step {step} stopped at the iteration cap and raised the total energy from {before:.4e} J to {after:.4e} J, in a scene with no energy source (no actuators or joint torques): that energy is the solver's, not the physics'; lower --dt or raise --max-iterations until no step gains energy"
         );
     }
     if summary.steps_with_capped_solves > 0 {

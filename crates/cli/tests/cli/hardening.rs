@@ -1429,3 +1429,43 @@ fn empty_names_are_refused() {
         assert!(stderr(&o).contains(message), "{}", stderr(&o));
     }
 }
+
+/// A step that stops at the iteration cap and multiplies the energy of a scene with no energy
+/// source is named with the energy it made (a near-incompressible neo-Hookean box landing on the
+/// ground gained 600 times its energy and the run ended "completed" with only the generic
+/// warning); the same box at nu = 0.3 is capped too but gains nothing, and gets no such warning.
+#[test]
+fn a_capped_step_that_makes_energy_is_named() {
+    let dir = tmp_dir("hard-energy-gain");
+    let mesh = dir.join("box.obj");
+    let o = diffsoft(&[
+        "generate",
+        "--cells",
+        "2,2,2",
+        "--size",
+        "0.2,0.2,0.2",
+        "--out",
+        mesh.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    for (nu, warned) in [("0.4999999", true), ("0.3", false)] {
+        let scene = write(
+            &dir,
+            &format!("box_{nu}.json"),
+            &format!(
+                r#"{{"schema": "diffsoft.scene/1", "time_step": 0.01, "gravity": [0, -9.81, 0],
+                "bodies": [{{"name": "b", "mesh": "box.obj", "density": 1000, "translate": [0, 0.05, 0], "initial_velocity": [0, -1, 0],
+                  "material": {{"youngs_modulus": 1e5, "poisson_ratio": {nu}, "model": "neo_hookean"}}}}],
+                "obstacles": [{{"name": "ground", "plane": {{"point": [0, 0, 0], "normal": [0, 1, 0]}}, "friction": 0.3}}]}}"#
+            ),
+        );
+        let o = diffsoft(&["simulate", scene.to_str().unwrap(), "--steps", "30"]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let out = format!("{}{}", stdout(&o), stderr(&o));
+        assert_eq!(
+            out.contains("stopped at the iteration cap and raised the total energy"),
+            warned,
+            "nu = {nu}: {out}"
+        );
+    }
+}

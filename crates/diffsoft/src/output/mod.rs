@@ -14,7 +14,8 @@ pub use grad::{GradReport, GRAD_SCHEMA};
 pub use run_dir::{RunDir, RunStatus, COLLECTION, RUN_LOG};
 
 pub use runlog::{
-    body_notes, folded, BodyLog, MaterialLog, RunLog, RunSummary, FOLDED_SHARE, RUN_SCHEMA, WEIGHT_STRAIN,
+    body_notes, folded, solver_energy_gain, BodyLog, EnergyGain, MaterialLog, RunLog, RunSummary, FOLDED_SHARE,
+    RUN_SCHEMA, WEIGHT_STRAIN,
 };
 pub use vtk::FrameWriter;
 

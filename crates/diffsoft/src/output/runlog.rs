@@ -225,6 +225,58 @@ pub fn folded(max_inverted: usize, tets: usize) -> bool {
     max_inverted > 0 && max_inverted as f64 >= FOLDED_SHARE * tets as f64
 }
 
+/// A step that stopped short of its tolerance and raised the total energy of a scene that has
+/// no energy source ([`solver_energy_gain`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EnergyGain {
+    /// The step (1-based).
+    pub step: usize,
+    /// Total energy after the step before it (J).
+    pub before: f64,
+    /// Total energy after it (J).
+    pub after: f64,
+}
+
+/// The unconverged step of `steps` (a run of `model`) that raised the total energy the most,
+/// where it raised it by more than half of what the bodies held before it (their kinetic and
+/// elastic energy, or the total's magnitude) and `model` has no energy source (actuators, joint
+/// torques): without one, a step of implicit Euler or BDF2 with frictional contact keeps or
+/// loses energy to the integrator's accuracy, so such a gain is the solver's error, not the
+/// physics'. Converged steps are not considered, nor the first (no energy before it is logged).
+///
+/// ```
+/// use diffsoft::output::solver_energy_gain;
+/// use diffsoft::{Settings, Simulator};
+///
+/// // A box dropped on frictional ground, converged steps: no energy is the solver's.
+/// let mut sim = Simulator::new(diffsoft::testing::ground_box(0.5)?, Settings::default())?;
+/// let steps = (0..10).map(|_| sim.step()).collect::<Result<Vec<_>, _>>()?;
+/// assert!(solver_energy_gain(sim.model(), &steps).is_none());
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+pub fn solver_energy_gain(model: &Model, steps: &[StepStats]) -> Option<EnergyGain> {
+    let driven = model.actuators().is_some()
+        || model
+            .skeleton()
+            .is_some_and(|k| k.bones.iter().any(|b| b.torque.is_some()));
+    if driven {
+        return None;
+    }
+    steps
+        .windows(2)
+        .filter(|w| !w[1].converged)
+        .filter_map(|w| {
+            let (before, after) = (w[0].total_energy(), w[1].total_energy());
+            let held = (w[0].kinetic_energy + w[0].elastic_energy).max(before.abs());
+            (after.is_finite() && after - before > 0.5 * held).then_some(EnergyGain {
+                step: w[1].step,
+                before,
+                after,
+            })
+        })
+        .max_by(|a, b| (a.after - a.before).total_cmp(&(b.after - b.before)))
+}
+
 /// Strain under the body's own weight ([`BodyLog::weight_note`]) from which a body is noted
 /// as too soft to carry itself: linear elasticity has long stopped describing it there.
 pub const WEIGHT_STRAIN: f64 = 1.0;
@@ -309,5 +361,43 @@ impl RunSummary {
             energy_first_step: steps.first().map_or(0.0, |s| s.total_energy()),
             energy_last_step: steps.last().map_or(0.0, |s| s.total_energy()),
         }
+    }
+}
+
+#[cfg(test)]
+mod energy_gain_tests {
+    use super::*;
+
+    /// An unconverged step that multiplies the energy is the solver's; a converged one, a small
+    /// gain, or a scene with actuators is not reported.
+    #[test]
+    fn a_large_gain_in_an_unconverged_step_of_a_passive_scene_is_reported() {
+        let model = crate::model::fixtures::ground_box(0.5).unwrap();
+        let step = |k: usize, kinetic: f64, converged: bool| StepStats {
+            kinetic_energy: kinetic,
+            converged,
+            ..StepStats::new(k, 0.01 * k as f64)
+        };
+        let gain = solver_energy_gain(
+            &model,
+            &[step(1, 7.8, true), step(2, 4839.6, false), step(3, 4000.0, false)],
+        );
+        assert_eq!(
+            gain,
+            Some(EnergyGain {
+                step: 2,
+                before: 7.8,
+                after: 4839.6
+            })
+        );
+        assert_eq!(
+            solver_energy_gain(&model, &[step(1, 7.8, true), step(2, 4839.6, true)]),
+            None
+        );
+        assert_eq!(
+            solver_energy_gain(&model, &[step(1, 7.8, true), step(2, 8.0, false)]),
+            None
+        );
+        assert_eq!(solver_energy_gain(&model, &[step(2, 4839.6, false)]), None);
     }
 }
