@@ -1,4 +1,4 @@
-"""Times Scene.simulate from Python: the counterpart of examples/rollout_timing.rs, which times
+"""Times Scene.simulate from Python: the counterpart of crates/diffsoft/examples/rollout_timing.rs, which times
 the library's rollout on the same scene from Rust. The ratio of the two medians is the cost of the
 Python layer (arguments, the GIL release, numpy arrays of the trajectory, the run log as a dict).
 

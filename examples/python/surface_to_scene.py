@@ -4,7 +4,7 @@ scene in code, and its Young's modulus recovered from a target sag.
 A 0.4 m bar, given as an ASCII STL surface (what CAD tools export: triangles with their own
 corners), is read, its corners merged, checked (closed, manifold, oriented, not
 self-intersecting) and filled with tets by TetGen (``diffsoft.mesh.tetrahedralize``; needs
-``pip install diffsoft[mesh]``). The bar is clamped at one end and sags under gravity. A target
+``pip install "./python[mesh]"`` from a checkout). The bar is clamped at one end and sags under gravity. A target
 is simulated at E = 50 kPa; starting from 200 kPa, Newton's method on log E (the derivative from
 ``Scene.grad``) recovers E from the bar's final centre-of-mass height.
 

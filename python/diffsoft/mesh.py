@@ -1,6 +1,6 @@
 """Meshes for scenes built in code: ``box`` (the library's structured generator) and
 ``tetrahedralize`` (a closed triangle surface to tets, through the optional ``tetgen`` package:
-``pip install diffsoft[mesh]``), with the surface checks that make a bad surface an
+``pip install "./python[mesh]"`` from a checkout), with the surface checks that make a bad surface an
 ``InputError`` naming the problem. Both return ``{"vertices": (n, 3), "tets": (m, 4)}``, what a
 body's ``mesh`` takes in ``diffsoft.Scene.from_dict``::
 
@@ -24,6 +24,10 @@ __all__ = ["box", "check_surface", "tetrahedralize"]
 # The most tets ``tetrahedralize`` is asked for through ``max_volume`` (the library's own
 # scenes reach 5e4; a bound that needs more than this is a unit slip, not a mesh).
 _MAX_TETS = 5e7
+
+# How far above ``max_volume`` a tet of ``tetrahedralize`` may be before the bound counts as
+# not met (TetGen's optimisation after refinement leaves a few tets up to ~1.3 times above it).
+_VOLUME_SLACK = 2.0
 
 
 def box(
@@ -200,9 +204,10 @@ def tetrahedralize(
     check: bool = True,
 ) -> dict[str, NDArray[Any]]:
     """Tets filling the closed triangle surface ``(vertices (n, 3), faces (k, 3))``, with TetGen
-    (the ``tetgen`` package, an optional dependency: ``pip install diffsoft[mesh]``) at quality
+    (the ``tetgen`` package, an optional dependency: ``pip install "./python[mesh]"`` from a checkout) at quality
     (radius-edge ratio at most ``min_ratio``) and tets of volume at most ``max_volume`` (none by
-    default). The surface is checked first (``check_surface``): open, non-manifold,
+    default; the bound steers TetGen's refinement, and its mesh optimisation can leave a few tets
+    up to about a third above it; a tet more than twice above it raises ``InputError``). The surface is checked first (``check_surface``): open, non-manifold,
     inconsistently oriented or self-intersecting surfaces raise ``InputError``. Returns
     ``{"vertices": (n, 3) float64, "tets": (m, 4) int64}``."""
     v, f = _surface_arrays(vertices, faces)
@@ -229,7 +234,7 @@ def tetrahedralize(
         import tetgen  # type: ignore[import-not-found, import-untyped, unused-ignore]
     except ImportError as e:
         raise UnsupportedError(
-            "tetrahedralize needs the optional 'tetgen' package: pip install diffsoft[mesh] (or pip install tetgen)"
+            "tetrahedralize needs the optional 'tetgen' package: pip install \"./python[mesh]\" from a diffsoft checkout (or pip install tetgen)"
         ) from e
     t = tetgen.TetGen(v, f.astype(np.int32))
     try:
@@ -249,11 +254,13 @@ def tetrahedralize(
         p = nodes[elems]
         volumes = np.abs(np.einsum("ij,ij->i", p[:, 1] - p[:, 0], np.cross(p[:, 2] - p[:, 0], p[:, 3] - p[:, 0]))) / 6.0
         worst = int(np.argmax(volumes))
-        # TetGen's own volume test works in its rounding; a tet more than 1% over was not bounded.
-        if volumes[worst] > 1.01 * max_volume:
+        # The bound steers TetGen's refinement; its mesh optimisation afterwards moves vertices,
+        # and leaves a few tets above it (a box bar at bounds 2e-5 to 1e-6: 4-45 tets, at most
+        # 1.26 times the bound). A tet more than twice the bound was not refined to it.
+        if volumes[worst] > _VOLUME_SLACK * max_volume:
             raise InputError(
                 f"tetrahedralize: TetGen did not meet max_volume {max_volume:g}: tet {worst} has volume "
-                f"{volumes[worst]:.6g} (of {len(elems)} tets)"
+                f"{volumes[worst]:.6g}, more than {_VOLUME_SLACK:g} times the bound (of {len(elems)} tets)"
             )
     return {"vertices": nodes, "tets": elems}
 

@@ -72,7 +72,8 @@ pub fn grad_batch<'py>(
 }
 
 /// `[Run]`, one per dict of `values` (each sets parameters on a copy of `scene`); one
-/// `ConvergenceWarning` if any run has steps that missed a positive tolerance.
+/// `ConvergenceWarning` if any run has steps that missed a positive tolerance, another naming
+/// the first run whose unconverged step made energy in a scene without an energy source.
 #[pyfunction]
 pub fn simulate_batch<'py>(
     py: Python<'py>,
@@ -86,14 +87,19 @@ pub fn simulate_batch<'py>(
     let mut unconverged = false;
     let mut crossed = false;
     let mut inverted = false;
+    let mut gain = None;
     let mut soft: Vec<String> = Vec::new();
     let results = each(py, &runs, |s| s.rollout(steps))?;
     let runs: Vec<Run> = runs
         .iter()
         .zip(results)
-        .map(|(s, r)| {
+        .enumerate()
+        .map(|(k, (s, r))| {
             let r = r?;
             unconverged |= s.inner.settings.tolerance > 0.0 && r.unconverged_steps() > 0;
+            if gain.is_none() {
+                gain = diffsoft::output::solver_energy_gain(&s.inner.model, &r.stats).map(|g| (k, g));
+            }
             crossed |= r.interpenetrating_steps() > 0;
             if diffsoft::output::folded(r.max_inverted_tets(), s.inner.model.tets().len()) {
                 inverted = true;
@@ -108,6 +114,9 @@ pub fn simulate_batch<'py>(
         .collect::<PyResult<_>>()?;
     if unconverged {
         crate::warn::unconverged(py)?;
+    }
+    if let Some((k, g)) = gain {
+        crate::warn::energy_gain(py, &g, Some(k))?;
     }
     if crossed {
         crate::warn::interpenetration(py)?;

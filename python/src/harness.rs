@@ -43,7 +43,7 @@ pub fn bounds<'py>(
         }
     };
     let report = interrupt::run(py, || -> PyResult<_> {
-        let loaded = diffsoft::mesh::load(&mesh).map_err(errors::mesh)?;
+        let loaded = diffsoft::mesh::load(&mesh).map_err(errors::mesh)?.scaled(scale);
         let params = BoundsParams {
             rho,
             mu,
@@ -52,7 +52,7 @@ pub fn bounds<'py>(
             method,
             empirical,
         };
-        analyze(&loaded.mesh.scaled(scale), &loaded.info, &params).map_err(|e| errors::value(e.to_string()))
+        analyze(&loaded.mesh, &loaded.info, &params).map_err(|e| errors::value(e.to_string()))
     })??;
     arrays::report(py, &report)
 }

@@ -191,7 +191,10 @@ pub fn get<'py>(py: Python<'py>, model: &Model, inputs: &Inputs, name: &str) -> 
 /// The derivative of the loss with respect to parameter `name`.
 pub fn derivative<'py>(py: Python<'py>, model: &Model, g: &Gradient, name: Name) -> PyResult<Bound<'py, PyAny>> {
     Ok(match name {
-        Name::Scalar(p) => p.derivative(model, g).into_pyobject(py)?.into_any(),
+        Name::Scalar(p) => {
+            p.check_applies(model).map_err(errors::diff)?;
+            p.derivative(model, g).into_pyobject(py)?.into_any()
+        }
         Name::Array(a) => match a {
             ArrayParam::InitialPositions => arrays::vectors(py, g.q0.clone())?,
             ArrayParam::InitialVelocities => arrays::vectors(py, g.v0.clone())?,

@@ -203,7 +203,7 @@ impl Scene {
             crate::warn::unconverged(py)?;
         }
         if let Some(g) = diffsoft::output::solver_energy_gain(&s.inner.model, &r.stats) {
-            crate::warn::energy_gain(py, &g)?;
+            crate::warn::energy_gain(py, &g, None)?;
         }
         if r.interpenetrating_steps() > 0 {
             crate::warn::interpenetration(py)?;

@@ -83,13 +83,15 @@ pub(crate) fn unconverged(py: Python<'_>) -> PyResult<()> {
 
 /// The `ConvergenceWarning` of a run with an unconverged step that raised the total energy of
 /// a scene without an energy source (`diffsoft::output::solver_energy_gain`): energy the
-/// solver made, not the physics.
-pub(crate) fn energy_gain(py: Python<'_>, g: &diffsoft::output::EnergyGain) -> PyResult<()> {
+/// solver made, not the physics. `item` names the run of a batch it came from (the first
+/// such run of `simulate_batch`), `None` for `Scene.simulate`.
+pub(crate) fn energy_gain(py: Python<'_>, g: &diffsoft::output::EnergyGain, item: Option<usize>) -> PyResult<()> {
+    let run = item.map_or(String::new(), |k| format!("run {k} of the batch (values[{k}]): "));
     at_caller(
         py,
         &category(py, "ConvergenceWarning"),
         &format!(
-            "diffsoft: step {} stopped at max_iterations and raised the total energy from {:.4e} J to {:.4e} J in a scene with no energy source (no actuators or joint torques): that energy is the solver's, not the physics'; lower dt or raise max_iterations (Scene.configure) until no step gains energy",
+            "diffsoft: {run}step {} stopped at max_iterations and raised the total energy from {:.4e} J to {:.4e} J in a scene with no energy source (no actuators or joint torques): that energy is the solver's, not the physics'; lower dt or raise max_iterations (Scene.configure) until no step gains energy",
             g.step, g.before, g.after
         ),
     )

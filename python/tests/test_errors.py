@@ -226,6 +226,11 @@ def test_a_capped_step_that_makes_energy_is_named():
             box(nu).simulate(30)
         said = [str(w.message) for w in seen]
         assert any("raised the total energy" in m for m in said) == named, said
+    # A batch names the first run that made energy (here the second: values[1]).
+    with pytest.warns(diffsoft.ConvergenceWarning) as seen:
+        diffsoft.simulate_batch(box(0.3), 30, [{}, {"poisson_ratio": 0.4999999}])
+    said = [str(w.message) for w in seen if "raised the total energy" in str(w.message)]
+    assert len(said) == 1 and "run 1 of the batch (values[1])" in said[0], said
 
 
 def test_box_cells_and_arguments_are_read_exactly():
@@ -307,3 +312,19 @@ def test_an_unconverged_gradient_is_a_convergence_error(beam):
         [{}],
         match="did not converge",
     )
+
+
+def test_a_parameter_that_applies_to_nothing_is_refused():
+    """A scene with cloth alone has no body: setting or differentiating a body's material or
+    density changed nothing and returned a zero derivative (get() already refused)."""
+    flag = diffsoft.Scene.load(REPO / "verification/scenes/ball_on_cloth.json").to_dict()
+    flag["bodies"] = []
+    flag.pop("collisions")
+    cloth = diffsoft.Scene.from_dict(flag)
+    for name in ("density", "youngs_modulus", "poisson_ratio"):
+        with pytest.raises(diffsoft.InputError, match=f"nothing that '{name}' applies to"):
+            cloth.set(name, 1000.0 if name != "poisson_ratio" else 0.3)
+        with pytest.raises(diffsoft.InputError, match=f"nothing that '{name}' applies to"):
+            cloth.grad(2, params=[name])
+    _, d = cloth.grad(2, params=["gravity.y"])
+    assert d["gravity.y"] != 0.0

@@ -394,6 +394,20 @@ def test_a_surface_mesh_tetrahedralizes_and_simulates():
     assert com[10] < com[0] and run.positions[-1, :, 1].min() > -0.06
 
 
+def test_tetgen_s_few_tets_above_the_bound_are_accepted():
+    """The bound steers TetGen's refinement and its optimisation leaves a few tets above it (the
+    bar of examples/python/surface_to_scene.py: 4 of 397 at 2e-5, up to 1.26 times): those
+    meshes are returned, as the example needs; the volume is still filled exactly."""
+    v, f = cube_surface()
+    v = v * [0.4, 0.1, 0.1]
+    for bound in (2e-5, 1e-5, 2e-6):
+        mesh = diffsoft.mesh.tetrahedralize(v, f, max_volume=bound)
+        tv, tt = mesh["vertices"], mesh["tets"]
+        volumes = np.abs(np.linalg.det(tv[tt[:, 1:]] - tv[tt[:, :1]])) / 6
+        assert volumes.sum() == pytest.approx(0.004, rel=1e-12)
+        assert volumes.max() <= 2 * bound and (volumes > bound).mean() < 0.05, (bound, volumes.max() / bound)
+
+
 def test_bad_surfaces_are_refused_with_the_problem_named():
     v, f = cube_surface()
     with pytest.raises(diffsoft.InputError, match="open: 3 edges"):

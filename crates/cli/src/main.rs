@@ -329,8 +329,9 @@ impl MeshArgs {
             LoadOptions {
                 min_quality: self.min_tet_quality,
             },
-        )?;
-        let mesh = loaded.mesh.scaled(self.scale);
+        )?
+        .scaled(self.scale);
+        let mesh = loaded.mesh;
         // Volumes go like the cube of the coordinates: they must neither overflow nor vanish.
         let reach = mesh.vertices.iter().map(|v| v.amax()).fold(0.0, f64::max);
         let cube = reach.powi(3);
@@ -455,7 +456,7 @@ fn run(command: Command) -> Result<()> {
                 bail!("need 0 < --dt-min < --dt-max and --points >= 2 (got {lo}, {hi}, {points})");
             }
             let pts = sweep::sweep(&sys, &spectrum, &log_space(lo, hi, points), spectrum.method)?;
-            let report = diffsoft_harness::SweepReport::new(&info.path, input.rho, input.mu, mark_dt, &spectrum, pts);
+            let report = diffsoft_harness::SweepReport::new(&info, input.rho, input.mu, mark_dt, &spectrum, pts);
             emit(
                 &diffsoft_harness::sweep_summary(&report),
                 &report,

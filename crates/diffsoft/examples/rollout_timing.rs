@@ -2,7 +2,7 @@
 //! `examples/python/rollout_timing.py`, which times `Scene.simulate` on the same scene, so the
 //! cost of the Python layer is the ratio of the two medians (docs/python.md, "Overhead").
 //!
-//! `cargo run --release --example rollout_timing -- [SCENE] [STEPS] [REPEATS]`
+//! `cargo run --release -p diffsoft --example rollout_timing -- [SCENE] [STEPS] [REPEATS]`
 //! (defaults: verification/scenes/baymax_skeleton.json, 100 steps, 15 repeats).
 
 use std::time::Instant;

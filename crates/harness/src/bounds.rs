@@ -56,6 +56,10 @@ pub struct SweepReport {
 pub struct SweepInputs {
     /// Mesh file.
     pub mesh_file: String,
+    /// The factor the file's coordinates were multiplied by (`--scale`).
+    pub mesh_scale: f64,
+    /// The quality threshold every tet passed (`--min-tet-quality`).
+    pub min_tet_quality: f64,
     /// Density (kg/m^3).
     pub rho: f64,
     /// Stiffness coefficient of `L` (Pa).
@@ -65,9 +69,9 @@ pub struct SweepInputs {
 }
 
 impl SweepReport {
-    /// Assemble a sweep report.
+    /// Assemble a sweep report of the mesh `mesh` read (its file, scale and quality threshold).
     pub fn new(
-        mesh_file: &str,
+        mesh: &MeshInfo,
         rho: f64,
         mu: f64,
         mark_dt: Option<f64>,
@@ -77,7 +81,9 @@ impl SweepReport {
         Self {
             header: Header::new(SWEEP_SCHEMA),
             inputs: SweepInputs {
-                mesh_file: mesh_file.to_string(),
+                mesh_file: mesh.path.clone(),
+                mesh_scale: mesh.scale,
+                min_tet_quality: mesh.min_quality,
                 rho,
                 mu,
                 mark_dt,
@@ -328,9 +334,9 @@ pub(crate) fn run_mesh(
     sweep_points: usize,
 ) -> Result<SuiteMeshResult> {
     let path = base.join(&entry.mesh);
-    let loaded = mesh::load(&path)?;
-    let scaled = loaded.mesh.scaled(entry.scale);
-    let fem = FemOperators::new(&scaled)?;
+    let loaded = mesh::load(&path)?.scaled(entry.scale);
+    let scaled = &loaded.mesh;
+    let fem = FemOperators::new(scaled)?;
     let volume = fem.total_volume();
     let rho = entry.total_mass / volume;
     // Reference implementation: corotated weight E/(1+nu) V and volume weight nu E/(1+nu) V, both
@@ -352,7 +358,7 @@ pub(crate) fn run_mesh(
         empirical,
     };
     let report =
-        bounds::analyze(&scaled, &loaded.info, &params).with_context(|| format!("suite mesh '{}'", entry.name))?;
+        bounds::analyze(scaled, &loaded.info, &params).with_context(|| format!("suite mesh '{}'", entry.name))?;
 
     let sys = IterationSystem::from_fem(&fem, Coefficient::Uniform(rho), Coefficient::Uniform(mu), &attachments)?;
     let t = Instant::now();
@@ -384,7 +390,7 @@ pub(crate) fn run_mesh(
     let lo = lo.min(entry.dt / 10.0);
     let hi = hi.max(entry.dt * 10.0);
     let pts = sweep::sweep(&sys, &dense, &log_space(lo, hi, sweep_points), EigenMethod::Dense)?;
-    let sweep_report = SweepReport::new(&loaded.info.path, rho, mu, Some(entry.dt), &dense, pts);
+    let sweep_report = SweepReport::new(&loaded.info, rho, mu, Some(entry.dt), &dense, pts);
     let slug: String = entry
         .name
         .chars()

@@ -118,6 +118,7 @@ pub(crate) fn grad(a: GradArgs) -> Result<()> {
     }
     let mut sc = diffsoft::scene::load(&scene, diffsoft::scene::LoadOptions::default())?;
     a.overrides.apply(&mut sc.settings)?;
+    let mut overrides = std::collections::BTreeMap::new();
     for s in &a.set {
         let (name, value) = s
             .split_once('=')
@@ -128,8 +129,12 @@ pub(crate) fn grad(a: GradArgs) -> Result<()> {
             .parse()
             .map_err(|_| anyhow::anyhow!("--set {s}: '{value}' is not a number"))?;
         p.set(&mut sc.model, v)?;
+        overrides.insert(p.to_string(), v);
     }
     let params: Vec<Param> = a.param.iter().map(|p| p.parse()).collect::<Result<_, _>>()?;
+    for p in &params {
+        p.check_applies(&sc.model).map_err(|e| anyhow::anyhow!("--param {e}"))?;
+    }
     if let Some(k) = (1..a.param.len()).find(|&k| a.param[..k].contains(&a.param[k])) {
         bail!("--param {}: given twice; give each parameter once", a.param[k]);
     }
@@ -219,6 +224,8 @@ pub(crate) fn grad(a: GradArgs) -> Result<()> {
             loss: g.loss,
             parameters: values,
             gradient,
+            overrides,
+            settings: sc.settings.clone(),
             stats: g.stats,
         };
         save(path, &out, &[&scene])?;

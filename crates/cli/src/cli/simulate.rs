@@ -126,6 +126,7 @@ pub(crate) fn simulate(
         size: model_size,
         settings: sim.settings().clone(),
         damping_per_second: sim.settings().damping_per_second(),
+        activations: activations.iter().cloned().collect(),
         certificate: sim.certificate().clone(),
         summary: RunSummary::of(&[]),
         steps: Vec::new(),

@@ -84,11 +84,18 @@ fn m_matrix_mesh_has_null_split_critical_dt() {
         "1",
         "--dt",
         "10",
+        "--scale",
+        "0.5",
+        "--min-tet-quality",
+        "1e-6",
         "--json",
         json.to_str().unwrap(),
     ]);
     assert!(out.status.success());
     let r: Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    // The report says how the file was read: its scale and quality threshold.
+    assert_eq!(r["mesh"]["source"]["scale"], 0.5);
+    assert_eq!(r["mesh"]["source"]["min_quality"], 1e-6);
     assert!(r["split"]["critical_dt"].is_null());
     assert_eq!(r["split"]["converges"], true);
     assert_eq!(r["appendix_b"]["holds"], true);
@@ -148,6 +155,8 @@ fn sweep_writes_json_and_svg() {
         "9",
         "--mark-dt",
         "0.01",
+        "--scale",
+        "2",
         "--json",
         json.to_str().unwrap(),
         "--svg",
@@ -156,6 +165,8 @@ fn sweep_writes_json_and_svg() {
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let r: Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     assert_eq!(r["schema"], "diffsoft.sweep/1");
+    assert_eq!(r["inputs"]["mesh_scale"], 2.0);
+    assert_eq!(r["inputs"]["min_tet_quality"], 1e-9);
     let pts = r["points"].as_array().unwrap();
     assert_eq!(pts.len(), 9);
     // rho(G19) grows like dt^2 along the sweep.

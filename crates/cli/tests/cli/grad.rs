@@ -24,6 +24,10 @@ fn grad_cli(scene: &std::path::Path, set: Option<f64>, json: &std::path::Path) -
     let out = cmd.output().unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(json).unwrap()).unwrap();
+    // The report holds what the run was given: the --set values and the solver's settings.
+    assert_eq!(v["overrides"]["youngs_modulus"].as_f64(), set, "{v}");
+    assert_eq!(v["settings"]["max_iterations"], 10, "{v}");
+    assert_eq!(v["settings"]["tolerance"], 0.0, "{v}");
     (
         v["loss"].as_f64().unwrap(),
         v["gradient"]["youngs_modulus"].as_f64().unwrap(),

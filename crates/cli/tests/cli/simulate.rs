@@ -181,3 +181,26 @@ fn chebyshev_with_certification_off_runs_unchecked() {
         "{stdout}"
     );
 }
+
+/// `--activation NAME=A` holds a group for the whole run, and the run log records it beside the
+/// settings (the frames alone showed the held value).
+#[test]
+fn held_activations_are_recorded_in_the_run_log() {
+    let dir = tmp_dir("cli-activation");
+    let out = Command::new(env!("CARGO_BIN_EXE_diffsoft"))
+        .args(["--threads", "1", "simulate"])
+        .arg(paper("droneman/droneman.json"))
+        .args(["--steps", "2", "--every", "0", "--out"])
+        .arg(&dir)
+        .args(["--activation", "pneumatic3=0.25", "--activation", "pneumatic0=0.5"])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let log: Value = serde_json::from_str(&std::fs::read_to_string(dir.join("run.json")).unwrap()).unwrap();
+    assert_eq!(
+        log["activations"],
+        serde_json::json!({ "pneumatic0": 0.5, "pneumatic3": 0.25 }),
+        "{}",
+        log["activations"]
+    );
+}

@@ -400,13 +400,13 @@ impl DiffStats {
         }
         if self.implicit_residual > ADJOINT_RESIDUAL_WARNING {
             out.push(format!(
-                "the implicit adjoint stopped at a relative residual of {:.1e} (its iteration cap): the gradient is accurate to about that; raise the implicit iteration cap, or use unrolled mode",
+                "the implicit adjoint stopped at a relative residual of {:.1e} (its iteration cap): the adjoint's share of the gradient's error is about that (the gradient is the converged steps', so a forward stopped at a loose tolerance or a fixed iteration count adds its own error, docs/gradients.md); raise the implicit iteration cap, or use unrolled mode",
                 self.implicit_residual
             ));
         }
         if self.contact_residual > ADJOINT_RESIDUAL_WARNING {
             out.push(format!(
-                "the linearized contact systems of the backward pass stopped at a relative residual of {:.1e}: the gradient is accurate to about that",
+                "the linearized contact systems of the backward pass stopped at a relative residual of {:.1e}: the backward's share of the gradient's error is about that",
                 self.contact_residual
             ));
         }

@@ -436,7 +436,8 @@ impl Param {
         (self.access().0)(model)
     }
 
-    /// Set the parameter in `model` (every body), updating what depends on it.
+    /// Set the parameter in `model` (every body), updating what depends on it; an error if it
+    /// applies to nothing there ([`Param::check_applies`]).
     pub fn set(&self, model: &mut Model, value: f64) -> Result<(), DiffError> {
         if !value.is_finite() {
             return Err(DiffError::Input(format!(
@@ -444,7 +445,38 @@ impl Param {
                 crate::base::number(value)
             )));
         }
+        self.check_applies(model)?;
         (self.access().1)(model, value)
+    }
+
+    /// An error when the parameter applies to nothing in `model` (a material parameter of a
+    /// scene with cloth alone, gravity where nothing has gravity): setting it would change
+    /// nothing, and its derivative would be a zero that no input produced.
+    ///
+    /// ```
+    /// use diffsoft::diff::params::Param;
+    /// use diffsoft::mesh::generate::BoxSpec;
+    /// use diffsoft::{BodySpec, MassSpec, Material, ModelBuilder};
+    ///
+    /// let mesh = BoxSpec::new([1, 1, 1], [0.1, 0.1, 0.1]).build()?;
+    /// let material = Material { youngs_modulus: 1e5, poisson_ratio: 0.3 };
+    /// let mut body = BodySpec::new("box", mesh, material, MassSpec::Density(1000.0));
+    /// body.gravity = false;
+    /// let model = ModelBuilder::new().body(body).build()?;
+    /// let density: Param = "density".parse()?;
+    /// assert!(density.check_applies(&model).is_ok());
+    /// let gravity: Param = "gravity.y".parse()?;
+    /// let err = gravity.check_applies(&model).unwrap_err().to_string();
+    /// assert!(err.contains("nothing that 'gravity.y' applies to"), "{err}");
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
+    pub fn check_applies(&self, model: &Model) -> Result<(), DiffError> {
+        match self.get(model) {
+            Err(DiffError::Input(m)) if m.starts_with(NOTHING_APPLIES) => Err(DiffError::Input(format!(
+                "{self}: {m}, so there is nothing to set or differentiate"
+            ))),
+            _ => Ok(()),
+        }
     }
 
     /// `dL/d(parameter)` from a gradient of `model`.
@@ -525,6 +557,9 @@ pub fn values_description() -> String {
     )
 }
 
+/// The start of the error of a parameter that applies to nothing in a model ([`uniform`]).
+const NOTHING_APPLIES: &str = "the model has nothing that";
+
 fn uniform(name: &str, values: impl Iterator<Item = f64>) -> Result<f64, DiffError> {
     let mut first = None;
     for v in values {
@@ -538,7 +573,7 @@ fn uniform(name: &str, values: impl Iterator<Item = f64>) -> Result<f64, DiffErr
             _ => {}
         }
     }
-    first.ok_or_else(|| DiffError::Input(format!("the model has nothing that '{name}' applies to")))
+    first.ok_or_else(|| DiffError::Input(format!("{NOTHING_APPLIES} '{name}' applies to")))
 }
 
 /// Which Young's moduli the tets have after a change of material.

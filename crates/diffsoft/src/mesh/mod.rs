@@ -65,6 +65,12 @@ pub struct MeshInfo {
     pub first_reoriented: Vec<usize>,
     /// Non-tet elements skipped (Gmsh: points, lines, triangles, ...).
     pub skipped_elements: usize,
+    /// The quality threshold every tet passed ([`LoadOptions::min_quality`]).
+    pub min_quality: f64,
+    /// The factor the file's coordinates were multiplied by ([`LoadedMesh::scaled`]; 1 as
+    /// read). A scene's bodies place their meshes by their own scale, rotation and translation,
+    /// which the scene records.
+    pub scale: f64,
     /// For each kept vertex, its id in the file's own numbering.
     #[serde(skip)]
     pub file_ids: Vec<i64>,
@@ -77,6 +83,34 @@ pub struct LoadedMesh {
     pub mesh: TetMesh,
     /// Loading details.
     pub info: MeshInfo,
+}
+
+impl LoadedMesh {
+    /// The mesh with its coordinates multiplied by `s` (the paper's "Scale"), the factor
+    /// recorded in [`MeshInfo::scale`].
+    ///
+    /// ```
+    /// use diffsoft::mesh;
+    ///
+    /// let dir = std::env::temp_dir().join(format!("diffsoft-doc-scaled-{}", std::process::id()));
+    /// std::fs::create_dir_all(&dir)?;
+    /// let path = dir.join("one.obj");
+    /// std::fs::write(&path, "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nt 1 2 3 4\n")?;
+    /// let small = mesh::load(&path)?.scaled(0.05);
+    /// assert_eq!(small.info.scale, 0.05);
+    /// assert_eq!(small.mesh.vertices[1].x, 0.05);
+    /// # std::fs::remove_dir_all(&dir)?;
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
+    pub fn scaled(self, s: f64) -> LoadedMesh {
+        LoadedMesh {
+            mesh: self.mesh.scaled(s),
+            info: MeshInfo {
+                scale: self.info.scale * s,
+                ..self.info
+            },
+        }
+    }
 }
 
 /// Options for reading and validating meshes.
@@ -300,6 +334,8 @@ impl TetMesh {
                 reoriented_tets: reoriented,
                 first_reoriented,
                 skipped_elements: raw.skipped_elements,
+                min_quality: opts.min_quality,
+                scale: 1.0,
                 file_ids,
             },
         })

@@ -7,6 +7,7 @@ use serde::Serialize;
 
 use crate::diff::{DiffStats, Mode};
 use crate::report::Header;
+use crate::solver::Settings;
 
 /// Schema of `diffsoft grad --json`.
 pub const GRAD_SCHEMA: &str = "diffsoft.grad/1";
@@ -38,6 +39,12 @@ pub struct GradReport {
     /// `d loss / d parameter` for each parameter, by name (loss unit per parameter unit).
     #[schemars(schema_with = "crate::diff::params::values_schema")]
     pub gradient: BTreeMap<String, f64>,
+    /// Parameters set before the run (`--set NAME=VALUE`), by name, in the registry's units.
+    #[schemars(schema_with = "crate::diff::params::values_schema")]
+    pub overrides: BTreeMap<String, f64>,
+    /// The solver settings of the run, the command line's overrides applied (`damping` is the
+    /// velocity factor per step).
+    pub settings: Settings,
     /// Cost and accuracy of the forward and backward passes.
     pub stats: DiffStats,
 }

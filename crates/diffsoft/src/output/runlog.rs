@@ -301,6 +301,9 @@ pub struct RunLog {
     pub settings: Settings,
     /// The velocity damping over one second, `damping^(1/dt)`: what a time-step override keeps.
     pub damping_per_second: f64,
+    /// Actuator groups held at one activation for the whole run (`--activation NAME=A`), by
+    /// group name (empty: none held).
+    pub activations: std::collections::BTreeMap<String, f64>,
     /// Certification outcome.
     pub certificate: Certificate,
     /// Summary.

@@ -20,7 +20,7 @@ pub fn summary(s: &SceneTradeoff) -> String {
         .collect();
     let _ = writeln!(
         o,
-        "  {}: {} vertices, {} tets{}, h = {:e} s, {} steps of h; reference {} at h/{}; {} settings: {ran} ran, {resolved} resolved to another row, {} stopped with an error ({} s on {:?} workers)",
+        "  {}: {} vertices, {} tets{}, h = {:e} s, {} steps of h; reference {} at h/{}; {} settings: {ran} ran, {resolved} resolved to another row, {} stopped with an error ({:.1} s on {:?} workers)",
         s.name,
         sc.vertices,
         sc.tets,
@@ -31,7 +31,7 @@ pub fn summary(s: &SceneTradeoff) -> String {
         s.inputs.reference_divisor,
         s.rows.len(),
         failed.len(),
-        s.wall_time_s.round(),
+        s.wall_time_s,
         s.method.workers
     );
     let mut kinds: BTreeMap<String, usize> = BTreeMap::new();

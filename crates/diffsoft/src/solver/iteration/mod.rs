@@ -124,11 +124,12 @@ pub(crate) fn build(
     system: &System,
 ) -> Result<(Box<dyn StepIteration>, Certificate), SolverError> {
     let h = system.h();
-    if model.collision.is_some() && model.skeleton.is_some() {
-        return Err(SolverError::input(
-            "collisions between bodies with a skeleton are not supported yet (bone vertices in a pair contact)",
-        ));
-    }
+    // Models are built only through `ModelBuilder::build`, which refuses collisions between
+    // bodies with a skeleton naming the scene's file and a bone.
+    debug_assert!(
+        model.collision.is_none() || model.skeleton.is_none(),
+        "the model builder refuses collisions with a skeleton"
+    );
     let control = InnerControl {
         tolerance: settings.inner_absolute_tolerance(model),
         max_iterations: settings.inner_max_iterations,
