@@ -204,12 +204,13 @@ def tetrahedralize(
     check: bool = True,
 ) -> dict[str, NDArray[Any]]:
     """Tets filling the closed triangle surface ``(vertices (n, 3), faces (k, 3))``, with TetGen
-    (the ``tetgen`` package, an optional dependency: ``pip install "./python[mesh]"`` from a checkout) at quality
-    (radius-edge ratio at most ``min_ratio``) and tets of volume at most ``max_volume`` (none by
-    default; the bound steers TetGen's refinement, and its mesh optimisation can leave a few tets
-    up to about a third above it; a tet more than twice above it raises ``InputError``). The surface is checked first (``check_surface``): open, non-manifold,
-    inconsistently oriented or self-intersecting surfaces raise ``InputError``. Returns
-    ``{"vertices": (n, 3) float64, "tets": (m, 4) int64}``."""
+    (the ``tetgen`` package, an optional dependency: ``pip install "./python[mesh]"`` from a
+    checkout) at quality (radius-edge ratio at most ``min_ratio``) and tets of volume at most
+    ``max_volume`` (none by default; the bound steers TetGen's refinement, and its mesh
+    optimisation can leave a few tets up to about a third above it; a tet more than twice above
+    it raises ``InputError``). The surface is checked first (``check_surface``): open,
+    non-manifold, inconsistently oriented or self-intersecting surfaces raise ``InputError``.
+    Returns ``{"vertices": (n, 3) float64, "tets": (m, 4) int64}``."""
     v, f = _surface_arrays(vertices, faces)
     if max_volume is not None:
         max_volume = _real(max_volume, "max_volume", "tetrahedralize")
@@ -234,7 +235,8 @@ def tetrahedralize(
         import tetgen  # type: ignore[import-not-found, import-untyped, unused-ignore]
     except ImportError as e:
         raise UnsupportedError(
-            "tetrahedralize needs the optional 'tetgen' package: pip install \"./python[mesh]\" from a diffsoft checkout (or pip install tetgen)"
+            "tetrahedralize needs the optional 'tetgen' package: "
+            'pip install "./python[mesh]" from a diffsoft checkout (or pip install tetgen)'
         ) from e
     t = tetgen.TetGen(v, f.astype(np.int32))
     try:

@@ -67,7 +67,10 @@ def test_the_wrappers_warn_at_the_callers_line(loose, ground):
         diffsoft.jax.simulate(loose, 3, {"youngs_modulus": jnp.asarray(1e20)})
         vline = _line() + 1
         jax.jit(jax.vmap(lambda x: diffsoft.jax.simulate(loose, 3, {"youngs_modulus": x})))(jnp.asarray([1e20, 2e20]))
-    assert [(w.category, w.filename, w.lineno) for w in caught] == [
+    # The batch's run at E = 2e20 also makes energy in a capped step: named too, at the same line.
+    gained = [w for w in caught if "raised the total energy" in str(w.message)]
+    assert [(w.category, w.filename, w.lineno) for w in gained] == [(diffsoft.ConvergenceWarning, __file__, vline)]
+    assert [(w.category, w.filename, w.lineno) for w in caught if w not in gained] == [
         (diffsoft.ConvergenceWarning, __file__, line),
         (diffsoft.ConvergenceWarning, __file__, jline),
         (diffsoft.ConvergenceWarning, __file__, vline),

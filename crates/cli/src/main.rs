@@ -263,7 +263,8 @@ enum Command {
         /// accepted too).
         #[arg(long = "json", short = 'o', alias = "out")]
         out: PathBuf,
-        /// Trade-off plots go into this directory (default: the output's directory).
+        /// Trade-off plots go into this directory (default: the output's directory; the working
+        /// directory with `--json -`).
         #[arg(long)]
         svg_dir: Option<PathBuf>,
     },

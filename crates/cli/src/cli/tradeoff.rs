@@ -85,7 +85,8 @@ pub(crate) struct TradeoffArgs {
     /// Write the JSON report (or the shard's partial report) here (`-`: standard output).
     #[arg(long)]
     json: Option<PathBuf>,
-    /// Write the SVG plots into this directory (default: the JSON's directory).
+    /// Write the SVG plots into this directory (default: the JSON's directory; the working
+    /// directory without `--json` or with `--json -`).
     #[arg(long)]
     svg_dir: Option<PathBuf>,
 }
