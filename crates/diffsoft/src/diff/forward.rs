@@ -189,6 +189,11 @@ pub(crate) struct Forward {
     pub one_iteration: usize,
     /// Steps that ended with a joint at one of its limits (a kink of the loss).
     pub at_limit: usize,
+    /// The steps' estimated distances from their converged solutions
+    /// ([`StepStats::distance_to_converged`]), summed, relative to the length scale.
+    pub gap: f64,
+    /// The RMS distance the vertices moved in each step, summed, relative to the length scale.
+    pub motion: f64,
 }
 
 impl Forward {
@@ -363,7 +368,11 @@ pub(crate) fn forward(
         first_swept: None,
         one_iteration: 0,
         at_limit: 0,
+        gap: 0.0,
+        motion: 0.0,
     };
+    let mut previous_q = sim.state().q.clone();
+    let rms = (n.max(1) as f64).sqrt() * model.length_scale;
     f.q.push(&sim.state().q);
     f.v.push(&sim.state().v);
     f.time.push(0.0);
@@ -397,6 +406,11 @@ pub(crate) fn forward(
             f.first_swept.get_or_insert((k + 1, st.swept_pairs));
         }
         f.one_iteration += usize::from(st.converged && st.iterations == 1 && settings.tolerance > 0.0);
+        f.gap += st.distance_to_converged();
+        let q = &sim.state().q;
+        let moved: f64 = q.iter().zip(&previous_q).map(|(a, b)| (a - b).norm_squared()).sum();
+        f.motion += moved.sqrt() / rms;
+        previous_q.copy_from_slice(q);
         if let Some(sk) = sim.skeleton() {
             joints.iter_mut().for_each(|j| *j = 0.0);
             sk.scalars(&mut joints);

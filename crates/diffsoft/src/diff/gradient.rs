@@ -379,6 +379,11 @@ pub fn gradient_on(
             unconverged_steps: fwd.flagged,
             one_iteration_steps: fwd.one_iteration,
             joint_limit_steps: fwd.at_limit,
+            forward_gap: if implicit && fwd.motion > 0.0 {
+                fwd.gap / fwd.motion
+            } else {
+                0.0
+            },
             solver: resolved,
             ..Default::default()
         },

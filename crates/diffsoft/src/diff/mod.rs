@@ -350,6 +350,13 @@ pub struct DiffStats {
     pub joint_limit_steps: usize,
     /// Implicit mode: largest final relative change of an adjoint fixed point (1).
     pub implicit_residual: f64,
+    /// Implicit mode: how far the forward's steps stopped from their converged solutions,
+    /// against how far the bodies moved (the steps' estimated distances from convergence,
+    /// [`crate::StepStats::distance_to_converged`], summed over the steps, over the summed RMS
+    /// distance the vertices moved in them; 0 in unrolled mode or when nothing moved). Implicit
+    /// mode differentiates the converged steps, so its gradient differs from the derivative of
+    /// the run's own loss by about this share (docs/gradients.md).
+    pub forward_gap: f64,
     /// Passes over the linearized contact systems: dense refinement steps (one per solve with
     /// a factor, docs/method.md Eq. C5; one for a set with no touching contact) and
     /// Gauss-Seidel sweeps (sets beyond the dense path).
@@ -370,10 +377,19 @@ pub struct DiffStats {
 /// accuracy a gradient check needs (converged runs end near 1e-12 and 1e-14).
 pub const ADJOINT_RESIDUAL_WARNING: f64 = 1e-6;
 
+/// An implicit-mode [`DiffStats::forward_gap`] above this is warned about: the gradient then
+/// differs from the derivative of the run's own loss by about 1e-5 or more. The gap estimates
+/// that difference to an order of magnitude: measured 0.4 to 13 times the gap on a clamped
+/// beam at tolerances 1e-2 to 1e-10 and fixed counts of 3 to 30 iterations, on bridgesus and
+/// on Baymax on the ground, 33 times on a free body at two iterations per step (its rate
+/// measured from two changes); docs/gradients.md.
+pub const FORWARD_GAP_WARNING: f64 = 1e-5;
+
 impl DiffStats {
     /// What makes a returned gradient less than trustworthy, one sentence each, for every
     /// gradient path to show (the CLI on standard error, Python as `UserWarning`s): steps at a
-    /// kink of the loss, and adjoint solves that stopped unconverged.
+    /// kink of the loss, adjoint solves that stopped unconverged, and an implicit-mode gradient
+    /// of a forward that stopped far from its converged steps.
     ///
     /// ```
     /// use diffsoft::diff::DiffStats;
@@ -383,6 +399,8 @@ impl DiffStats {
     /// s.nonsmooth_steps = 2;
     /// s.implicit_residual = 1e-3;
     /// assert_eq!(s.warnings(10).len(), 2);
+    /// s.forward_gap = 5e-3;
+    /// assert!(s.warnings(10)[2].contains("5.0e-3 of the distance the bodies moved"));
     /// ```
     pub fn warnings(&self, steps: usize) -> Vec<String> {
         let mut out = Vec::new();
@@ -402,6 +420,12 @@ impl DiffStats {
             out.push(format!(
                 "the implicit adjoint stopped at a relative residual of {:.1e} (its iteration cap): the adjoint's share of the gradient's error is about that (the gradient is the converged steps', so a forward stopped at a loose tolerance or a fixed iteration count adds its own error, docs/gradients.md); raise the implicit iteration cap, or use unrolled mode",
                 self.implicit_residual
+            ));
+        }
+        if self.forward_gap > FORWARD_GAP_WARNING {
+            out.push(format!(
+                "implicit mode differentiates the converged steps, and the forward stopped an estimated {:.1e} of the distance the bodies moved from them (forward_gap in the stats): this gradient can differ from the derivative of the run's own loss by about that much; lower the solver's tolerance (1e-8 or below for implicit mode) or use unrolled mode",
+                self.forward_gap
             ));
         }
         if self.contact_residual > ADJOINT_RESIDUAL_WARNING {

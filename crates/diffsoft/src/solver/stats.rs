@@ -15,6 +15,11 @@ pub struct StepStats {
     pub converged: bool,
     /// Last RMS position change relative to the length scale (1).
     pub relative_change: f64,
+    /// The change of the iteration before the last one of the final contact round, relative to
+    /// the length scale (1; NaN when that round took one iteration): with `relative_change`,
+    /// the rate at which the step's iterations were contracting when they stopped
+    /// ([`StepStats::distance_to_converged`]).
+    pub previous_change: f64,
     /// Inner iterations of the global solver, summed over the step.
     pub global_iterations: usize,
     /// Contacts in the final round.
@@ -69,7 +74,56 @@ pub struct StepStats {
     pub bone_contacts: usize,
 }
 
+/// The largest contraction rate [`StepStats::distance_to_converged`] extrapolates with: a rate
+/// at or above it (iterations that were not contracting when they stopped) counts as this.
+pub const MAX_EXTRAPOLATED_RATE: f64 = 0.99;
+
 impl StepStats {
+    /// Record an iteration's change (relative to the length scale), keeping the one before.
+    pub(crate) fn record_change(&mut self, relative: f64) {
+        self.previous_change = self.relative_change;
+        self.relative_change = relative;
+    }
+
+    /// Start a contact round's iterations: the rate is measured within one round.
+    pub(crate) fn begin_round(&mut self) {
+        self.relative_change = f64::NAN;
+        self.previous_change = f64::NAN;
+    }
+
+    /// Estimated distance of the step's last iterate from the step's converged solution,
+    /// relative to the length scale: for iterations contracting at the rate
+    /// `rho = relative_change / previous_change`, the remaining changes sum to
+    /// `relative_change rho / (1 - rho)` (rho capped at [`MAX_EXTRAPOLATED_RATE`]); the last
+    /// change itself when the round took one iteration (no rate). 0 before any iteration.
+    ///
+    /// ```
+    /// use diffsoft::mesh::generate::BoxSpec;
+    /// use diffsoft::{BodySpec, MassSpec, Material, ModelBuilder, Settings, Simulator};
+    ///
+    /// let mesh = BoxSpec::new([1, 1, 1], [0.1, 0.1, 0.1]).build()?;
+    /// let material = Material { youngs_modulus: 1e5, poisson_ratio: 0.3 };
+    /// let body = BodySpec::new("box", mesh, material, MassSpec::Density(1000.0));
+    /// let mut s = Simulator::new(ModelBuilder::new().body(body).build()?, Settings::default())?.step()?;
+    /// (s.previous_change, s.relative_change) = (1e-4, 5e-5);
+    /// assert!((s.distance_to_converged() - 5e-5).abs() < 1e-18); // rho = 1/2
+    /// (s.previous_change, s.relative_change) = (1e-4, 2e-4);
+    /// assert!((s.distance_to_converged() - 2e-4 * 99.0).abs() < 1e-15); // not contracting
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
+    pub fn distance_to_converged(&self) -> f64 {
+        let last = self.relative_change;
+        if !last.is_finite() {
+            return if last.is_nan() { 0.0 } else { f64::INFINITY };
+        }
+        let prev = self.previous_change;
+        if !(prev.is_finite() && prev > 0.0) {
+            return last;
+        }
+        let rho = (last / prev).min(MAX_EXTRAPOLATED_RATE);
+        last * rho / (1.0 - rho)
+    }
+
     /// The figures of step `step` (1-based) ending at `time`, before it runs.
     pub(crate) fn new(step: usize, time: f64) -> Self {
         Self {
@@ -78,6 +132,7 @@ impl StepStats {
             iterations: 0,
             converged: false,
             relative_change: f64::NAN,
+            previous_change: f64::NAN,
             global_iterations: 0,
             contacts: 0,
             contact_rounds: 0,

@@ -109,6 +109,31 @@ fn implicit_matches_unrolled_at_convergence() {
         (a - b).abs() > 1e-6 * a.abs(),
         "truncated: unrolled {a:e} implicit {b:e}"
     );
+    // The converged forward is at its fixed points; the truncated one is not, and implicit
+    // mode says so, estimating the gap to the run's own derivative (unrolled mode's, at a fixed
+    // iteration count) to an order of magnitude (0.4-13 times on other scenes, 33 here).
+    assert!(
+        i.stats.forward_gap < 1e-8 && i.stats.warnings(case.steps).is_empty(),
+        "{:?}",
+        i.stats
+    );
+    assert_eq!(
+        u.stats.forward_gap, 0.0,
+        "unrolled mode differentiates the iterations run"
+    );
+    let gap = gi.stats.forward_gap;
+    let off = (a - b).abs() / a.abs();
+    assert!(
+        gap > diff::FORWARD_GAP_WARNING && (gap / 10.0..gap * 100.0).contains(&off),
+        "gap {gap:e}, off by {off:e}"
+    );
+    let warned = gi.stats.warnings(3);
+    assert!(
+        warned
+            .iter()
+            .any(|w| w.contains("implicit mode differentiates the converged steps")),
+        "{warned:?}"
+    );
 }
 
 /// What the backward pass does not cover is refused with a clear error, and bad

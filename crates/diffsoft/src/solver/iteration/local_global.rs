@@ -111,6 +111,7 @@ impl StepIteration for LocalGlobal {
         let tol = cx.tolerance();
         let nf = cx.system.n();
         let rms = (nf.max(1) as f64).sqrt();
+        stats.begin_round();
         let mut energy_prev = f64::INFINITY;
         let mut accelerated = false;
         for _ in 0..cx.settings.max_iterations {
@@ -147,7 +148,7 @@ impl StepIteration for LocalGlobal {
                     stats.step, stats.iterations
                 )));
             }
-            stats.relative_change = change / cx.model.length_scale;
+            stats.record_change(change / cx.model.length_scale);
             if change <= tol {
                 stats.converged = true;
                 break;

@@ -280,6 +280,7 @@ impl StepIteration for Newton {
         observer: &mut dyn StepObserver,
     ) -> Result<(), SolverError> {
         let (model, settings, system) = (cx.model, cx.settings, cx.system);
+        stats.begin_round();
         let (constraints, w) = (&mut *cx.constraints, &mut *cx.work);
         let nw = self;
         let cs = &cx.contacts.free[..];
@@ -451,7 +452,7 @@ impl StepIteration for Newton {
                     stats.step, stats.iterations
                 )));
             }
-            stats.relative_change = change / model.length_scale;
+            stats.record_change(change / model.length_scale);
             if change <= tol && full_step && !state_changed && friction_moved <= tol {
                 stats.converged = true;
                 break;

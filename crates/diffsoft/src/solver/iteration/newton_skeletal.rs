@@ -554,6 +554,7 @@ impl StepIteration for NewtonSkeletalIteration {
         stats: &mut StepStats,
         observer: &mut dyn StepObserver,
     ) -> Result<(), SolverError> {
+        stats.begin_round();
         newton_skeletal_loop(&mut self.newton, &mut self.step, cx, stats)?;
         if observer.records_iterations() {
             observer.iterate(&cx.work.x, cx.skeleton.as_deref());
@@ -727,7 +728,7 @@ fn newton_skeletal_loop(
                 stats.step, stats.iterations
             )));
         }
-        stats.relative_change = change / model.length_scale;
+        stats.record_change(change / model.length_scale);
         if change <= tol && full_step {
             stats.converged = true;
             break;
