@@ -95,7 +95,7 @@ impl LoadedMesh {
     /// let dir = std::env::temp_dir().join(format!("diffsoft-doc-scaled-{}", std::process::id()));
     /// std::fs::create_dir_all(&dir)?;
     /// let path = dir.join("one.obj");
-    /// std::fs::write(&path, "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nt 1 2 3 4\n")?;
+    /// std::fs::write(&path, "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nt 0 1 2 3\n")?;
     /// let small = mesh::load(&path)?.scaled(0.05);
     /// assert_eq!(small.info.scale, 0.05);
     /// assert_eq!(small.mesh.vertices[1].x, 0.05);
