@@ -215,3 +215,39 @@ fn cli_names_come_from_the_registry_and_the_settings() {
     let err = String::from_utf8_lossy(&bad.stderr);
     assert!(err.contains("time step must be finite and positive, got -1"), "{err}");
 }
+
+/// A parameter that applies to nothing in the scene (a body's density with cloth alone) is an
+/// error naming it, whether differentiated or set (it returned 0 and changed nothing).
+#[test]
+fn a_parameter_that_applies_to_nothing_is_refused() {
+    let dir = crate::common::tmp_dir("grad-nothing-applies");
+    let flag = crate::common::root().join("verification/paper/cloth_ball/flag2.obj");
+    let scene = dir.join("cloth_only.json");
+    let text = format!(
+        r#"{{ "schema": "diffsoft.scene/1", "time_step": 0.005, "gravity": [0, -9.81, 0],
+            "cloths": [{{ "name": "flag", "mesh": {:?}, "stretching": 2000, "bending": 0.0005,
+                          "area_density": 0.3, "fixed": {{ "indices": [3, 6, 7] }} }}] }}"#,
+        flag.to_str().unwrap()
+    );
+    std::fs::write(&scene, text).unwrap();
+    let run = |args: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_diffsoft"))
+            .args(["--threads", "1", "grad"])
+            .arg(&scene)
+            .args(["--steps", "2"])
+            .args(args)
+            .output()
+            .unwrap()
+    };
+    for args in [
+        &["--param", "density"][..],
+        &["--param", "gravity.y", "--set", "density=5"][..],
+    ] {
+        let out = run(args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
+        assert!(err.contains("nothing that 'density' applies to"), "{args:?}: {err}");
+    }
+    let out = run(&["--param", "gravity.y"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+}
