@@ -179,7 +179,7 @@ pub fn solver(e: SolverError) -> PyErr {
 pub fn diff(e: DiffError) -> PyErr {
     let class = match e {
         DiffError::Solver(s) => return solver(s),
-        DiffError::Input(_) => Class::Input,
+        DiffError::Input(_) | DiffError::NothingApplies { .. } => Class::Input,
         DiffError::Unsupported(_) => Class::Unsupported,
         DiffError::Unconverged { .. } | DiffError::CappedSolves { .. } => {
             // The library's advice ("allow unconverged steps explicitly"), as Python spells it.

@@ -1,17 +1,9 @@
 //! The command-line tool: JSON fields of `bounds`, clear errors with exit status 1, `sweep`
 //! outputs, and the suite's rejection of unknown keys.
 
-use std::process::Command;
-
 use crate::common::{root, tmp_dir, write};
+use crate::run::{diffsoft, generate_box};
 use serde_json::Value;
-
-fn diffsoft(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_diffsoft"))
-        .args(args)
-        .output()
-        .unwrap()
-}
 
 #[test]
 fn bounds_writes_the_documented_json_fields() {
@@ -63,15 +55,7 @@ fn bounds_writes_the_documented_json_fields() {
 fn m_matrix_mesh_has_null_split_critical_dt() {
     let dir = tmp_dir("cli-mmatrix");
     let mesh = dir.join("box.msh");
-    let gen = diffsoft(&[
-        "generate",
-        "--cells",
-        "3,3,3",
-        "--size",
-        "1,2,1",
-        "--out",
-        mesh.to_str().unwrap(),
-    ]);
+    let gen = generate_box("3,3,3", "1,2,1", &mesh);
     assert!(gen.status.success(), "{}", String::from_utf8_lossy(&gen.stderr));
     let json = dir.join("b.json");
     let out = diffsoft(&[

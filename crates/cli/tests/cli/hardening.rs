@@ -3,31 +3,13 @@
 //! library the way the user would and checks the exit status, the message and the files.
 
 use std::path::Path;
-use std::process::{Command, Output};
+use std::process::Command;
 
 use crate::common::{cube_scene, root, tmp_dir, write};
+use crate::run::{diffsoft, generate_box, json, stderr, stdout};
 use diffsoft::diff::{self, Controls, DiffError, Mode, Options, Param};
 
 const DENSITY: &str = r#", "density": 1000"#;
-
-fn diffsoft(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_diffsoft"))
-        .args(args)
-        .output()
-        .unwrap()
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-fn stdout(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stdout).into_owned()
-}
-
-fn json(path: &Path) -> serde_json::Value {
-    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
-}
 
 /// A free-falling two-tet cube so stiff (E = 1e20) that the local-global iteration cannot meet
 /// its tolerance within the cap: the gradient of such a run is refused unless asked for.
@@ -1438,15 +1420,7 @@ fn empty_names_are_refused() {
 fn a_capped_step_that_makes_energy_is_named() {
     let dir = tmp_dir("hard-energy-gain");
     let mesh = dir.join("box.obj");
-    let o = diffsoft(&[
-        "generate",
-        "--cells",
-        "2,2,2",
-        "--size",
-        "0.2,0.2,0.2",
-        "--out",
-        mesh.to_str().unwrap(),
-    ]);
+    let o = generate_box("2,2,2", "0.2,0.2,0.2", &mesh);
     assert!(o.status.success(), "{}", stderr(&o));
     for (nu, warned) in [("0.4999999", true), ("0.3", false)] {
         let scene = write(

@@ -6,6 +6,7 @@ mod common {
 mod cli;
 mod grad;
 mod hardening;
+mod run;
 mod schemas;
 mod simulate;
 mod tradeoff;

@@ -1,17 +1,9 @@
 //! `diffsoft tradeoff --shard` and `diffsoft merge`.
 
-use std::process::Command;
-
 use serde_json::Value;
 
 use crate::common::tmp_dir;
-
-fn diffsoft(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_diffsoft"))
-        .args(args)
-        .output()
-        .unwrap()
-}
+use crate::run::diffsoft;
 
 #[test]
 fn cli_shards_and_merge() {

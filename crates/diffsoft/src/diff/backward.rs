@@ -270,6 +270,7 @@ impl<'a> Backward<'a> {
             self.xbar[k] = qbar[v] + vbar[v] * c;
             self.base_acc[k] = Vector3::zeros();
         }
+        let entering = norm(&self.xbar);
         if let Some(sa) = self.skel.as_mut() {
             // Bone vertices after the step sit at q_R(z_{n+1}).
             for (r, &v) in self.sys.rigid.iter().enumerate() {
@@ -317,6 +318,12 @@ impl<'a> Backward<'a> {
         std::mem::swap(&mut self.act_grad, &mut g.activations[step]);
         self.s_bar = s_bar;
         r?;
+        if self.opts.mode == Mode::Unrolled && entering > 0.0 {
+            // What of the step's adjoint reached its starting guess `x_0 = s`: the share of the
+            // converged step's derivative that the iterations run did not carry.
+            let left = norm(&self.xbar) / entering;
+            g.stats.unrolled_leftover = g.stats.unrolled_leftover.max(left);
+        }
         if self.contact.near_kinks > 0 {
             g.stats.nonsmooth_steps += 1;
         }
@@ -411,4 +418,9 @@ impl<'a> Backward<'a> {
         g.stats.contact_sweeps = self.contact.sweeps;
         g.stats.contact_residual = self.contact.worst_residual;
     }
+}
+
+/// The Euclidean norm of stacked vectors.
+fn norm(x: &[Vector3<f64>]) -> f64 {
+    x.iter().map(|v| v.norm_squared()).sum::<f64>().sqrt()
 }

@@ -192,8 +192,6 @@ pub(crate) struct Forward {
     /// The steps' estimated distances from their converged solutions
     /// ([`StepStats::distance_to_converged`]), summed, relative to the length scale.
     pub gap: f64,
-    /// The RMS distance the vertices moved in each step, summed, relative to the length scale.
-    pub motion: f64,
 }
 
 impl Forward {
@@ -369,10 +367,7 @@ pub(crate) fn forward(
         one_iteration: 0,
         at_limit: 0,
         gap: 0.0,
-        motion: 0.0,
     };
-    let mut previous_q = sim.state().q.clone();
-    let rms = (n.max(1) as f64).sqrt() * model.length_scale;
     f.q.push(&sim.state().q);
     f.v.push(&sim.state().v);
     f.time.push(0.0);
@@ -407,10 +402,6 @@ pub(crate) fn forward(
         }
         f.one_iteration += usize::from(st.converged && st.iterations == 1 && settings.tolerance > 0.0);
         f.gap += st.distance_to_converged();
-        let q = &sim.state().q;
-        let moved: f64 = q.iter().zip(&previous_q).map(|(a, b)| (a - b).norm_squared()).sum();
-        f.motion += moved.sqrt() / rms;
-        previous_q.copy_from_slice(q);
         if let Some(sk) = sim.skeleton() {
             joints.iter_mut().for_each(|j| *j = 0.0);
             sk.scalars(&mut joints);

@@ -7,7 +7,7 @@ use std::time::Instant;
 use nalgebra::Vector3;
 
 use super::backward::{Backward, StepInputs};
-use super::forward::{forward, set_controls, Keep};
+use super::forward::{forward, set_controls, Forward, Keep};
 use super::loss::{Loss, LossGrad};
 use super::recording::Recording;
 use super::{Controls, DiffError, DiffStats, Gradient, Mode, Options};
@@ -259,6 +259,30 @@ pub fn gradient_with(
     gradient_on(&Systems::new(), model, settings, steps, controls, loss, opts, progress)
 }
 
+/// Implicit mode's [`DiffStats::forward_gap`]: the steps' estimated distances from their
+/// converged solutions (`Forward::gap`) over the RMS distances the vertices moved in each
+/// step, summed, both relative to the model's length scale; 0 when nothing moved.
+fn forward_gap(model: &Model, fwd: &Forward) -> f64 {
+    let rms = (model.n().max(1) as f64).sqrt() * model.length_scale;
+    let motion: f64 = (1..fwd.q.len())
+        .map(|k| {
+            let moved: f64 = fwd
+                .q
+                .row(k)
+                .iter()
+                .zip(fwd.q.row(k - 1))
+                .map(|(a, b)| (a - b).norm_squared())
+                .sum();
+            moved.sqrt() / rms
+        })
+        .sum();
+    if motion > 0.0 {
+        fwd.gap / motion
+    } else {
+        0.0
+    }
+}
+
 /// [`gradient_with`] on shared systems (see [`Simulator::with_systems`]). The forward pass,
 /// its replays and the backward pass use one global system per step size: assembled, certified
 /// and factored once.
@@ -379,11 +403,7 @@ pub fn gradient_on(
             unconverged_steps: fwd.flagged,
             one_iteration_steps: fwd.one_iteration,
             joint_limit_steps: fwd.at_limit,
-            forward_gap: if implicit && fwd.motion > 0.0 {
-                fwd.gap / fwd.motion
-            } else {
-                0.0
-            },
+            forward_gap: if implicit { forward_gap(model, &fwd) } else { 0.0 },
             solver: resolved,
             ..Default::default()
         },
@@ -550,6 +570,10 @@ pub fn gradient_on(
     }
     g.stats.backward_ms = t1.elapsed().as_secs_f64() * 1e3;
     g.stats.contact_ms = last.contact_ms;
+    if settings.tolerance == 0.0 {
+        // A fixed iteration count: the unrolled gradient is the exact derivative of what ran.
+        g.stats.unrolled_leftover = 0.0;
+    }
     if let Some(what) = g.first_non_finite() {
         return Err(DiffError::NonFiniteGradient { what });
     }

@@ -159,6 +159,16 @@ pub enum DiffError {
         /// Where: the adjoint solve of a step, or the first entry of the result that is not finite.
         what: String,
     },
+    /// A parameter applies to nothing in the model (a material parameter of a scene with cloth
+    /// alone, gravity where nothing has gravity): setting it would change nothing, and its
+    /// derivative would be a zero that no input produced ([`Param::check_applies`]).
+    #[error(
+        "invalid input: {param}: the model has nothing that '{param}' applies to, so there is nothing to set or differentiate"
+    )]
+    NothingApplies {
+        /// The parameter's name.
+        param: String,
+    },
     /// The forward simulation failed.
     #[error(transparent)]
     Solver(#[from] SolverError),
@@ -357,6 +367,15 @@ pub struct DiffStats {
     /// mode differentiates the converged steps, so its gradient differs from the derivative of
     /// the run's own loss by about this share (docs/gradients.md).
     pub forward_gap: f64,
+    /// Unrolled mode on a forward stopped by its tolerance: the largest share of a step's
+    /// adjoint that reached the step's starting guess (`|x_0 bar| / |x_N bar|`, Eq. G1). Each
+    /// iteration's derivative contracts at the iteration's own rate, so where a step met its
+    /// tolerance after few iterations for that rate (a slow iteration, or a starting guess close
+    /// to the solution) the iterations run carry only part of the converged step's derivative,
+    /// and the unrolled gradient differs from it by about this share (docs/gradients.md). 0 in
+    /// implicit mode and with a fixed iteration count (tolerance 0), whose unrolled gradient is
+    /// the exact derivative of what ran.
+    pub unrolled_leftover: f64,
     /// Passes over the linearized contact systems: dense refinement steps (one per solve with
     /// a factor, docs/method.md Eq. C5; one for a set with no touching contact) and
     /// Gauss-Seidel sweeps (sets beyond the dense path).
@@ -386,6 +405,10 @@ pub const ADJOINT_RESIDUAL_WARNING: f64 = 1e-6;
 /// dominates, the elastic parameters' derivatives were off by 75 to 165 times the gap (a free
 /// body in flight, docs/gradients.md).
 pub const FORWARD_GAP_WARNING: f64 = 1e-5;
+
+/// An unrolled-mode [`DiffStats::unrolled_leftover`] above this is warned about: the gradient
+/// can then differ from the converged steps' derivative by about 1e-5 or more of its size.
+pub const UNROLLED_LEFTOVER_WARNING: f64 = 1e-5;
 
 impl DiffStats {
     /// What makes a returned gradient less than trustworthy, one sentence each, for every
@@ -428,6 +451,12 @@ impl DiffStats {
             out.push(format!(
                 "implicit mode differentiates the converged steps, and the forward stopped an estimated {:.1e} of the distance the bodies moved from them (forward_gap in the stats): this gradient can differ from the derivative of the run's own loss by about that much; lower the solver's tolerance (1e-8 or below for implicit mode) or use unrolled mode",
                 self.forward_gap
+            ));
+        }
+        if self.unrolled_leftover > UNROLLED_LEFTOVER_WARNING {
+            out.push(format!(
+                "unrolled mode differentiates the iterations that ran, and in some step {:.1e} of the adjoint was still in the step's starting guess when they stopped (unrolled_leftover in the stats): the forward met its tolerance before the iterations' derivative converged, so this gradient is the derivative of those iterations and can differ from the converged steps' derivative by about that share; for the latter use implicit mode on a converged forward, or a tolerance of 0 with more iterations",
+                self.unrolled_leftover
             ));
         }
         if self.contact_residual > ADJOINT_RESIDUAL_WARNING {

@@ -472,9 +472,7 @@ impl Param {
     /// ```
     pub fn check_applies(&self, model: &Model) -> Result<(), DiffError> {
         match self.get(model) {
-            Err(DiffError::Input(m)) if m.starts_with(NOTHING_APPLIES) => Err(DiffError::Input(format!(
-                "{self}: {m}, so there is nothing to set or differentiate"
-            ))),
+            Err(e @ DiffError::NothingApplies { .. }) => Err(e),
             _ => Ok(()),
         }
     }
@@ -557,9 +555,6 @@ pub fn values_description() -> String {
     )
 }
 
-/// The start of the error of a parameter that applies to nothing in a model ([`uniform`]).
-const NOTHING_APPLIES: &str = "the model has nothing that";
-
 fn uniform(name: &str, values: impl Iterator<Item = f64>) -> Result<f64, DiffError> {
     let mut first = None;
     for v in values {
@@ -573,7 +568,7 @@ fn uniform(name: &str, values: impl Iterator<Item = f64>) -> Result<f64, DiffErr
             _ => {}
         }
     }
-    first.ok_or_else(|| DiffError::Input(format!("{NOTHING_APPLIES} '{name}' applies to")))
+    first.ok_or_else(|| DiffError::NothingApplies { param: name.into() })
 }
 
 /// Which Young's moduli the tets have after a change of material.

@@ -136,6 +136,79 @@ fn implicit_matches_unrolled_at_convergence() {
     );
 }
 
+/// Unrolled mode on a forward stopped by its tolerance differentiates the iterations that ran,
+/// whose derivative contracts at the iteration's rate and can lag the values the tolerance
+/// tests: on bridgesus (10 steps, final barycentre height) the share of a step's adjoint left
+/// in its starting guess (`unrolled_leftover`) estimates how far the gradient's components are
+/// from the converged steps' derivative. Measured against implicit mode on a forward converged
+/// to 1e-12 (itself within 4e-10 of a fixed 3000 iterations per step): 0.5-2 times the largest
+/// component error at tolerances 1e-6 to 1e-12 (docs/gradients.md). The bounds below leave a
+/// factor of 5 either way, an order-of-magnitude estimate's tolerance.
+#[test]
+fn unrolled_leftover_estimates_the_distance_to_the_converged_derivative() {
+    let mut case = diffsoft::testing::bridgesus(
+        &crate::common::root().join("verification/paper/bridgesus/bridgesus.json"),
+        10,
+    )
+    .unwrap();
+    case.settings.max_iterations = 5000;
+    let run = |tolerance: f64, max_iterations: usize, mode| {
+        let mut s = case.settings.clone();
+        s.tolerance = tolerance;
+        s.max_iterations = max_iterations;
+        diff::gradient(
+            &case.model,
+            &s,
+            case.steps,
+            &case.controls,
+            case.loss.as_ref(),
+            Options::mode(mode),
+        )
+        .unwrap()
+    };
+    let components =
+        |g: &diff::Gradient| -> Vec<f64> { g.q0.iter().chain(&g.v0).flat_map(|v| v.iter().copied()).collect() };
+    let reference = run(1e-12, 5000, Mode::Implicit);
+    let r = components(&reference);
+    let size = r.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    for tolerance in [1e-6, 1e-8] {
+        let g = run(tolerance, 5000, Mode::Unrolled);
+        let off = components(&g)
+            .iter()
+            .zip(&r)
+            .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()))
+            / size;
+        let left = g.stats.unrolled_leftover;
+        eprintln!("tolerance {tolerance:e}: leftover {left:e}, components off by {off:e}");
+        assert!(
+            left > diff::UNROLLED_LEFTOVER_WARNING && (off / 5.0..off * 5.0).contains(&left),
+            "tolerance {tolerance:e}: leftover {left:e}, components off by {off:e}"
+        );
+        let warned = g.stats.warnings(case.steps);
+        assert!(
+            warned
+                .iter()
+                .any(|w| w.contains("unrolled mode differentiates the iterations that ran")),
+            "{warned:?}"
+        );
+    }
+    // Converged tightly, nothing is left and nothing is said; implicit mode and a fixed
+    // iteration count (the exact derivative of what ran) report no leftover.
+    let tight = run(1e-12, 5000, Mode::Unrolled);
+    assert!(
+        tight.stats.unrolled_leftover < diff::UNROLLED_LEFTOVER_WARNING,
+        "{:?}",
+        tight.stats
+    );
+    assert!(
+        tight.stats.warnings(case.steps).is_empty(),
+        "{:?}",
+        tight.stats.warnings(case.steps)
+    );
+    assert_eq!(reference.stats.unrolled_leftover, 0.0);
+    assert_eq!(run(0.0, 5, Mode::Unrolled).stats.unrolled_leftover, 0.0);
+}
+
 /// What the backward pass does not cover is refused with a clear error, and bad
 /// skeleton controls and losses are rejected.
 #[test]
