@@ -100,6 +100,12 @@ def test_configure(beam):
         beam.configure(tolerence=1e-3)
     with pytest.raises(ValueError, match="settings"):
         beam.configure(solver="fastest")
+    # Fractions of the length scale beyond reason: refused, naming the setting, unchanged.
+    for name, value in [("tolerance", 1e300), ("inner_tolerance", 1.0), ("contact_margin", 2.0)]:
+        before = beam.settings[name]
+        with pytest.raises(ValueError, match=f"{name} must be"):
+            beam.configure(**{name: value})
+        assert beam.settings[name] == before
 
 
 def test_parameter_names_are_documented():

@@ -519,21 +519,28 @@ fn simulate_takes_tolerance_and_anderson() {
     for step in log["steps"].as_array().unwrap() {
         assert_eq!(step["iterations"].as_u64(), Some(4), "{step}");
     }
-    let bad = diffsoft(&[
-        "simulate",
-        s,
-        "--steps",
-        "1",
-        "--every",
-        "0",
-        "--out",
-        o,
-        "--overwrite",
-        "--tolerance",
-        "-1",
-    ]);
-    assert!(!bad.status.success());
-    assert!(stderr(&bad).contains("tolerance"), "{}", stderr(&bad));
+    // A negative tolerance, and one of the whole length scale or more (every step would stop
+    // at its first iteration): refused, naming it.
+    for (tolerance, message) in [
+        ("-1", "tolerance must be finite and >= 0"),
+        ("1e300", "tolerance must be below 1"),
+    ] {
+        let bad = diffsoft(&[
+            "simulate",
+            s,
+            "--steps",
+            "1",
+            "--every",
+            "0",
+            "--out",
+            o,
+            "--overwrite",
+            "--tolerance",
+            tolerance,
+        ]);
+        assert_eq!(bad.status.code(), Some(1), "{}", stderr(&bad));
+        assert!(stderr(&bad).contains(message), "{}", stderr(&bad));
+    }
 }
 
 /// Collisions between bodies whose contact solve stops at its cap: the steps "converge" (the

@@ -31,15 +31,16 @@ pub struct Settings {
     /// Local-global iteration cap per step.
     pub max_iterations: usize,
     /// Local-global tolerance: a step stops when the RMS change of the positions is below
-    /// `tolerance x length scale` (1; 0: always run the cap, a smooth forward).
+    /// `tolerance x length scale` (1, below 1; 0: always run the cap, a smooth forward).
     pub tolerance: f64,
-    /// Inner iterations stop when no coordinate moves more than this `x length scale` (1).
+    /// Inner iterations stop when no coordinate moves more than this `x length scale` (1, below
+    /// 1).
     pub inner_tolerance: f64,
     /// Inner iteration cap (iterative global solvers, contact sweeps).
     pub inner_max_iterations: usize,
     /// Velocity damping factor per step (1; 1 = none; the paper uses 0.9999).
     pub damping: f64,
-    /// Contact detection margin, as a fraction of the length scale (1).
+    /// Contact detection margin, as a fraction of the length scale (1, at most 1).
     pub contact_margin: f64,
     /// Largest number of detect-and-resolve rounds per step.
     pub contact_rounds: usize,
@@ -120,6 +121,34 @@ impl Settings {
                 ));
             }
         }
+        // All three are fractions of the model's length scale: a change of the whole length
+        // scale per iteration "converged" would stop every step at its first iteration, and a
+        // margin of more than the length scale would put every surface in contact.
+        for (name, v, what) in [
+            (
+                "tolerance",
+                self.tolerance,
+                "every step would stop at its first iteration",
+            ),
+            (
+                "inner_tolerance",
+                self.inner_tolerance,
+                "every inner solve would stop at its first iteration",
+            ),
+        ] {
+            if v >= 1.0 {
+                return bad(format!(
+                    "{name} must be below 1 (a fraction of the model's length scale; at {} {what})",
+                    crate::base::number(v)
+                ));
+            }
+        }
+        if self.contact_margin > 1.0 {
+            return bad(format!(
+                "contact_margin must be at most 1 (a fraction of the model's length scale; at {} surfaces farther apart than the bodies are large would be in contact)",
+                crate::base::number(self.contact_margin)
+            ));
+        }
         if !(self.damping.is_finite() && self.damping > 0.0 && self.damping <= 1.0) {
             return bad(format!(
                 "damping must be in (0, 1], got {}",
@@ -149,6 +178,7 @@ impl Settings {
     /// s.set("tolerance", 1e-8.into())?;
     /// assert_eq!((s.solver, s.tolerance), (SolverKind::Split, 1e-8));
     /// assert!(s.set("tolerance", (-1.0).into()).is_err());
+    /// assert!(s.set("tolerance", 1e300.into()).is_err()); // a fraction of the length scale
     /// assert_eq!(s.tolerance, 1e-8); // unchanged by the refused call
     /// assert!(s.set("no_such_setting", 1.into()).is_err());
     /// # Ok::<(), Box<dyn std::error::Error>>(())
