@@ -498,5 +498,14 @@ fn a_joint_resting_at_its_limit_is_a_counted_kink() {
         .any(|w| w.contains("joint at one of its limits")));
     let free = stats((-0.2, 0.35));
     assert_eq!(free.joint_limit_steps, 0, "{free:?}");
-    assert!(free.warnings(20).is_empty(), "{:?}", free.warnings(20));
+    // (At tolerance 1e-8 the unrolled gradient's lag behind the converged derivative is
+    // warned about too, `unrolled_leftover`; no warning is about a joint limit.)
+    assert!(
+        !free
+            .warnings(20)
+            .iter()
+            .any(|w| w.contains("joint at one of its limits")),
+        "{:?}",
+        free.warnings(20)
+    );
 }
