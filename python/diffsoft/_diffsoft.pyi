@@ -118,11 +118,14 @@ class Scene:
         params: list[str] | None = None,
         mode: str = "unrolled",
         allow_unconverged: bool = False,
+        stats: dict[str, Any] | None = None,
     ) -> tuple[float, dict[str, float | _FloatArray]]:
         """The loss (``final_com.x|y|z``, ``mean_com.x|y|z``, ``joint_angle.BONE``,
         ``mean_joint_angle.BONE``) and its derivatives with respect to ``params``. A forward
         that misses its tolerance (or an unrolled replay that deviates from it) raises
-        ``ConvergenceError`` (a ``RuntimeError``) unless ``allow_unconverged``."""
+        ``ConvergenceError`` (a ``RuntimeError``) unless ``allow_unconverged``. A dict given as
+        ``stats`` is filled with the gradient's statistics (``diffsoft grad --json``'s
+        ``stats``: times, iterations, ``forward_gap``, ``unrolled_leftover``, ...)."""
     def vjp(
         self,
         steps: int,
@@ -131,10 +134,11 @@ class Scene:
         velocity_cotangent: npt.ArrayLike | None = None,
         mode: str = "unrolled",
         allow_unconverged: bool = False,
+        stats: dict[str, Any] | None = None,
     ) -> dict[str, float | _FloatArray]:
         """Gradient of ``sum(cotangent * positions) + sum(velocity_cotangent * velocities)``
-        (both ``(steps + 1, n, 3)``) with respect to ``params``; ``allow_unconverged`` as in
-        ``grad``."""
+        (both ``(steps + 1, n, 3)``) with respect to ``params``; ``allow_unconverged`` and
+        ``stats`` as in ``grad``."""
 
     # Scenes as data, pickling and accessors.
     @staticmethod

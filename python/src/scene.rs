@@ -216,7 +216,10 @@ impl Scene {
 
     /// The loss and its derivatives with respect to `params` (name -> float or ndarray). A
     /// forward that misses its tolerance raises `ConvergenceError` unless `allow_unconverged`.
-    #[pyo3(signature = (steps, loss = "final_com.y", params = None, mode = "unrolled", allow_unconverged = false))]
+    /// A dict passed as `stats` receives the gradient's statistics (`diffsoft grad --json`'s
+    /// `stats`: times, iterations, `forward_gap`, `unrolled_leftover`, ...).
+    #[pyo3(signature = (steps, loss = "final_com.y", params = None, mode = "unrolled", allow_unconverged = false, stats = None))]
+    #[allow(clippy::too_many_arguments)]
     fn grad<'py>(
         slf: PyRef<'py, Self>,
         steps: &Bound<'py, PyAny>,
@@ -224,6 +227,7 @@ impl Scene {
         params: Option<&Bound<'py, PyAny>>,
         mode: &str,
         allow_unconverged: bool,
+        stats: Option<&Bound<'py, PyDict>>,
     ) -> PyResult<Bound<'py, PyTuple>> {
         let steps = crate::args::count(steps, "steps", 1)?;
         let params = params.map_or(Ok(Vec::new()), |p| crate::args::names(p, "params"))?;
@@ -232,6 +236,7 @@ impl Scene {
         let m = self::mode(mode)?;
         let g = interrupt::run(py, || s.gradient(steps, loss, m, allow_unconverged))??;
         warn_one_iteration(py, m, &g, steps)?;
+        fill_stats(py, stats, &g)?;
         let d = grads(py, &s.inner.model, &g, &params)?;
         PyTuple::new(py, [g.loss.into_pyobject(py)?.into_any(), d.into_any()])
     }
@@ -239,7 +244,8 @@ impl Scene {
     /// The gradient of `sum(cotangent * positions) + sum(velocity_cotangent * velocities)` over
     /// the states `0..=steps` (arrays of shape `(steps + 1, n, 3)`) with respect to `params`. A
     /// forward that misses its tolerance raises `ConvergenceError` unless `allow_unconverged`.
-    #[pyo3(signature = (steps, params, cotangent, velocity_cotangent = None, mode = "unrolled", allow_unconverged = false))]
+    /// `stats` as in `grad`.
+    #[pyo3(signature = (steps, params, cotangent, velocity_cotangent = None, mode = "unrolled", allow_unconverged = false, stats = None))]
     #[allow(clippy::too_many_arguments)]
     fn vjp<'py>(
         slf: PyRef<'py, Self>,
@@ -249,6 +255,7 @@ impl Scene {
         velocity_cotangent: Option<&Bound<'py, PyAny>>,
         mode: &str,
         allow_unconverged: bool,
+        stats: Option<&Bound<'py, PyDict>>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let steps = crate::args::count(steps, "steps", 1)?;
         let params = crate::args::names(params, "params")?;
@@ -258,6 +265,7 @@ impl Scene {
         let cot = crate::vjp::cotangent(&s, steps, cotangent, velocity_cotangent, "")?;
         let g = interrupt::run(py, || s.vjp_gradient(steps, &cot, m, allow_unconverged))??;
         warn_one_iteration(py, m, &g, steps)?;
+        fill_stats(py, stats, &g)?;
         grads(py, &s.inner.model, &g, &params)
     }
 
@@ -360,4 +368,16 @@ fn busy<'py>(slf: &Bound<'py, Scene>, method: &str) -> PyResult<PyRefMut<'py, Sc
             "Scene.{method}: the scene is in use by a call running on another thread (a batch or gradcheck); wait for it to return, or change a copy (Scene.copy())"
         ))
     })
+}
+
+/// Put a gradient's statistics into the caller's `stats` dict, if one was given (cleared first).
+fn fill_stats(py: Python<'_>, stats: Option<&Bound<'_, PyDict>>, g: &diffsoft::Gradient) -> PyResult<()> {
+    let Some(out) = stats else { return Ok(()) };
+    let value = serde_json::to_value(g.stats).map_err(|e| pyo3::exceptions::PyRuntimeError::new_err(e.to_string()))?;
+    out.clear();
+    let filled = arrays::json(py, &value)?;
+    for (k, v) in filled.cast::<PyDict>()?.iter() {
+        out.set_item(k, v)?;
+    }
+    Ok(())
 }

@@ -211,3 +211,36 @@ def test_unrolled_mode_warns_about_steps_converged_in_one_iteration(ground):
         ground.grad(5, params=["youngs_modulus"], mode="implicit")
         ground.configure(tolerance=0.0, max_iterations=30)
         ground.grad(5, params=["youngs_modulus"], mode="unrolled")
+
+
+def test_statistics_are_returned_on_request(beam):
+    """``stats=`` receives the gradient's statistics: at a tolerance the unrolled gradient's
+    ``unrolled_leftover`` (the share of a step's derivative its iterations left out, warned
+    above 1e-5), at a fixed iteration count 0, in implicit mode ``forward_gap``; ``vjp`` too."""
+    import warnings
+
+    fixed: dict = {"stale": 1}
+    beam.grad(5, params=["youngs_modulus"], stats=fixed)
+    assert "stale" not in fixed
+    assert fixed["forward_iterations"] == 5 * 15 and fixed["unrolled_leftover"] == 0.0
+    beam.configure(tolerance=1e-4, max_iterations=1000)
+    loose: dict = {}
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        beam.grad(5, params=["youngs_modulus"], stats=loose)
+    assert loose["unrolled_leftover"] > 1e-5, loose
+    assert any("unrolled_leftover" in str(w.message) for w in caught)
+    implicit: dict = {}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        beam.grad(5, params=["youngs_modulus"], mode="implicit", stats=implicit)
+    assert implicit["unrolled_leftover"] == 0.0 and implicit["forward_gap"] > 0.0
+    cot = np.zeros((6, beam.n_vertices, 3))
+    cot[-1, :, 1] = 1.0
+    from_vjp: dict = {}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        beam.vjp(5, ["youngs_modulus"], cot, stats=from_vjp)
+    assert from_vjp["unrolled_leftover"] > 1e-5
+    with pytest.raises(TypeError):
+        beam.grad(5, stats=[])
