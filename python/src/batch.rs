@@ -64,7 +64,7 @@ pub fn grad_batch<'py>(
         .zip(results)
         .map(|(s, g)| {
             let g = g?;
-            scene::warn_one_iteration(py, m, &g, steps)?;
+            scene::warn_stats(py, &g, steps)?;
             let d = scene::grads(py, &s.inner.model, &g, &params)?;
             PyTuple::new(py, [g.loss.into_pyobject(py)?.into_any(), d.into_any()])
         })

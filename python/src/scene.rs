@@ -11,7 +11,7 @@ use crate::errors;
 use crate::interrupt;
 use crate::params::{self, Inputs, Value};
 use crate::run::Run;
-use crate::scene_core::{grads, mode, names, warn_one_iteration, Scene};
+use crate::scene_core::{grads, mode, names, warn_stats, Scene};
 
 #[pymethods]
 impl Scene {
@@ -235,7 +235,7 @@ impl Scene {
         names(&params)?;
         let m = self::mode(mode)?;
         let g = interrupt::run(py, || s.gradient(steps, loss, m, allow_unconverged))??;
-        warn_one_iteration(py, m, &g, steps)?;
+        warn_stats(py, &g, steps)?;
         fill_stats(py, stats, &g)?;
         let d = grads(py, &s.inner.model, &g, &params)?;
         PyTuple::new(py, [g.loss.into_pyobject(py)?.into_any(), d.into_any()])
@@ -264,7 +264,7 @@ impl Scene {
         let m = self::mode(mode)?;
         let cot = crate::vjp::cotangent(&s, steps, cotangent, velocity_cotangent, "")?;
         let g = interrupt::run(py, || s.vjp_gradient(steps, &cot, m, allow_unconverged))??;
-        warn_one_iteration(py, m, &g, steps)?;
+        warn_stats(py, &g, steps)?;
         fill_stats(py, stats, &g)?;
         grads(py, &s.inner.model, &g, &params)
     }

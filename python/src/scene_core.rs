@@ -117,19 +117,12 @@ impl Scene {
     }
 }
 
-/// A `UserWarning` at the caller's line ([`crate::warn`]) when unrolled mode went through
-/// steps that met the tolerance in their first iteration (their derivative is that one
-/// iteration's, not the converged step's; see `DiffStats::one_iteration_steps`), and one for
-/// each of `DiffStats::warnings` (steps at a kink of the loss, adjoint solves that stopped
-/// unconverged).
-pub(crate) fn warn_one_iteration(py: Python<'_>, mode: Mode, g: &diffsoft::Gradient, steps: usize) -> PyResult<()> {
+/// A `UserWarning` at the caller's line ([`crate::warn`]) for each of `DiffStats::warnings`
+/// (unrolled steps that met the tolerance in their first iteration, steps at a kink of the
+/// loss, adjoint solves that stopped unconverged, a forward or its iterations' derivative far
+/// from converged).
+pub(crate) fn warn_stats(py: Python<'_>, g: &diffsoft::Gradient, steps: usize) -> PyResult<()> {
     let warn = |message: String| crate::warn::user(py, &message);
-    if mode == Mode::Unrolled && g.stats.one_iteration_steps > 0 {
-        // No count in the text: Python's filter shows a warning once per call site and text.
-        warn(
-            "diffsoft: forward steps met the tolerance in their first iteration; unrolled mode differentiates that one iteration, not the converged step (use mode='implicit', or a tolerance of 0 with a fixed iteration count)".to_string(),
-        )?;
-    }
     for w in g.stats.warnings(steps) {
         warn(w)?;
     }

@@ -128,7 +128,7 @@ pub fn vjp_batch<'py>(
         .zip(results)
         .map(|(s, g)| {
             let g = g?;
-            scene::warn_one_iteration(py, m, &g, steps)?;
+            scene::warn_stats(py, &g, steps)?;
             scene::grads(py, &s.inner.model, &g, &params)
         })
         .collect()

@@ -205,12 +205,6 @@ pub(crate) fn grad(a: GradArgs) -> Result<()> {
             g.stats.unconverged_steps, a.steps, g.stats.replay_deviation
         );
     }
-    if a.mode == diff::Mode::Unrolled && g.stats.one_iteration_steps > 0 {
-        say!(
-            "warning: {} of {} forward steps met the tolerance in their first iteration; unrolled mode differentiates that one iteration, not the converged step (use --mode implicit, or --tolerance 0 with a fixed --max-iterations)",
-            g.stats.one_iteration_steps, a.steps
-        );
-    }
     for w in g.stats.warnings(a.steps) {
         warn!("warning: {w}");
     }

@@ -42,6 +42,10 @@ pub(crate) struct Backward<'a> {
     pub(super) opts: Options,
     /// The implicit adjoint's tolerance ([`Options::implicit_tolerance_for`]).
     pub(super) implicit_tol: f64,
+    /// Measure [`DiffStats::unrolled_leftover`](super::DiffStats::unrolled_leftover): unrolled
+    /// mode on a forward stopped by its tolerance (at a fixed iteration count the unrolled
+    /// gradient is the exact derivative of what ran, and nothing is left over).
+    pub(super) measure_leftover: bool,
     pub(super) n: usize,
     pub(super) nf: usize,
     // adjoints in the free numbering
@@ -108,13 +112,15 @@ pub(crate) struct StepInputs<'r> {
 impl<'a> Backward<'a> {
     /// The backward pass of steps of `scheme` (the time step and integrator of the steps it
     /// will differentiate) on `sys`, the forward pass's system of that scheme (its factor is
-    /// shared, not recomputed); every buffer is allocated here.
+    /// shared, not recomputed), of a forward solved to `tolerance` (0: a fixed iteration
+    /// count); every buffer is allocated here.
     pub(crate) fn new(
         model: &'a Model,
         scheme: Scheme,
         sys: Arc<System>,
         opts: Options,
         implicit_tol: f64,
+        tolerance: f64,
     ) -> Result<Self, DiffError> {
         let direct = sys.direct(InnerControl {
             tolerance: 0.0,
@@ -159,6 +165,7 @@ impl<'a> Backward<'a> {
             direct,
             opts,
             implicit_tol,
+            measure_leftover: opts.mode == Mode::Unrolled && tolerance > 0.0,
             n,
             nf,
         };
@@ -270,7 +277,7 @@ impl<'a> Backward<'a> {
             self.xbar[k] = qbar[v] + vbar[v] * c;
             self.base_acc[k] = Vector3::zeros();
         }
-        let entering = norm(&self.xbar);
+        let entering = if self.measure_leftover { norm(&self.xbar) } else { 0.0 };
         if let Some(sa) = self.skel.as_mut() {
             // Bone vertices after the step sit at q_R(z_{n+1}).
             for (r, &v) in self.sys.rigid.iter().enumerate() {
@@ -318,7 +325,7 @@ impl<'a> Backward<'a> {
         std::mem::swap(&mut self.act_grad, &mut g.activations[step]);
         self.s_bar = s_bar;
         r?;
-        if self.opts.mode == Mode::Unrolled && entering > 0.0 {
+        if entering > 0.0 {
             // What of the step's adjoint reached its starting guess `x_0 = s`: the share of the
             // converged step's derivative that the iterations run did not carry.
             let left = norm(&self.xbar) / entering;

@@ -190,7 +190,8 @@ pub(crate) struct Forward {
     /// Steps that ended with a joint at one of its limits (a kink of the loss).
     pub at_limit: usize,
     /// The steps' estimated distances from their converged solutions
-    /// ([`StepStats::distance_to_converged`]), summed, relative to the length scale.
+    /// ([`StepStats::distance_to_converged`]), those with contacts between bodies weighted by
+    /// [`super::PAIR_CONTACT_GAP_WEIGHT`], summed, relative to the length scale.
     pub gap: f64,
 }
 
@@ -401,7 +402,13 @@ pub(crate) fn forward(
             f.first_swept.get_or_insert((k + 1, st.swept_pairs));
         }
         f.one_iteration += usize::from(st.converged && st.iterations == 1 && settings.tolerance > 0.0);
-        f.gap += st.distance_to_converged();
+        // Contacts between bodies carry the stopping error into the derivative amplified.
+        let weight = if st.pair_contacts > 0 {
+            super::PAIR_CONTACT_GAP_WEIGHT
+        } else {
+            1.0
+        };
+        f.gap += st.distance_to_converged() * weight;
         if let Some(sk) = sim.skeleton() {
             joints.iter_mut().for_each(|j| *j = 0.0);
             sk.scalars(&mut joints);

@@ -401,7 +401,7 @@ pub fn gradient_on(
             forward_ms,
             forward_iterations: fwd.iterations,
             unconverged_steps: fwd.flagged,
-            one_iteration_steps: fwd.one_iteration,
+            one_iteration_steps: if implicit { 0 } else { fwd.one_iteration },
             joint_limit_steps: fwd.at_limit,
             forward_gap: if implicit { forward_gap(model, &fwd) } else { 0.0 },
             solver: resolved,
@@ -430,6 +430,7 @@ pub fn gradient_on(
         ))?,
         opts,
         implicit_tol,
+        settings.tolerance,
     )?;
     let mut bw_first: Option<Backward> = None;
     // Implicit mode with a skeleton replays too: it linearizes the step's last iteration.
@@ -512,7 +513,7 @@ pub fn gradient_on(
                 Some(b) => b,
                 None => {
                     let system = ie_system.take().expect("a BDF2 run keeps its first step's system");
-                    let mut b = Backward::new(model, ie, system, opts, implicit_tol)?;
+                    let mut b = Backward::new(model, ie, system, opts, implicit_tol, settings.tolerance)?;
                     // The skeleton's adjoint of z_1 carries over from the later steps.
                     if let (Some(dst), Some(src)) = (b.skel.as_mut(), bw.skel.as_ref()) {
                         dst.z_bar.copy_from_slice(&src.z_bar);
@@ -570,10 +571,6 @@ pub fn gradient_on(
     }
     g.stats.backward_ms = t1.elapsed().as_secs_f64() * 1e3;
     g.stats.contact_ms = last.contact_ms;
-    if settings.tolerance == 0.0 {
-        // A fixed iteration count: the unrolled gradient is the exact derivative of what ran.
-        g.stats.unrolled_leftover = 0.0;
-    }
     if let Some(what) = g.first_non_finite() {
         return Err(DiffError::NonFiniteGradient { what });
     }

@@ -342,11 +342,11 @@ pub struct DiffStats {
     /// Forward steps that stopped at the iteration cap, or in which a global or contact solve
     /// stopped unconverged (capped or stalled).
     pub unconverged_steps: usize,
-    /// Forward steps that met the tolerance in their first local-global iteration (their first
-    /// iterate was already the fixed point, e.g. a body at rest or moving rigidly). Unrolled
-    /// mode differentiates the iterations run, so through such a step it returns one
-    /// iteration's derivative, not the converged step's (docs/gradients.md); implicit mode and
-    /// fixed iteration counts (tolerance 0) are unaffected.
+    /// Unrolled mode: forward steps that met the tolerance in their first local-global
+    /// iteration (their first iterate was already the fixed point, e.g. a body at rest or
+    /// moving rigidly). Unrolled mode differentiates the iterations run, so through such a step
+    /// it returns one iteration's derivative, not the converged step's (docs/gradients.md); 0
+    /// in implicit mode and at fixed iteration counts (tolerance 0), which are unaffected.
     pub one_iteration_steps: usize,
     /// Steps whose contact solves ended near a switch of regime (`diff::contact::KINK_MARGIN`):
     /// a contact touching with near-zero gap and impulse, or sticking at the friction cone's
@@ -362,10 +362,11 @@ pub struct DiffStats {
     pub implicit_residual: f64,
     /// Implicit mode: how far the forward's steps stopped from their converged solutions,
     /// against how far the bodies moved (the steps' estimated distances from convergence,
-    /// [`crate::StepStats::distance_to_converged`], summed over the steps, over the summed RMS
-    /// distance the vertices moved in them; 0 in unrolled mode or when nothing moved). Implicit
-    /// mode differentiates the converged steps, so its gradient differs from the derivative of
-    /// the run's own loss by about this share (docs/gradients.md).
+    /// [`crate::StepStats::distance_to_converged`], summed over the steps, those with contacts
+    /// between bodies weighted by [`PAIR_CONTACT_GAP_WEIGHT`], over the summed RMS distance the
+    /// vertices moved in them; 0 in unrolled mode or when nothing moved). Implicit mode
+    /// differentiates the converged steps, so its gradient differs from the derivative of the
+    /// run's own loss by about this share (docs/gradients.md).
     pub forward_gap: f64,
     /// Unrolled mode on a forward stopped by its tolerance: the largest share of a step's
     /// adjoint that reached the step's starting guess (`|x_0 bar| / |x_N bar|`, Eq. G1). Each
@@ -406,15 +407,27 @@ pub const ADJOINT_RESIDUAL_WARNING: f64 = 1e-6;
 /// body in flight, docs/gradients.md).
 pub const FORWARD_GAP_WARNING: f64 = 1e-5;
 
+/// The weight of a step with contacts between bodies in [`DiffStats::forward_gap`]: there the
+/// forward's stopping error reaches the implicit gradient amplified by how the contact set
+/// carries it. Measured (docs/gradients.md): a box resting on a cloth, 20 steps, at tolerances
+/// 1e-8 to 1e-12, the largest component of the initial-state gradient 390 to 430 times the
+/// unweighted gap off the converged derivative with friction and about 1 000 times without;
+/// a ball dropped on a cloth, 0.7 to 1.2 times; the box away from the cloth, 0.3 to 0.5 times.
+/// Weighted by the largest, the box's gap was 0.66 to 2.5 times its error over 20 to 40 steps
+/// (an order of magnitude, not a bound; an overestimate on the ball).
+pub const PAIR_CONTACT_GAP_WEIGHT: f64 = 1e3;
+
 /// An unrolled-mode [`DiffStats::unrolled_leftover`] above this is warned about: the gradient
 /// can then differ from the converged steps' derivative by about 1e-5 or more of its size.
 pub const UNROLLED_LEFTOVER_WARNING: f64 = 1e-5;
 
 impl DiffStats {
     /// What makes a returned gradient less than trustworthy, one sentence each, for every
-    /// gradient path to show (the CLI on standard error, Python as `UserWarning`s): steps at a
-    /// kink of the loss, adjoint solves that stopped unconverged, and an implicit-mode gradient
-    /// of a forward that stopped far from its converged steps.
+    /// gradient path to show (the CLI on standard error, Python as `UserWarning`s): unrolled
+    /// steps that met the tolerance in their first iteration, steps at a kink of the loss,
+    /// adjoint solves that stopped unconverged, and a gradient of a forward that stopped far
+    /// from its converged steps (implicit mode) or of iterations whose derivative had not
+    /// converged (unrolled mode).
     ///
     /// ```
     /// use diffsoft::diff::DiffStats;
@@ -429,6 +442,12 @@ impl DiffStats {
     /// ```
     pub fn warnings(&self, steps: usize) -> Vec<String> {
         let mut out = Vec::new();
+        if self.one_iteration_steps > 0 {
+            out.push(format!(
+                "{} of {steps} forward steps met the tolerance in their first iteration; unrolled mode differentiates that one iteration, not the converged step (one_iteration_steps in the stats; use implicit mode, or a tolerance of 0 with a fixed iteration count)",
+                self.one_iteration_steps
+            ));
+        }
         if self.nonsmooth_steps > 0 {
             out.push(format!(
                 "{} of {steps} steps ended with a contact at a switch of regime (touching with near-zero gap and force, or sticking at the friction cone's boundary): the loss has a kink there, this gradient is one of its one-sided derivatives or between them, and central differences across the kink disagree with it (nonsmooth_steps in the stats)",
@@ -449,7 +468,7 @@ impl DiffStats {
         }
         if self.forward_gap > FORWARD_GAP_WARNING {
             out.push(format!(
-                "implicit mode differentiates the converged steps, and the forward stopped an estimated {:.1e} of the distance the bodies moved from them (forward_gap in the stats): this gradient can differ from the derivative of the run's own loss by about that much; lower the solver's tolerance (1e-8 or below for implicit mode) or use unrolled mode",
+                "implicit mode differentiates the converged steps, and the forward stopped an estimated {:.1e} of the distance the bodies moved from them (forward_gap in the stats; steps with contacts between bodies weigh 1000 times): this gradient can differ from the derivative of the run's own loss by about that much; lower the solver's tolerance (1e-8 or below for implicit mode) or use unrolled mode",
                 self.forward_gap
             ));
         }

@@ -209,6 +209,64 @@ fn unrolled_leftover_estimates_the_distance_to_the_converged_derivative() {
     assert_eq!(run(0.0, 5, Mode::Unrolled).stats.unrolled_leftover, 0.0);
 }
 
+/// Implicit mode through contacts between bodies: a box thrown onto a cloth
+/// (`verification/scenes/box_on_cloth.json`, in contact from step 2) carries the forward's
+/// stopping error into the gradient amplified (20 steps at tolerance 1e-10: the initial-state
+/// gradient 8.3e-4 off the converged derivative, 390 times the unweighted gap of 2.1e-6), so
+/// `forward_gap` weighs such steps by `PAIR_CONTACT_GAP_WEIGHT` and warns. Reference: implicit
+/// mode on a forward converged to 1e-14 (within about 1e-7 of a fixed 6 000 iterations per
+/// step, docs/gradients.md). Bounds: the error is a real one (above the warning threshold), and
+/// the weighted gap (2.5 times it here; 0.66-140 times over 10-40 steps) is within an order of
+/// magnitude of it, as an estimate's tolerance.
+#[test]
+fn implicit_gradients_through_contacts_between_bodies_warn_of_the_forward_gap() {
+    let path = crate::common::root().join("verification/scenes/box_on_cloth.json");
+    let scene = diffsoft::scene::load(&path, diffsoft::scene::LoadOptions::default()).unwrap();
+    let com_y = loss::CenterOfMass {
+        direction: nalgebra::Vector3::y(),
+        time_average: false,
+        vertices: None,
+    };
+    let run = |tolerance: f64| {
+        let mut s = scene.settings.clone();
+        s.tolerance = tolerance;
+        s.max_iterations = 20_000;
+        diff::gradient(
+            &scene.model,
+            &s,
+            20,
+            &Controls::default(),
+            &com_y,
+            Options::mode(Mode::Implicit),
+        )
+        .unwrap()
+    };
+    let components =
+        |g: &diff::Gradient| -> Vec<f64> { g.q0.iter().chain(&g.v0).flat_map(|v| v.iter().copied()).collect() };
+    let reference = run(1e-14);
+    let r = components(&reference);
+    let size = r.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let g = run(1e-10);
+    let off = components(&g)
+        .iter()
+        .zip(&r)
+        .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()))
+        / size;
+    let gap = g.stats.forward_gap;
+    eprintln!("box on cloth, tolerance 1e-10: components off by {off:e}, forward_gap {gap:e}");
+    assert!(
+        off > diff::FORWARD_GAP_WARNING && (off / 5.0..off * 50.0).contains(&gap),
+        "off {off:e}, gap {gap:e}"
+    );
+    let warned = g.stats.warnings(20);
+    assert!(
+        warned
+            .iter()
+            .any(|w| w.contains("implicit mode differentiates the converged steps")),
+        "{warned:?}"
+    );
+}
+
 /// What the backward pass does not cover is refused with a clear error, and bad
 /// skeleton controls and losses are rejected.
 #[test]
