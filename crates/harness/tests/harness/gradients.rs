@@ -23,6 +23,26 @@ fn assert_passes(case: &Case) {
     assert!(d.tets > 0, "{}: the dual check skipped every tet", c.name);
 }
 
+/// Largest difference of the initial-state derivatives (`dL/dq_0`, `dL/dv_0`) of `g` from those
+/// of `reference`, relative to the reference's largest.
+fn initial_state_error(g: &diff::Gradient, reference: &diff::Gradient) -> f64 {
+    let components =
+        |g: &diff::Gradient| -> Vec<f64> { g.q0.iter().chain(&g.v0).flat_map(|v| v.iter().copied()).collect() };
+    let r = components(reference);
+    let size = r.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    components(g)
+        .iter()
+        .zip(&r)
+        .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()))
+        / size
+}
+
+/// Assert that one of `g`'s warnings (over `steps` steps) contains `text`.
+fn assert_warns(g: &diff::Gradient, steps: usize, text: &str) {
+    let warned = g.stats.warnings(steps);
+    assert!(warned.iter().any(|w| w.contains(text)), "{warned:?}");
+}
+
 #[test]
 fn free_body_gradients_match_finite_differences() {
     assert_passes(&diffsoft::testing::free_body(4).unwrap());
@@ -127,13 +147,7 @@ fn implicit_matches_unrolled_at_convergence() {
         gap > diff::FORWARD_GAP_WARNING && (gap / 10.0..gap * 100.0).contains(&off),
         "gap {gap:e}, off by {off:e}"
     );
-    let warned = gi.stats.warnings(3);
-    assert!(
-        warned
-            .iter()
-            .any(|w| w.contains("implicit mode differentiates the converged steps")),
-        "{warned:?}"
-    );
+    assert_warns(&gi, 3, "implicit mode differentiates the converged steps");
 }
 
 /// Unrolled mode on a forward stopped by its tolerance differentiates the iterations that ran,
@@ -166,31 +180,17 @@ fn unrolled_leftover_estimates_the_distance_to_the_converged_derivative() {
         )
         .unwrap()
     };
-    let components =
-        |g: &diff::Gradient| -> Vec<f64> { g.q0.iter().chain(&g.v0).flat_map(|v| v.iter().copied()).collect() };
     let reference = run(1e-12, 5000, Mode::Implicit);
-    let r = components(&reference);
-    let size = r.iter().fold(0.0f64, |m, x| m.max(x.abs()));
     for tolerance in [1e-6, 1e-8] {
         let g = run(tolerance, 5000, Mode::Unrolled);
-        let off = components(&g)
-            .iter()
-            .zip(&r)
-            .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()))
-            / size;
+        let off = initial_state_error(&g, &reference);
         let left = g.stats.unrolled_leftover;
         eprintln!("tolerance {tolerance:e}: leftover {left:e}, components off by {off:e}");
         assert!(
             left > diff::UNROLLED_LEFTOVER_WARNING && (off / 5.0..off * 5.0).contains(&left),
             "tolerance {tolerance:e}: leftover {left:e}, components off by {off:e}"
         );
-        let warned = g.stats.warnings(case.steps);
-        assert!(
-            warned
-                .iter()
-                .any(|w| w.contains("unrolled mode differentiates the iterations that ran")),
-            "{warned:?}"
-        );
+        assert_warns(&g, case.steps, "unrolled mode differentiates the iterations that ran");
     }
     // Converged tightly, nothing is left and nothing is said; implicit mode and a fixed
     // iteration count (the exact derivative of what ran) report no leftover.
@@ -241,30 +241,16 @@ fn implicit_gradients_through_contacts_between_bodies_warn_of_the_forward_gap() 
         )
         .unwrap()
     };
-    let components =
-        |g: &diff::Gradient| -> Vec<f64> { g.q0.iter().chain(&g.v0).flat_map(|v| v.iter().copied()).collect() };
     let reference = run(1e-14);
-    let r = components(&reference);
-    let size = r.iter().fold(0.0f64, |m, x| m.max(x.abs()));
     let g = run(1e-10);
-    let off = components(&g)
-        .iter()
-        .zip(&r)
-        .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()))
-        / size;
+    let off = initial_state_error(&g, &reference);
     let gap = g.stats.forward_gap;
     eprintln!("box on cloth, tolerance 1e-10: components off by {off:e}, forward_gap {gap:e}");
     assert!(
         off > diff::FORWARD_GAP_WARNING && (off / 5.0..off * 50.0).contains(&gap),
         "off {off:e}, gap {gap:e}"
     );
-    let warned = g.stats.warnings(20);
-    assert!(
-        warned
-            .iter()
-            .any(|w| w.contains("implicit mode differentiates the converged steps")),
-        "{warned:?}"
-    );
+    assert_warns(&g, 20, "implicit mode differentiates the converged steps");
 }
 
 /// What the backward pass does not cover is refused with a clear error, and bad
