@@ -4,6 +4,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand, ValueEnum};
+use diffsoft::base::number;
 
 use diffsoft::analysis::bounds::{self, BoundsParams};
 use diffsoft::analysis::spectral::EigenMethod;
@@ -424,7 +425,15 @@ fn run(command: Command) -> Result<()> {
                 method: input.method,
                 empirical,
             };
-            let report = bounds::analyze(&mesh, &info, &params)?;
+            let report = bounds::analyze(&mesh, &info, &params).with_context(|| {
+                format!(
+                    "{} with --rho {}, --mu {}, --dt {}",
+                    input.mesh.display(),
+                    number(input.rho),
+                    number(input.mu),
+                    number(dt)
+                )
+            })?;
             emit(
                 &diffsoft_harness::bounds_summary(&report),
                 &report,
@@ -449,14 +458,23 @@ fn run(command: Command) -> Result<()> {
             // Each point holds its spectral radii, critical steps and verdicts.
             diffsoft::base::memory::check(&format!("--points {points}"), points, 1024)?;
             let (mesh, info) = input.load()?;
-            let sys = IterationSystem::new(&mesh, input.rho, input.mu, &Attachments::default())?;
-            let spectrum = Spectrum::compute(&sys, input.method)?;
+            let inputs = || {
+                format!(
+                    "{} with --rho {}, --mu {}",
+                    input.mesh.display(),
+                    number(input.rho),
+                    number(input.mu)
+                )
+            };
+            let sys = IterationSystem::new(&mesh, input.rho, input.mu, &Attachments::default()).with_context(inputs)?;
+            let spectrum = Spectrum::compute(&sys, input.method).with_context(inputs)?;
             let (lo, hi) = sweep::default_range(&spectrum);
             let (lo, hi) = (dt_min.unwrap_or(lo), dt_max.unwrap_or(hi));
             if !(lo > 0.0 && hi > lo && points >= 2) {
                 bail!("need 0 < --dt-min < --dt-max and --points >= 2 (got {lo}, {hi}, {points})");
             }
-            let pts = sweep::sweep(&sys, &spectrum, &log_space(lo, hi, points), spectrum.method)?;
+            let pts = sweep::sweep(&sys, &spectrum, &log_space(lo, hi, points), spectrum.method)
+                .with_context(|| format!("{}, time steps {} to {}", inputs(), number(lo), number(hi)))?;
             let report = diffsoft_harness::SweepReport::new(&info, input.rho, input.mu, mark_dt, &spectrum, pts);
             emit(
                 &diffsoft_harness::sweep_summary(&report),

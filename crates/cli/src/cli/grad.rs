@@ -92,9 +92,12 @@ pub(crate) fn grad(a: GradArgs) -> Result<()> {
         bail!("give the scene file: diffsoft grad SCENE --param P");
     };
     preflight(a.json.as_deref(), &[&scene])?;
-    if let Some(t) = a.implicit_tolerance.filter(|t| !(t.is_finite() && *t >= 0.0)) {
+    if let Some(t) = a
+        .implicit_tolerance
+        .filter(|t| !(t.is_finite() && (0.0..1.0).contains(t)))
+    {
         bail!(
-            "--implicit-tolerance must be finite and >= 0, got {}",
+            "--implicit-tolerance is a relative residual and must be in [0, 1), got {}",
             diffsoft::base::number(t)
         );
     }

@@ -76,7 +76,7 @@ pub(crate) struct TradeoffArgs {
     /// Cost axis of the Pareto fronts: cpu (thread CPU time) or iterations (deterministic).
     #[arg(long, conflicts_with = "spec", value_parser = choice::<diffsoft_harness::tradeoff::TimeAxis>(), default_value = "cpu")]
     time_axis: diffsoft_harness::tradeoff::TimeAxis,
-    /// Repeat each forward run until this many CPU seconds are measured.
+    /// Repeat each forward run until this many CPU seconds are measured (at most 1000 runs; each row's `timing.runs` says how many ran).
     #[arg(long, conflicts_with = "spec", default_value_t = diffsoft_harness::tradeoff::DEFAULT_MIN_TIMING_S, value_parser = super::numbers::non_negative)]
     min_timing_s: f64,
     /// Run only shard K of N (0 <= K < N): writes a partial report for `diffsoft merge`.
@@ -126,6 +126,10 @@ pub(crate) fn tradeoff(args: TradeoffArgs) -> Result<()> {
     let input_paths: Vec<PathBuf> = spec.iter().chain(scene.iter()).cloned().collect();
     let inputs: Vec<&Path> = input_paths.iter().map(PathBuf::as_path).collect();
     preflight(json.as_deref(), &inputs)?;
+    if let Some(dir) = &svg_dir {
+        // Before the sweep, not after it: a file or device given as the plots' directory.
+        diffsoft::output::output_dir(dir, "--svg-dir")?;
+    }
     let spec_given = spec.is_some();
     let (spec, base) = match (spec, scene, cantilever) {
         (Some(path), None, None) => {

@@ -342,6 +342,46 @@ fn counts_and_scales_beyond_reason_are_errors_naming_the_flag() {
             ],
             "--scale",
         ),
+        // Operators that overflow: the message names the inputs that built them.
+        (
+            vec!["bounds", "--mesh", m, "--rho", "1000", "--mu", "1e308", "--dt", "0.01"],
+            "--mu 1e308",
+        ),
+        (
+            vec!["bounds", "--mesh", m, "--rho", "1000", "--mu", "1e4", "--dt", "1e300"],
+            "--dt 1e300",
+        ),
+        (
+            vec![
+                "sweep", "--mesh", m, "--rho", "1000", "--mu", "1e4", "--dt-max", "1e300",
+            ],
+            "to 1e300",
+        ),
+        // A relative tolerance of 1 or more: refused before any run, not a row the solver rejects.
+        (
+            vec!["tradeoff", "--cantilever", "2,1,1", "--steps", "2", "--tolerances", "2"],
+            "tolerances must be finite, positive and below 1, got 2",
+        ),
+        (
+            vec![
+                "grad",
+                &beam,
+                "--steps",
+                "2",
+                "--param",
+                "youngs_modulus",
+                "--mode",
+                "implicit",
+                "--implicit-tolerance",
+                "10",
+            ],
+            "--implicit-tolerance is a relative residual and must be in [0, 1), got 10",
+        ),
+        // A plots directory that is a file: refused before the sweep runs.
+        (
+            vec!["tradeoff", "--cantilever", "2,1,1", "--steps", "2", "--svg-dir", &beam],
+            "--svg-dir must name a directory, and this is a regular file",
+        ),
         // Values no flag can take: NaN, negative or zero where a time step, a threshold or a
         // step count is meant; a study with no case in the subset asked for.
         (

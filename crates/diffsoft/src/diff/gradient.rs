@@ -330,6 +330,17 @@ pub fn gradient_on(
     let settings = &differentiable(model, settings);
     check_supported(model, settings, opts.mode)?;
     let implicit = opts.mode == Mode::Implicit;
+    if let Some(t) = opts
+        .implicit_tolerance
+        .filter(|t| !(t.is_finite() && (0.0..1.0).contains(t)))
+    {
+        // A relative residual of 1 or more is met before the adjoint solve starts: the
+        // gradient would be whatever its starting guess was (zero), with exit 0.
+        return Err(DiffError::Input(format!(
+            "the implicit tolerance is a relative residual and must be in [0, 1), got {}",
+            crate::base::number(t)
+        )));
+    }
     let implicit_tol = opts.implicit_tolerance_for(settings);
     let t0 = Instant::now();
     let mut sim = Simulator::with_systems(model.clone(), settings.clone(), systems)?;

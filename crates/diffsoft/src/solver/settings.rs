@@ -42,7 +42,7 @@ pub struct Settings {
     pub damping: f64,
     /// Contact detection margin, as a fraction of the length scale (1, at most 1).
     pub contact_margin: f64,
-    /// Largest number of detect-and-resolve rounds per step.
+    /// Largest number of detect-and-resolve rounds per step (at least 1).
     pub contact_rounds: usize,
     /// Largest number of rounds of a step that would otherwise end with the surfaces of two
     /// bodies crossing: past `contact_rounds`, the rounds go on while the round's end
@@ -104,6 +104,8 @@ impl Settings {
         for (name, cap) in [
             ("max_iterations", self.max_iterations),
             ("inner_max_iterations", self.inner_max_iterations),
+            // Every step detects and resolves its contacts at least once.
+            ("contact_rounds", self.contact_rounds),
         ] {
             if cap == 0 {
                 return bad(format!("{name} (an iteration cap) must be at least 1, got 0"));

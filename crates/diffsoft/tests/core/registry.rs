@@ -224,6 +224,11 @@ fn settings_are_set_by_name_and_checked() {
             "tolerance must be finite and >= 0, got -1",
         ),
         ("damping", serde_json::json!(2.0), "damping must be in (0, 1], got 2"),
+        (
+            "contact_rounds",
+            serde_json::json!(0),
+            "contact_rounds (an iteration cap) must be at least 1, got 0",
+        ),
         ("dt", serde_json::json!(f64::NAN), "dt must be a finite number"),
     ] {
         let e = s.set(name, value).unwrap_err().to_string();

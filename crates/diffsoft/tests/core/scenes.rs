@@ -180,7 +180,118 @@ fn paper_scenes_refuse_negative_friction() {
     let p = write(&dir, "neg.json", &v.to_string());
     let e = scene::load(&p, LoadOptions::default()).unwrap_err().to_string();
     assert!(
-        e.contains("\"Friction coefficients\" must be finite and >= 0, got -0.1"),
+        e.contains("\"Friction coefficients\"[0][0] must be finite and >= 0, got -0.1"),
+        "{e}"
+    );
+}
+
+/// Malformed values in a paper scene are refused, naming the key, instead of read as the
+/// reference's defaults: a friction coefficient that is not `[[number]]`, a "Parameters" that
+/// is not a list of one object, a flag that is not a boolean, a bone parent below -1; a missing
+/// "Parameters" is noted with the defaults applied, and friction entries past the first that
+/// differ from it are noted as ignored.
+#[test]
+fn paper_scenes_refuse_malformed_values() {
+    use serde_json::json;
+    let (dir, src) = paper_copy("paper-malformed", "baymax/baymax.json");
+    let base: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&src).unwrap()).unwrap();
+    let refused = |name: &str, edit: &dyn Fn(&mut serde_json::Value), want: &str| {
+        let mut v = base.clone();
+        edit(&mut v);
+        let p = write(&dir, name, &v.to_string());
+        let e = scene::load(&p, LoadOptions::default()).unwrap_err().to_string();
+        assert!(
+            e.contains(want) && e.contains(name),
+            "{name}: expected '{want}' in: {e}"
+        );
+    };
+    for (k, bad) in [
+        json!([0.7]),
+        json!(0.7),
+        json!([]),
+        json!([[]]),
+        json!(null),
+        json!([["a"]]),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        refused(
+            &format!("friction{k}.json"),
+            &|v| v["Friction coefficients"] = bad.clone(),
+            "\"Friction coefficients\" must be a list of lists of numbers",
+        );
+    }
+    for (k, bad) in [json!({}), json!([]), json!([{}, {}])].into_iter().enumerate() {
+        refused(
+            &format!("params{k}.json"),
+            &|v| v["Parameters"] = bad.clone(),
+            "\"Parameters\" must be a list of exactly one object",
+        );
+    }
+    for key in ["Handle collision", "Self-collision"] {
+        refused(
+            "flag.json",
+            &|v| v["Parameters"][0][key] = json!("yes"),
+            &format!("Parameters[0]: \"{key}\" must be true or false, got \"yes\""),
+        );
+    }
+    refused(
+        "mass.json",
+        &|v| v["Meshes"][0]["Is Mass Same"] = json!(1),
+        "Meshes[0]: \"Is Mass Same\" must be true or false, got 1",
+    );
+    // A missing "Parameters" runs with the defaults, and says so.
+    let mut v = base.clone();
+    v.as_object_mut().unwrap().remove("Parameters");
+    let sc = scene::load(write(&dir, "noparams.json", &v.to_string()), LoadOptions::default()).unwrap();
+    assert!(
+        sc.notes.iter().any(|n| n.contains("no \"Parameters\"")),
+        "{:?}",
+        sc.notes
+    );
+    // A friction matrix: its first entry is read, and the note says the others are not.
+    let mut v = base.clone();
+    v["Friction coefficients"] = json!([[0.2, 0.9], [0.9, 0.2]]);
+    let sc = scene::load(write(&dir, "matrix.json", &v.to_string()), LoadOptions::default()).unwrap();
+    assert!(
+        sc.notes
+            .iter()
+            .any(|n| n.contains("only the first entry (0.2) is read")),
+        "{:?}",
+        sc.notes
+    );
+    // A bone whose parent is below -1.
+    let (dir, src) = paper_copy("paper-parent", "baymax/baymax_skeleton.json");
+    let mut v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&src).unwrap()).unwrap();
+    v["Meshes"][0]["Bones"][1]["Parent ID"] = json!(-2);
+    let p = write(&dir, "parent.json", &v.to_string());
+    let e = scene::load(&p, LoadOptions::default()).unwrap_err().to_string();
+    assert!(
+        e.contains("Bones[1]: \"Parent ID\" -2 does not name another bone (-1 for the root)"),
+        "{e}"
+    );
+}
+
+/// A muscle file that gives one muscle's sample number twice (its polyline's order would be
+/// open) is refused, naming both lines.
+#[test]
+fn paper_muscle_files_refuse_repeated_samples() {
+    let (dir, _) = paper_copy("paper-muscle-repeat", "octopus/octopus.json");
+    let muscle = dir.join("octopus.muscle");
+    let text = std::fs::read_to_string(&muscle).unwrap();
+    let mut lines: Vec<String> = text.lines().map(String::from).collect();
+    let mut fifth: Vec<String> = lines[4].split_whitespace().map(String::from).collect();
+    let first: Vec<&str> = lines[0].split_whitespace().collect();
+    assert_eq!(first[0], fifth[0], "lines 1 and 5 are one muscle's");
+    fifth[1] = first[1].to_string();
+    lines[4] = fifth.join(" ");
+    std::fs::write(&muscle, lines.join("\n")).unwrap();
+    let e = scene::load(dir.join("octopus.json"), LoadOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("line 5: muscle 0 sample 0 was already given on line 1"),
         "{e}"
     );
 }

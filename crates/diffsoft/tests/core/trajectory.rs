@@ -159,3 +159,37 @@ fn array_parameters_round_trip_and_validate() {
     assert_eq!(params::attachment_targets(&model), t);
     assert!(params::set_attachment_targets(&mut model, &t[1..]).is_err());
 }
+
+/// An implicit tolerance is a relative residual: 1 or more is met before the adjoint solve
+/// starts (the gradient would be its zero starting guess, with no error), and NaN or a
+/// negative value means nothing; each is refused up front, whatever front end passes it.
+#[test]
+fn implicit_tolerances_outside_zero_to_one_are_refused() {
+    let case = diffsoft::testing::free_body(3).unwrap();
+    let n = case.model.n();
+    let cot = Cotangent::new(n, 3, random(4 * n, 5), None).unwrap();
+    for t in [1.0, 10.0, 1e300, f64::INFINITY, f64::NAN, -1e-3] {
+        let e = diff::vjp(
+            &case.model,
+            &case.settings,
+            3,
+            &case.controls,
+            &cot,
+            Options {
+                implicit_tolerance: Some(t),
+                ..Options::mode(Mode::Implicit)
+            },
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("implicit tolerance is a relative residual and must be in [0, 1)"),
+            "{t}: {e}"
+        );
+    }
+    let ok = Options {
+        implicit_tolerance: Some(1e-10),
+        ..Options::mode(Mode::Implicit)
+    };
+    assert!(diff::vjp(&case.model, &case.settings, 3, &case.controls, &cot, ok).is_ok());
+}

@@ -119,14 +119,22 @@ pub fn fd_sweep(case: &Case, group: &Group, seed: u64) -> Result<FdSweep, DiffEr
             .map_err(|panic| DiffError::Unsupported(format!("a finite-difference run panicked: {panic}")))?
     };
     let mut differences = Vec::new();
+    let mut refused = None;
     for e in sweep {
         // Steps that leave the parameter's valid range (e.g. nu >= 0.5) are skipped.
         let (p, m) = match (next(), next()) {
             (Ok(p), Ok(m)) => (p, m),
-            (Err(DiffError::Input(_)), _) | (_, Err(DiffError::Input(_))) => continue,
+            (Err(err @ DiffError::Input(_)), _) | (_, Err(err @ DiffError::Input(_))) => {
+                refused.get_or_insert(err);
+                continue;
+            }
             (Err(err), _) | (_, Err(err)) => return Err(err),
         };
         differences.push((e, (p - m) / (2.0 * e)));
+    }
+    // Every step refused: no finite difference to compare with (the first refusal says why).
+    if let (true, Some(err)) = (differences.is_empty(), refused) {
+        return Err(err);
     }
     Ok(FdSweep {
         direction: d,

@@ -166,6 +166,10 @@ fn default_targets() -> Vec<f64> {
 /// to outlast a clock tick (the 0.2 s of the tick-granular clock used before).
 pub const DEFAULT_MIN_TIMING_S: f64 = 0.05;
 
+/// Most forward runs timed per setting, whatever [`TradeoffSpec::min_timing_s`] asks (a run of
+/// a few microseconds would otherwise be repeated millions of times).
+pub const MAX_TIMING_RUNS: usize = 1000;
+
 fn default_min_timing_s() -> f64 {
     DEFAULT_MIN_TIMING_S
 }
@@ -251,8 +255,9 @@ pub struct TradeoffSpec {
     /// Cost axis of the Pareto fronts.
     #[serde(default)]
     pub time_axis: TimeAxis,
-    /// Repeat a setting's forward run until this much CPU time is measured (s); the report
-    /// gives the mean CPU time and the median wall time per run.
+    /// Repeat a setting's forward run until this much CPU time is measured (s), at most
+    /// [`MAX_TIMING_RUNS`] runs (the row's `timing.runs` says how many ran); the report gives
+    /// the mean CPU time and the median wall time per run.
     #[serde(default = "default_min_timing_s")]
     pub min_timing_s: f64,
     /// Material models to compare on this scene ([`models`]; empty: no comparison): every body
@@ -394,12 +399,17 @@ impl TradeoffSpec {
             return bad("iteration caps must be at least 1".into());
         }
         let positive = |v: f64| v.is_finite() && v > 0.0;
-        if !self.tolerances.iter().all(|&t| positive(t)) {
-            return bad("tolerances must be finite and positive".into());
-        }
-        if !positive(self.reference_tolerance) {
+        // A tolerance is relative to the scene's length scale: the solver refuses 1 or more.
+        let relative = |v: f64| positive(v) && v < 1.0;
+        if let Some(&t) = self.tolerances.iter().find(|&&t| !relative(t)) {
             return bad(format!(
-                "reference_tolerance must be finite and positive, got {}",
+                "tolerances must be finite, positive and below 1, got {}",
+                diffsoft::base::number(t)
+            ));
+        }
+        if !relative(self.reference_tolerance) {
+            return bad(format!(
+                "reference_tolerance must be finite, positive and below 1, got {}",
                 diffsoft::base::number(self.reference_tolerance)
             ));
         }
@@ -623,6 +633,17 @@ mod tests {
         s.gradient_dt_divisors = vec![3];
         assert!(s.validate().unwrap_err().to_string().contains("gradient dt divisor 3"));
         assert!(spec().validate().is_ok());
+        // A tolerance of 1 or more is refused before any run (the solver would reject each
+        // such row), naming the value.
+        for t in [1.0, 2.0] {
+            let mut s = spec();
+            s.tolerances.push(t);
+            let e = s.validate().unwrap_err().to_string();
+            assert!(e.contains("tolerances must be finite, positive and below 1"), "{e}");
+            let mut s = spec();
+            s.reference_tolerance = t;
+            assert!(s.validate().unwrap_err().to_string().contains("reference_tolerance"));
+        }
     }
 
     #[test]

@@ -16,7 +16,7 @@ use super::report::{
 use super::trajectory::{self, advance, ErrorAcc};
 use super::{
     reference_settings, scene, Family, Knob, SceneSummary, Setting, TradeoffError, TradeoffPartial, TradeoffSpec,
-    PARTIAL_SCHEMA,
+    MAX_TIMING_RUNS, PARTIAL_SCHEMA,
 };
 use crate::pool::{self, Task};
 use crate::report::{write_json, CRATE_VERSION};
@@ -27,9 +27,6 @@ use diffsoft::solver::{Integrator, Settings, Simulator, SolverKind, Systems};
 
 /// The gradient parameters: Young's modulus, Poisson ratio, density.
 pub const PARAMETERS: [Param; 3] = [Param::YOUNGS_MODULUS, Param::POISSON_RATIO, Param::DENSITY];
-
-/// Most forward runs timed per setting.
-const MAX_TIMING_RUNS: usize = 1000;
 
 /// A reference trajectory's sampled states.
 struct RefStates {

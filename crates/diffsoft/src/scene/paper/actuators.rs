@@ -78,7 +78,8 @@ pub(super) fn paper_muscles(
         path: shown.clone(),
         message: e.to_string(),
     })?;
-    let mut samples: std::collections::BTreeMap<i64, Vec<(i64, Vector3<f64>)>> = Default::default();
+    // Per muscle: (sample number, point, line number) in file order.
+    let mut samples: std::collections::BTreeMap<i64, Vec<(i64, Vector3<f64>, usize)>> = Default::default();
     for (n, line) in text.lines().enumerate() {
         let fields: Vec<&str> = line.split_whitespace().collect();
         if fields.is_empty() {
@@ -106,7 +107,23 @@ pub(super) fn paper_muscles(
         for (k, f) in fields[2..].iter().enumerate() {
             p[k] = f.parse::<f64>().ok().filter(|v| v.is_finite()).ok_or_else(bad)?;
         }
-        samples.entry(id).or_default().push((sample, Vector3::from(p) * scale));
+        samples
+            .entry(id)
+            .or_default()
+            .push((sample, Vector3::from(p) * scale, n + 1));
+    }
+    // The sample numbers order each muscle's polyline: one given twice leaves its order open.
+    for (id, line) in samples.iter_mut() {
+        line.sort_by_key(|s| (s.0, s.2));
+        if let Some(w) = line.windows(2).find(|w| w[0].0 == w[1].0) {
+            return Err(SceneError::Invalid {
+                path: shown.clone(),
+                message: format!(
+                    "line {}: muscle {id} sample {} was already given on line {}",
+                    w[1].2, w[1].0, w[0].2
+                ),
+            });
+        }
     }
     if samples.is_empty() {
         return Err(SceneError::Invalid {
@@ -134,9 +151,7 @@ pub(super) fn paper_muscles(
     let mut best: Vec<(f64, usize, Vector3<f64>)> = vec![(f64::INFINITY, 0, Vector3::zeros()); mesh.num_tets()];
     let ids: Vec<i64> = samples.keys().copied().collect();
     for (k, id) in ids.iter().enumerate() {
-        let mut line = samples[id].clone();
-        line.sort_by_key(|s| s.0);
-        let pts: Vec<Vector3<f64>> = line.iter().map(|s| s.1).collect();
+        let pts: Vec<Vector3<f64>> = samples[id].iter().map(|s| s.1).collect();
         let near = nearest_segments(mesh, &pts).ok_or_else(|| SceneError::Invalid {
             path: shown.clone(),
             message: format!("muscle {id} has no segment of positive length"),

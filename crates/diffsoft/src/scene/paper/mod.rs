@@ -206,6 +206,16 @@ impl Ctx<'_> {
                 .ok_or_else(|| self.invalid(format!("{where_}: \"{key}\" must be a number, got {v}"))),
         }
     }
+    /// A boolean under `key` (`default` where absent); any other JSON type is an error (a
+    /// string such as `"yes"` must not read as false).
+    fn flag(&self, obj: &Value, key: &str, default: bool, where_: &str) -> Result<bool, SceneError> {
+        match obj.get(key) {
+            None => Ok(default),
+            Some(v) => v
+                .as_bool()
+                .ok_or_else(|| self.invalid(format!("{where_}: \"{key}\" must be true or false, got {}", excerpt(v)))),
+        }
+    }
     /// A list of vertex indices under `key`.
     fn indices(&self, v: &Value, where_: &str, key: &str) -> Result<Vec<usize>, SceneError> {
         v.as_array()
@@ -314,11 +324,21 @@ fn import_with(
         }
     }
     let empty = Value::Object(Default::default());
-    let params = value
-        .get("Parameters")
-        .and_then(|p| p.as_array())
-        .and_then(|a| a.first())
-        .unwrap_or(&empty);
+    let params = match value.get("Parameters") {
+        None => {
+            cx.notes.push(
+                "no \"Parameters\": the reference's defaults applied (200 Hz, no gravity, collisions off)".into(),
+            );
+            &empty
+        }
+        Some(Value::Array(a)) if a.len() == 1 => &a[0],
+        Some(p) => {
+            return Err(cx.invalid(format!(
+                "\"Parameters\" must be a list of exactly one object, got {}",
+                excerpt(p)
+            )))
+        }
+    };
     cx.check_keys("Parameters[0]", params, PARAM_USED, PARAM_IGNORED, &[])?;
     let hz = cx.number(params, "Simulation HZ", 200.0, "Parameters[0]")?;
     if !(hz.is_finite() && hz > 0.0) {
@@ -346,23 +366,8 @@ fn import_with(
         cx.notes
             .push("\"Is underwater\": water drag is not simulated; gravity is off as in the reference".into());
     }
-    let collisions = params
-        .get("Handle collision")
-        .and_then(|v| v.as_bool())
-        .unwrap_or(false);
-    let friction = value
-        .get("Friction coefficients")
-        .and_then(|f| f.get(0))
-        .and_then(|f| f.get(0))
-        .and_then(|f| f.as_f64())
-        .unwrap_or(0.1);
-    // Checked even where no contact reads it: a negative coefficient is a broken file.
-    if !(friction.is_finite() && friction >= 0.0) {
-        return Err(cx.invalid(format!(
-            "\"Friction coefficients\" must be finite and >= 0, got {}",
-            crate::base::number(friction)
-        )));
-    }
+    let collisions = cx.flag(params, "Handle collision", false, "Parameters[0]")?;
+    let (friction, friction_source) = paper_friction(&mut cx, value.get("Friction coefficients"))?;
     let mut builder = ModelBuilder::new().gravity(if underwater { Vector3::zeros() } else { gravity });
     let meshes_json = value
         .get("Meshes")
@@ -388,7 +393,7 @@ fn import_with(
             cx.notes
                 .push(format!("{w}: no \"Scale\": the reference's default 0.05 applied"));
         }
-        if mj.get("Is Mass Same").and_then(|v| v.as_bool()) == Some(false) {
+        if !cx.flag(mj, "Is Mass Same", true, &w)? {
             return Err(cx.invalid(format!(
                 "{w}: \"Is Mass Same\": false (uniform vertex masses) is not supported"
             )));
@@ -470,10 +475,10 @@ fn import_with(
             bodies += 1;
         }
     }
-    let self_collision = params.get("Self-collision").and_then(|v| v.as_bool()).unwrap_or(false);
+    let self_collision = cx.flag(params, "Self-collision", false, "Parameters[0]")?;
     if collisions && self_collision && bodies >= 2 {
         cx.notes.push(format!(
-            "\"Self-collision\": the bodies collide with each other (vertex-face and edge-edge pairs, thickness {CLOTH_THICKNESS} m, friction {friction} from \"Friction coefficients\"; the reference hard-codes 1 and its thickness is 1e-4 m); self-collision within a body is not simulated"
+            "\"Self-collision\": the bodies collide with each other (vertex-face and edge-edge pairs, thickness {CLOTH_THICKNESS} m, friction {friction} {friction_source}; the reference hard-codes 1 and its thickness is 1e-4 m); self-collision within a body is not simulated"
         ));
         builder = builder.collisions(crate::contact::pair::BodyCollision {
             thickness: CLOTH_THICKNESS,
@@ -499,7 +504,7 @@ fn import_with(
                 .ok_or_else(|| cx.invalid(format!("{w}: \"Obj filename\" is required")))?;
             let s = mesh::surface::load_obj(cx.resolve(file)?)?;
             cx.notes.push(format!(
-                "{w}: triangle mesh {file} at scale 1 and thickness 1e-4 as in the reference (its \"Scale\" and \"Collision tolerance\" are not read there); friction {friction} from \"Friction coefficients\" (the reference hard-codes 1)"
+                "{w}: triangle mesh {file} at scale 1 and thickness 1e-4 as in the reference (its \"Scale\" and \"Collision tolerance\" are not read there); friction {friction} {friction_source} (the reference hard-codes 1)"
             ));
             let shape = TriMeshObstacle::new(s.vertices, s.triangles).map_err(|e| cx.invalid(format!("{w}: {e}")))?;
             builder = builder.obstacle(Obstacle::new(file, shape, friction, 1e-4));
@@ -599,6 +604,65 @@ fn paper_cloth(cx: &mut Ctx<'_>, k: usize, cj: &Value) -> Result<crate::cloth::C
     Ok(spec)
 }
 
+/// A JSON value as the error messages show it: its text, cut at 80 characters.
+fn excerpt(v: &Value) -> String {
+    let text = v.to_string();
+    match text.char_indices().nth(80) {
+        Some((cut, _)) => format!("{}...", &text[..cut]),
+        None => text,
+    }
+}
+
+/// The top-level "Friction coefficients" (`[[mu, ...], ...]`): the first entry is the friction
+/// of every contact, as in the reference; a note says so where the others differ. Absent: the
+/// reference's default 0.1. Returns the coefficient and where it came from (for the notes).
+fn paper_friction(cx: &mut Ctx<'_>, v: Option<&Value>) -> Result<(f64, &'static str), SceneError> {
+    let Some(v) = v else {
+        return Ok((
+            0.1,
+            "(the reference's default: the scene gives no \"Friction coefficients\")",
+        ));
+    };
+    let bad = |cx: &Ctx<'_>, what: String| {
+        cx.invalid(format!(
+            "\"Friction coefficients\" must be a list of lists of numbers, e.g. [[0.1]]; {what}, in {}",
+            excerpt(v)
+        ))
+    };
+    let rows = match v.as_array() {
+        Some(rows) if !rows.is_empty() => rows,
+        _ => return Err(bad(cx, "not a non-empty list".into())),
+    };
+    let mut values = Vec::new();
+    for (i, row) in rows.iter().enumerate() {
+        let row = match row.as_array() {
+            Some(r) if !r.is_empty() => r,
+            _ => return Err(bad(cx, format!("entry [{i}] is not a non-empty list"))),
+        };
+        for (j, x) in row.iter().enumerate() {
+            let mu = x
+                .as_f64()
+                .ok_or_else(|| bad(cx, format!("entry [{i}][{j}] is not a number")))?;
+            // Checked even where no contact reads it: a negative coefficient is a broken file.
+            if !(mu.is_finite() && mu >= 0.0) {
+                return Err(cx.invalid(format!(
+                    "\"Friction coefficients\"[{i}][{j}] must be finite and >= 0, got {}",
+                    crate::base::number(mu)
+                )));
+            }
+            values.push(mu);
+        }
+    }
+    let mu = values[0];
+    if values.iter().any(|&x| x != mu) {
+        cx.notes.push(format!(
+            "\"Friction coefficients\": only the first entry ({}) is read, as in the reference; the others are ignored",
+            crate::base::number(mu)
+        ));
+    }
+    Ok((mu, "from \"Friction coefficients\""))
+}
+
 /// The paper's "Bones" list: "Parent ID" (-1 for the root), "Joint Type" ("ALL", "ROTATIONAL",
 /// "PRISMATIC"), "Joint Pos", "Joint Axis", "Vertices" (file indices).
 /// Also returns notes on suspicious data (joints mirrored in x against their vertices).
@@ -634,13 +698,13 @@ fn paper_bones(
             .get("Parent ID")
             .and_then(|p| p.as_i64())
             .ok_or_else(|| cx.invalid(format!("{w}: Bones[{k}]: \"Parent ID\" is required")))?;
-        let parent = if parent < 0 {
+        let parent = if parent == -1 {
             None
-        } else if (parent as usize) < list.len() && parent as usize != k {
+        } else if parent >= 0 && (parent as usize) < list.len() && parent as usize != k {
             Some(parent as usize)
         } else {
             return Err(cx.invalid(format!(
-                "{w}: Bones[{k}]: \"Parent ID\" {parent} does not name another bone"
+                "{w}: Bones[{k}]: \"Parent ID\" {parent} does not name another bone (-1 for the root)"
             )));
         };
         let ty = b.get("Joint Type").and_then(|t| t.as_str()).unwrap_or("");
