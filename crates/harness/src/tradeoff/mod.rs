@@ -255,8 +255,8 @@ pub struct TradeoffSpec {
     /// Cost axis of the Pareto fronts.
     #[serde(default)]
     pub time_axis: TimeAxis,
-    /// Repeat a setting's forward run until this much CPU time is measured (s), at most
-    /// [`MAX_TIMING_RUNS`] runs (the row's `timing.runs` says how many ran); the report gives
+    /// Repeat a setting's forward run until this much CPU time is measured (s), at most 1000
+    /// runs ([`MAX_TIMING_RUNS`]; the row's `timing.runs` says how many ran); the report gives
     /// the mean CPU time and the median wall time per run.
     #[serde(default = "default_min_timing_s")]
     pub min_timing_s: f64,
