@@ -18,7 +18,8 @@ use rayon::prelude::*;
 use super::{
     AdjointContext, ConstraintError, ConstraintSet, HessianTerm, Linearize, NotDifferentiable, ProjectContext,
 };
-use crate::kernel::hyperelastic::{self, Mat9};
+use crate::kernel::hyperelastic::{self, Mat9, Polars};
+use crate::kernel::svd::LANES;
 use crate::model::{HyperTets, Model};
 
 /// The hyperelastic tets of a model with their buffers.
@@ -56,6 +57,33 @@ fn k_of(c: f64, volume: f64, d: &Mat9) -> Mat9 {
     Mat9::identity() * c - d * volume
 }
 
+/// `dP/dF` of the hyperelastic tets of batch `c` (`len` of them, from tet `c * LANES`) at `q`,
+/// their polar decompositions computed together: `each(i, t, dP/dF)` per tet, `i` its index
+/// among the hyperelastic tets and `t` its tet.
+fn for_batch(
+    model: &Model,
+    h: &HyperTets,
+    q: &[Vector3<f64>],
+    c: usize,
+    len: usize,
+    mut each: impl FnMut(usize, usize, Mat9),
+) {
+    let i0 = c * LANES;
+    let mut f = [Matrix3::identity(); LANES];
+    for (k, fk) in f[..len].iter_mut().enumerate() {
+        *fk = model.tet_deformation(h.tets[i0 + k], q);
+    }
+    let polars = Polars::new(&h.energy[i0..i0 + len], &f[..len]);
+    for k in 0..len {
+        let i = i0 + k;
+        each(
+            i,
+            h.tets[i],
+            h.energy[i].stress_derivative_at(h.lame[i], &f[k], &polars, k),
+        );
+    }
+}
+
 /// `out[v] += M a_v` over the tet's vertices (the gather of one tet's per-tet matrix).
 fn gather_add(model: &Model, t: usize, m: &Matrix3<f64>, out: &mut [Vector3<f64>]) {
     let g = &model.fem.geometry[t];
@@ -87,23 +115,33 @@ impl ConstraintSet for Hyperelastic {
         ctx: &mut ProjectContext<'_>,
     ) -> Result<f64, ConstraintError> {
         let h = hyper(model);
+        // LANES tets at a time: their polar decompositions through the batched SVD.
         self.wp
-            .par_iter_mut()
-            .zip(self.energy.par_iter_mut())
+            .par_chunks_mut(LANES)
+            .zip(self.energy.par_chunks_mut(LANES))
             .enumerate()
-            .with_min_len(64)
-            .try_for_each(|(i, (wp, e))| {
-                let t = h.tets[i];
-                let f = model.tet_deformation(t, q);
-                if !f.iter().all(|x| x.is_finite()) {
-                    return Err(ConstraintError::NonFinite(format!(
-                        "tet {t}: deformation gradient is not finite"
-                    )));
+            .with_min_len(8)
+            .try_for_each(|(c, (wp, e))| {
+                let i0 = c * LANES;
+                let len = wp.len();
+                let mut f = [Matrix3::identity(); LANES];
+                for (k, fk) in f[..len].iter_mut().enumerate() {
+                    let t = h.tets[i0 + k];
+                    *fk = model.tet_deformation(t, q);
+                    if !fk.iter().all(|x| x.is_finite()) {
+                        return Err(ConstraintError::NonFinite(format!(
+                            "tet {t}: deformation gradient is not finite"
+                        )));
+                    }
                 }
-                let vol = model.fem.geometry[t].volume;
-                let (en, l) = (h.energy[i], h.lame[i]);
-                *wp = f * h.weight[i] - en.stress(l, &f) * vol;
-                *e = vol * en.energy(l, &f);
+                let polars = Polars::new(&h.energy[i0..i0 + len], &f[..len]);
+                for k in 0..len {
+                    let (i, t) = (i0 + k, h.tets[i0 + k]);
+                    let vol = model.fem.geometry[t].volume;
+                    let (stress, psi) = h.energy[i].stress_and_energy_at(h.lame[i], &f[k], &polars, k);
+                    wp[k] = f[k] * h.weight[i] - stress * vol;
+                    e[k] = vol * psi;
+                }
                 Ok(())
             })?;
         for (i, &t) in h.tets.iter().enumerate() {
@@ -116,14 +154,13 @@ impl ConstraintSet for Hyperelastic {
         let h = hyper(model);
         self.cache.resize(h.len(), Mat9::zeros());
         self.cache
-            .par_iter_mut()
+            .par_chunks_mut(LANES)
             .enumerate()
-            .with_min_len(64)
-            .for_each(|(i, k)| {
-                let t = h.tets[i];
-                let f = model.tet_deformation(t, q);
-                let d = h.energy[i].stress_derivative(h.lame[i], &f);
-                *k = k_of(h.weight[i], model.fem.geometry[t].volume, &d);
+            .with_min_len(8)
+            .for_each(|(c, ks)| {
+                for_batch(model, h, q, c, ks.len(), |i, t, d| {
+                    ks[i - c * LANES] = k_of(h.weight[i], model.fem.geometry[t].volume, &d);
+                });
             });
         Ok(())
     }
@@ -151,20 +188,21 @@ impl ConstraintSet for Hyperelastic {
         let h = hyper(model);
         self.hessian.resize(h.len(), Mat9::zeros());
         self.hessian
-            .par_iter_mut()
+            .par_chunks_mut(LANES)
             .enumerate()
-            .with_min_len(64)
-            .map(|(i, k)| {
-                let t = h.tets[i];
-                let f = model.tet_deformation(t, q);
-                let d = h.energy[i].stress_derivative(h.lame[i], &f);
-                let (d, clamped) = if projected {
-                    hyperelastic::positive_part(&d)
-                } else {
-                    (d, 0)
-                };
-                *k = k_of(h.weight[i], model.fem.geometry[t].volume, &d);
-                clamped
+            .with_min_len(8)
+            .map(|(c, ks)| {
+                let mut clamped_here = 0;
+                for_batch(model, h, q, c, ks.len(), |i, t, d| {
+                    let (d, clamped) = if projected {
+                        hyperelastic::positive_part(&d)
+                    } else {
+                        (d, 0)
+                    };
+                    clamped_here += clamped;
+                    ks[i - c * LANES] = k_of(h.weight[i], model.fem.geometry[t].volume, &d);
+                });
+                clamped_here
             })
             .sum()
     }

@@ -17,7 +17,7 @@
 
 use nalgebra::{Matrix3, SMatrix, SymmetricEigen, Vector3};
 
-use super::svd::svd3;
+use super::svd::{svd3, svd3_warm_batch, Svd3, LANES};
 
 /// A 9 x 9 matrix acting on `vec F` (column-major: entry `(i, j)` of `F` at `i + 3 j`).
 pub type Mat9 = SMatrix<f64, 9, 9>;
@@ -79,7 +79,29 @@ fn cofactor(f: &Matrix3<f64>) -> Matrix3<f64> {
     Matrix3::from_columns(&[c1.cross(&c2), c2.cross(&c0), c0.cross(&c1)])
 }
 
-/// The cofactor's derivative in direction `d`.
+/// `d vec(cof F) / d vec(F)` (9 x 9, symmetric): the cofactor's columns are `f1 x f2`,
+/// `f2 x f0` and `f0 x f1`, so block `(a, b)` (rows of column `a`, columns of column `b`) is
+/// `[f_c]_x` or its negative for the third column `c`, and the diagonal blocks are zero.
+fn cofactor_hessian(f: &Matrix3<f64>) -> Mat9 {
+    let skew = |v: Vector3<f64>| Matrix3::new(0.0, -v.z, v.y, v.z, 0.0, -v.x, -v.y, v.x, 0.0);
+    let mut h = Mat9::zeros();
+    for (a, b, c, sign) in [
+        (0, 1, 2, -1.0),
+        (0, 2, 1, 1.0),
+        (1, 2, 0, -1.0),
+        (1, 0, 2, 1.0),
+        (2, 0, 1, -1.0),
+        (2, 1, 0, 1.0),
+    ] {
+        let block = skew(f.column(c).into_owned()) * sign;
+        h.fixed_view_mut::<3, 3>(3 * a, 3 * b).copy_from(&block);
+    }
+    h
+}
+
+/// The cofactor's derivative in direction `d` (the reference [`cofactor_hessian`] is tested
+/// against).
+#[cfg(test)]
 fn cofactor_derivative(f: &Matrix3<f64>, d: &Matrix3<f64>) -> Matrix3<f64> {
     let c = |m: &Matrix3<f64>, k: usize| -> Vector3<f64> { m.column(k).into_owned() };
     Matrix3::from_columns(&[
@@ -90,6 +112,7 @@ fn cofactor_derivative(f: &Matrix3<f64>, d: &Matrix3<f64>) -> Matrix3<f64> {
 }
 
 /// The rotation of `F` (signed SVD) and, for `dR/dF`, its singular vectors and values.
+#[derive(Debug, Clone, Copy)]
 struct Polar {
     r: Matrix3<f64>,
     u: Matrix3<f64>,
@@ -98,32 +121,72 @@ struct Polar {
 }
 
 fn polar(f: &Matrix3<f64>) -> Polar {
-    let svd = svd3(f);
-    Polar {
-        r: svd.u * svd.v.transpose(),
-        u: svd.u,
-        v: svd.v,
-        s: svd.sigma,
+    Polar::of(&svd3(f))
+}
+
+impl Polar {
+    fn of(svd: &Svd3) -> Self {
+        Self {
+            r: svd.u * svd.v.transpose(),
+            u: svd.u,
+            v: svd.v,
+            s: svd.sigma,
+        }
+    }
+}
+
+/// The polar decompositions a batch of tets needs, computed together: `LANES` tets' `F` through
+/// the batched SVD ([`svd3_warm_batch`], started from the identity, so the result does not
+/// depend on what was decomposed before), where some tet of the batch is fixed corotated.
+/// Tets past `f.len()` are padded with the identity.
+pub struct Polars([Option<Polar>; LANES]);
+
+impl Polars {
+    /// The decompositions of `f` (at most [`LANES`] tets) for the energies `energy`.
+    ///
+    /// ```
+    /// use diffsoft::kernel::hyperelastic::{Energy, Lame, Polars};
+    /// use nalgebra::Matrix3;
+    ///
+    /// let f = [Matrix3::new(1.1, 0.2, 0.0, -0.1, 0.9, 0.05, 0.0, 0.1, 1.2); 3];
+    /// let l = Lame::from_young(1e5, 0.3);
+    /// let pol = Polars::new(&[Energy::FixedCorotated; 3], &f);
+    /// let (p, psi) = Energy::FixedCorotated.stress_and_energy_at(l, &f[1], &pol, 1);
+    /// assert!((p - Energy::FixedCorotated.stress(l, &f[1])).norm() < 1e-9 * p.norm());
+    /// assert!((psi - Energy::FixedCorotated.energy(l, &f[1])).abs() < 1e-9 * psi);
+    /// ```
+    pub fn new(energy: &[Energy], f: &[Matrix3<f64>]) -> Self {
+        assert!(
+            f.len() <= LANES && energy.len() == f.len(),
+            "at most LANES tets, one energy each"
+        );
+        if !energy.contains(&Energy::FixedCorotated) {
+            return Self(std::array::from_fn(|_| None));
+        }
+        let fm: [Matrix3<f64>; LANES] = std::array::from_fn(|k| f.get(k).copied().unwrap_or_else(Matrix3::identity));
+        let svds = svd3_warm_batch(&fm, &[Matrix3::identity(); LANES]);
+        Self(std::array::from_fn(|k| {
+            (energy.get(k) == Some(&Energy::FixedCorotated)).then(|| Polar::of(&svds[k]))
+        }))
     }
 }
 
 impl Polar {
-    /// `dR[d]`: with `M = U^T d V`, `dR = U W V^T`, `W` antisymmetric with
-    /// `W_ij = (M_ij - M_ji)/(s_i + s_j)` (a pair with `s_i + s_j` near zero, a tet inverted
-    /// through a singular configuration, contributes nothing).
-    fn derivative(&self, d: &Matrix3<f64>) -> Matrix3<f64> {
-        let m = self.u.transpose() * d * self.v;
-        let mut w = Matrix3::zeros();
+    /// `dR/dF` as its three rank-one terms: with `T_ab = u_a v_b^T - u_b v_a^T` for the pairs
+    /// `a < b`, `dR[d] = sum_ab (T_ab : d) / (s_a + s_b) T_ab` (from `M = U^T d V`,
+    /// `dR = U W V^T`, `W` antisymmetric with `W_ab = (M_ab - M_ba)/(s_a + s_b)`, and
+    /// `M_ab - M_ba = T_ab : d`). Returns each pair's `T_ab` and `1/(s_a + s_b)`; a pair with
+    /// `s_a + s_b` near zero, a tet inverted through a singular configuration, gets 0 and
+    /// contributes nothing.
+    fn derivative_terms(&self) -> [(Matrix3<f64>, f64); 3] {
         let scale = self.s.abs().max().max(f64::MIN_POSITIVE);
-        for (i, j) in [(0, 1), (0, 2), (1, 2)] {
-            let den = self.s[i] + self.s[j];
-            if den.abs() > 1e-12 * scale {
-                let x = (m[(i, j)] - m[(j, i)]) / den;
-                w[(i, j)] = x;
-                w[(j, i)] = -x;
-            }
-        }
-        self.u * w * self.v.transpose()
+        [(0, 1), (0, 2), (1, 2)].map(|(a, b)| {
+            let (ua, ub) = (self.u.column(a), self.u.column(b));
+            let (va, vb) = (self.v.column(a), self.v.column(b));
+            let t = ua * vb.transpose() - ub * va.transpose();
+            let den = self.s[a] + self.s[b];
+            (t, if den.abs() > 1e-12 * scale { 1.0 / den } else { 0.0 })
+        })
     }
 }
 
@@ -151,43 +214,73 @@ impl Energy {
 
     /// The first Piola-Kirchhoff stress `P = dPsi/dF` (Pa).
     pub fn stress(self, l: Lame, f: &Matrix3<f64>) -> Matrix3<f64> {
+        self.stress_and_energy(l, f).0
+    }
+
+    /// The stress `P(F)` and the energy density `Psi(F)` together, from one polar
+    /// decomposition (the same values as [`Energy::stress`] and [`Energy::energy`]).
+    pub fn stress_and_energy(self, l: Lame, f: &Matrix3<f64>) -> (Matrix3<f64>, f64) {
+        self.stress_and_energy_with(l, f, || polar(f))
+    }
+
+    /// [`Energy::stress_and_energy`] of tet `k` of a batch whose decompositions are `polars`
+    /// ([`Polars::new`] of the batch's `F`, `f` being tet `k`'s).
+    pub fn stress_and_energy_at(self, l: Lame, f: &Matrix3<f64>, polars: &Polars, k: usize) -> (Matrix3<f64>, f64) {
+        self.stress_and_energy_with(l, f, || polars.0[k].unwrap_or_else(|| polar(f)))
+    }
+
+    fn stress_and_energy_with(self, l: Lame, f: &Matrix3<f64>, polar: impl FnOnce() -> Polar) -> (Matrix3<f64>, f64) {
         let j = f.determinant();
         let cof = cofactor(f);
         match self {
-            Energy::FixedCorotated => (f - polar(f).r) * (2.0 * l.mu) + cof * (l.lambda * (j - 1.0)),
-            Energy::StableNeoHookean => {
-                let (lp, alpha) = Self::snh(l);
-                f * l.mu + cof * (lp * (j - alpha))
+            Energy::FixedCorotated => {
+                let r = polar().r;
+                (
+                    (f - r) * (2.0 * l.mu) + cof * (l.lambda * (j - 1.0)),
+                    l.mu * (f - r).norm_squared() + 0.5 * l.lambda * (j - 1.0) * (j - 1.0),
+                )
             }
+            Energy::StableNeoHookean => (
+                {
+                    let (lp, alpha) = Self::snh(l);
+                    f * l.mu + cof * (lp * (j - alpha))
+                },
+                self.energy(l, f),
+            ),
         }
     }
 
     /// `dP/dF` as a 9 x 9 matrix on `vec F` (symmetric: the Hessian of `Psi`).
     pub fn stress_derivative(self, l: Lame, f: &Matrix3<f64>) -> Mat9 {
+        self.stress_derivative_with(l, f, || polar(f))
+    }
+
+    /// [`Energy::stress_derivative`] of tet `k` of a batch whose decompositions are `polars`
+    /// ([`Polars::new`] of the batch's `F`, `f` being tet `k`'s).
+    pub fn stress_derivative_at(self, l: Lame, f: &Matrix3<f64>, polars: &Polars, k: usize) -> Mat9 {
+        self.stress_derivative_with(l, f, || polars.0[k].unwrap_or_else(|| polar(f)))
+    }
+
+    fn stress_derivative_with(self, l: Lame, f: &Matrix3<f64>, polar: impl FnOnce() -> Polar) -> Mat9 {
         let j = f.determinant();
-        let cof = cofactor(f);
-        let pol = matches!(self, Energy::FixedCorotated).then(|| polar(f));
-        let mut out = Mat9::zeros();
-        for k in 0..9 {
-            let mut d = Matrix3::zeros();
-            d[(k % 3, k / 3)] = 1.0;
-            let dj = cof.dot(&d);
-            let dcof = cofactor_derivative(f, &d);
-            let dp = match (self, &pol) {
-                (Energy::FixedCorotated, Some(p)) => {
-                    (d - p.derivative(&d)) * (2.0 * l.mu) + cof * (l.lambda * dj) + dcof * (l.lambda * (j - 1.0))
-                }
-                _ => {
-                    let (lp, alpha) = Self::snh(l);
-                    d * l.mu + cof * (lp * dj) + dcof * (lp * (j - alpha))
-                }
-            };
-            for (i, x) in dp.iter().enumerate() {
-                out[(i, k)] = *x;
+        let cof = SMatrix::<f64, 9, 1>::from_column_slice(cofactor(f).as_slice());
+        // dP/dF = a I + b cof cof^T + c dcof/dF (- 2 mu dR/dF for the corotated energy).
+        let (a, b, c) = match self {
+            Energy::FixedCorotated => (2.0 * l.mu, l.lambda, l.lambda * (j - 1.0)),
+            Energy::StableNeoHookean => {
+                let (lp, alpha) = Self::snh(l);
+                (l.mu, lp, lp * (j - alpha))
+            }
+        };
+        let mut out = Mat9::identity() * a + cof * cof.transpose() * b + cofactor_hessian(f) * c;
+        if self == Energy::FixedCorotated {
+            // dR/dF = sum over the pairs of vec(T_ab) vec(T_ab)^T / (s_a + s_b).
+            for (t, inv) in polar().derivative_terms() {
+                let t = SMatrix::<f64, 9, 1>::from_column_slice(t.as_slice());
+                out -= t * t.transpose() * (a * inv);
             }
         }
-        // Symmetric in exact arithmetic; remove the round-off.
-        (out + out.transpose()) * 0.5
+        out
     }
 
     /// `(dP/dmu, dP/dlambda)` at `F`.
@@ -269,6 +362,51 @@ mod tests {
                 )) / (2.0 * h);
                 assert!((fm - dmu).norm() <= 1e-6 * (1.0 + dmu.norm()), "{model:?} dmu");
                 assert!((fl - dla).norm() <= 1e-6 * (1.0 + dla.norm()), "{model:?} dlambda");
+            }
+        }
+    }
+
+    /// `stress_and_energy` is `stress` and `energy` from one polar decomposition, to the bit;
+    /// the cofactor's 9 x 9 derivative is symmetric and holds its directional derivatives; the
+    /// corotated `dP/dF` from the rank-one terms of `dR/dF` equals the directional derivative
+    /// `U W V^T` (`W_ab = (M_ab - M_ba)/(s_a + s_b)`, `M = U^T d V`) it replaces.
+    #[test]
+    fn shared_polar_and_rank_one_rotation_derivative() {
+        let l = Lame { mu: 3.0, lambda: 7.0 };
+        for k in 0..12 {
+            let f = Matrix3::identity() + mat(k) * 0.4;
+            for model in MODELS {
+                let (p, psi) = model.stress_and_energy(l, &f);
+                assert_eq!(p, model.stress(l, &f), "{model:?}");
+                assert_eq!(psi.to_bits(), model.energy(l, &f).to_bits(), "{model:?}");
+            }
+            let h = cofactor_hessian(&f);
+            assert_eq!(h, h.transpose());
+            for dk in 0..9 {
+                let mut d = Matrix3::zeros();
+                d[(dk % 3, dk / 3)] = 1.0;
+                let column = Matrix3::from_column_slice(h.column(dk).as_slice());
+                assert!((column - cofactor_derivative(&f, &d)).norm() <= 1e-14 * (1.0 + f.norm_squared()));
+            }
+            let pol = polar(&f);
+            let terms = pol.derivative_terms();
+            for dk in 0..4 {
+                let d = mat(k + 50 + dk);
+                let m = pol.u.transpose() * d * pol.v;
+                let mut w = Matrix3::zeros();
+                for (a, b) in [(0, 1), (0, 2), (1, 2)] {
+                    let x = (m[(a, b)] - m[(b, a)]) / (pol.s[a] + pol.s[b]);
+                    w[(a, b)] = x;
+                    w[(b, a)] = -x;
+                }
+                let direct = pol.u * w * pol.v.transpose();
+                let rank_one = terms
+                    .iter()
+                    .fold(Matrix3::zeros(), |acc, (t, inv)| acc + t * (t.dot(&d) * inv));
+                assert!(
+                    (direct - rank_one).norm() <= 1e-12 * (1.0 + direct.norm()),
+                    "{direct} {rank_one}"
+                );
             }
         }
     }
