@@ -83,6 +83,16 @@ def _names(params: Sequence[str]) -> list[str]:
     return list(params)
 
 
+def _submitter(executor: Any) -> Any:
+    """``executor.submit``, or a ``TypeError`` naming the argument when there is none."""
+    submit = getattr(executor, "submit", None)
+    if not callable(submit):
+        raise TypeError(
+            f"executor must be a concurrent.futures.Executor (or None), got {type(executor).__name__} {executor!r}"
+        )
+    return submit
+
+
 def grad_batch(
     scene: Scene,
     steps: int,
@@ -99,10 +109,10 @@ def grad_batch(
     pickled scene, and the results are the same numbers."""
     if executor is None:
         return _diffsoft.grad_batch(scene, steps, loss, _names(params), _dicts(values), mode, allow_unconverged)
-    futures = [
-        executor.submit(_grad_item, scene, steps, loss, _names(params), v, mode, allow_unconverged)
-        for v in _dicts(values)
-    ]
+    submit, items = _submitter(executor), _dicts(values)
+    # Every other argument checked here as the native batch checks it (an empty one runs nothing).
+    _diffsoft.grad_batch(scene, steps, loss, _names(params), [], mode, allow_unconverged)
+    futures = [submit(_grad_item, scene, steps, loss, _names(params), v, mode, allow_unconverged) for v in items]
     return _collect(futures)
 
 
@@ -113,5 +123,7 @@ def simulate_batch(
     ``executor`` as in ``grad_batch``."""
     if executor is None:
         return _diffsoft.simulate_batch(scene, steps, _dicts(values))
-    futures = [executor.submit(_simulate_item, scene, steps, v) for v in _dicts(values)]
+    submit, items = _submitter(executor), _dicts(values)
+    _diffsoft.simulate_batch(scene, steps, [])
+    futures = [submit(_simulate_item, scene, steps, v) for v in items]
     return _collect(futures)

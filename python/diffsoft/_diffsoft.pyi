@@ -15,6 +15,7 @@ __all__ = [
     "__version__",
     "_run_from_state",
     "_scene_from_state",
+    "_trajectory_steps",
     "array_parameters",
     "bounds",
     "grad_batch",
@@ -224,7 +225,10 @@ def gradcheck(
 ) -> dict[str, Any]:
     """A ``diffsoft gradcheck`` case on ``scene``: reverse mode against central differences
     (step sweeps) and dual numbers; ``passes`` says whether it holds. ``iterations`` (fixed
-    local-global iterations per step) is 30 when not given."""
+    local-global iterations per step, at most 1000) is 30 when not given. ``steps``, ``loss``,
+    ``params`` (at least one, each applying to the scene) and the per-step controls are
+    checked as ``Scene.grad`` checks them, raising its exceptions; activations left to the
+    schedules are checked at the schedules' values."""
 
 def jacobians(seed: int = 2021) -> dict[str, Any]:
     """The ``diffsoft jacobians`` report (joint and ``B = dq/dz`` Jacobians)."""
@@ -243,6 +247,9 @@ def _scene_from_state(state: dict[str, Any]) -> Scene:
 
 def _run_from_state(positions: Any, velocities: Any, times: Any, stats: Any) -> Run:
     """A run from its pickled state."""
+
+def _trajectory_steps(scene: Scene, steps: int) -> int:
+    """``steps`` checked as ``Scene.simulate`` checks it, with the memory of its trajectory."""
 
 def scalar_parameters() -> list[str]:
     """Names of the scalar parameters, from the library's parameter registry (as the CLI's

@@ -1,19 +1,38 @@
-"""Refusing values a framework would quietly turn into real numbers: ``True`` read as 1, a
-complex number read as its real part. The wrappers call ``check_real`` on each parameter before
-converting it to a float64 tensor or array (the package's own readers refuse the same)."""
+"""Refusing values a framework would quietly turn into real numbers, or refuse without naming
+them: ``True`` read as 1, a complex number read as its real part, text parsed as a number,
+``None``. The wrappers read their ``params`` with ``parameters``, which calls ``check_real`` on
+each value before converting it to a float64 tensor or array (the package's own readers refuse
+the same)."""
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any
 
 from ._errors import InputError
 
 
 def check_real(name: str, value: Any) -> None:
-    """Raise ``InputError`` naming ``name`` when ``value`` is a bool or complex (a Python,
-    NumPy, PyTorch or JAX scalar or array of either)."""
-    if isinstance(value, (bool, complex)):
+    """Raise ``InputError`` naming ``name`` when ``value`` is ``None``, text, a bool or complex
+    (a Python, NumPy, PyTorch or JAX scalar or array of either)."""
+    if value is None or isinstance(value, (bool, complex, str, bytes)):
         raise InputError(f"{name}: got {type(value).__name__} {value!r}, expected real numbers")
-    dtype = str(getattr(value, "dtype", ""))
+    dtype = getattr(value, "dtype", None)
+    if getattr(dtype, "kind", "") in ("U", "S"):
+        raise InputError(f"{name}: got text (dtype {dtype}), expected real numbers")
+    dtype = str(dtype or "")
     if dtype.endswith("bool") or "complex" in dtype:
         raise InputError(f"{name}: got values of dtype {dtype}, expected real numbers")
+
+
+def parameters(params: Mapping[str, Any] | None) -> dict[str, Any]:
+    """The wrappers' ``params`` as a dict, each value checked by ``check_real``; anything but a
+    mapping (or ``None``) is a ``TypeError`` naming the argument."""
+    if params is None:
+        return {}
+    if not isinstance(params, Mapping):
+        raise TypeError(f"params must be a dict of parameter names to values, got {type(params).__name__} {params!r}")
+    out = dict(params)
+    for name, value in out.items():
+        check_real(name, value)
+    return out

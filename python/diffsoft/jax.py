@@ -26,9 +26,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._diffsoft import Scene, scalar_parameters, simulate_batch, vjp_batch
+from ._diffsoft import Scene, _trajectory_steps, scalar_parameters, simulate_batch, vjp_batch
 from ._errors import InputError
-from ._real import check_real
+from ._real import parameters
 
 _SCALARS = frozenset(scalar_parameters())
 
@@ -52,13 +52,11 @@ def _configured(scene: Scene, names: tuple[str, ...], values: Any) -> Scene:
     return s
 
 
-def _validate(scene: Scene, steps: int, names: tuple[str, ...], values: tuple[Any, ...], mode: str) -> None:
-    """Diffsoft's own errors before any callback: the mode and steps, and every parameter set
-    on a copy of the scene (its value where known, else the shape of its current value)."""
+def _validate(scene: Scene, names: tuple[str, ...], values: tuple[Any, ...], mode: str) -> None:
+    """Diffsoft's own errors before any callback: the mode, and every parameter set on a copy
+    of the scene (its value where known, else the shape of its current value)."""
     if mode not in ("unrolled", "implicit"):
         raise InputError(f"mode '{mode}': expected 'unrolled' or 'implicit'")
-    if steps < 1:
-        raise InputError("steps must be at least 1")
     known = [not isinstance(v, jax.core.Tracer) for v in values]
     s = scene.copy()
     for name, v, k in sorted(zip(names, values, known), key=lambda p: p[0] not in _SCALARS):
@@ -102,13 +100,14 @@ def simulate(
     (``ConvergenceWarning``) and its gradient raises ``ConvergenceError`` unless
     ``allow_unconverged``.
     """
-    params = dict(params or {})
-    for name, value in params.items():
-        check_real(name, value)
+    params = parameters(params)
     names = tuple(params)
     dtype = jnp.result_type(float)
     values = tuple(jnp.asarray(params[n], dtype=dtype) for n in names)
-    _validate(scene, steps, names, values, mode)
+    # Read and checked as Scene.simulate does (its type, and the trajectory's memory before JAX
+    # allocates it).
+    steps = _trajectory_steps(scene, steps)
+    _validate(scene, names, values, mode)
     shapes = tuple(tuple(jnp.shape(v)) for v in values)
     traj = (steps + 1, scene.n_vertices, 3)
     spec = jax.ShapeDtypeStruct(traj, dtype)

@@ -273,7 +273,7 @@ def _meshio_scene(mesh: Any, scene: Mapping[str, Any] | None, body: Mapping[str,
     cells = getattr(mesh, "cells", None)
     if points is None or cells is None:
         raise InputError(f"from_meshio: expected a meshio.Mesh (with points and cells), got {type(mesh).__name__}")
-    tets = [np.asarray(c.data) for c in cells if c.type == "tetra"]
+    tets = [_tet_block(k, c.data) for k, c in enumerate(cells) if c.type == "tetra"]
     if not tets:
         kinds = sorted({str(c.type) for c in cells})
         hint = " (a surface: diffsoft.mesh.tetrahedralize makes tets of it)" if "triangle" in kinds else ""
@@ -287,9 +287,23 @@ def _meshio_scene(mesh: Any, scene: Mapping[str, Any] | None, body: Mapping[str,
     b.update(body or {})
     if "mesh" in b:
         raise InputError("from_meshio: the body's mesh is the meshio mesh; do not pass mesh=")
-    b["mesh"] = {"vertices": points, "tets": np.concatenate(tets).astype(np.int64)}
+    b["mesh"] = {"vertices": points, "tets": np.concatenate(tets)}
     d: dict[str, Any] = dict(scene or {})
     if "bodies" in d:
         raise InputError("from_meshio: `scene` holds the scene's other keys; the body is in the keyword arguments")
     d["bodies"] = [b]
     return d
+
+
+def _tet_block(k: int, data: Any) -> NDArray[np.int64]:
+    """The vertex indices of the meshio cell block ``cells[k]`` as int64, refusing what the
+    cast would change: indices that are not integers (a float 2.7 read as 2) and integers past
+    int64 (a uint64 2**64 - 1 read as -1)."""
+    a = np.asarray(data)
+    if not np.issubdtype(a.dtype, np.integer):
+        raise InputError(f"from_meshio: cells[{k}] (tetra): vertex indices of dtype {a.dtype}, expected integers")
+    past = np.argwhere(a > np.iinfo(np.int64).max) if a.dtype == np.uint64 else np.zeros((0, a.ndim))
+    if len(past):
+        at = tuple(int(i) for i in past[0])
+        raise InputError(f"from_meshio: cells[{k}] (tetra), entry {at}: vertex index {a[at]} is out of range")
+    return a.astype(np.int64)

@@ -29,7 +29,7 @@ import torch
 
 from ._diffsoft import Scene, scalar_parameters, simulate_batch, vjp_batch
 from ._errors import InputError
-from ._real import check_real
+from ._real import parameters
 
 _SCALARS = frozenset(scalar_parameters())
 
@@ -114,8 +114,10 @@ class _Forward(torch.autograd.Function):
             q, v = run.positions, run.velocities
         else:
             runs = simulate_batch(call.scene, call.steps, _items(call.names, tensors, batch))
-            q = np.stack([r.positions for r in runs])
-            v = np.stack([r.velocities for r in runs])
+            # An empty batch too: (0, steps + 1, n, 3).
+            empty = np.zeros((0, call.steps + 1, call.scene.n_vertices, 3))
+            q = np.stack([r.positions for r in runs]) if runs else empty
+            v = np.stack([r.velocities for r in runs]) if runs else empty
         if call.with_velocities:
             return call.output(q), call.output(v)
         return call.output(q)
@@ -180,7 +182,10 @@ class _Backward(torch.autograd.Function):
                 mode=call.mode,
                 allow_unconverged=call.allow_unconverged,
             )
-            values = [np.stack([np.asarray(g[n]) for g in gs]) for n in call.names]
+            values = [
+                np.stack([np.asarray(g[n]) for g in gs]) if gs else np.zeros(t.shape)
+                for n, t in zip(call.names, tensors)
+            ]
         return tuple(
             torch.as_tensor(a, dtype=t.dtype, device=t.device).reshape(t.shape) for a, t in zip(values, tensors)
         )
@@ -249,9 +254,7 @@ def simulate(
     if mode not in ("unrolled", "implicit"):
         # Checked before the forward runs, as the JAX wrapper does (its backward would refuse it).
         raise InputError(f"mode '{mode}': expected 'unrolled' or 'implicit'")
-    params = dict(params or {})
-    for name, value in params.items():
-        check_real(name, value)
+    params = parameters(params)
     names = tuple(params)
     tensors = tuple(
         v if isinstance(v, torch.Tensor) else torch.as_tensor(v, dtype=torch.float64) for v in params.values()

@@ -16,12 +16,24 @@ pub(crate) fn scenes(base: &Scene, values: &[Bound<'_, PyDict>]) -> PyResult<Vec
         .iter()
         .enumerate()
         .map(|(k, v)| {
-            // The error's message (not its type name) after the index of the parameter set.
             scene::values(&base.inner.model, v)
                 .and_then(|vals| base.with(vals))
-                .map_err(|e| crate::errors::value(format!("values[{k}]: {}", e.value(v.py()))))
+                .map_err(|e| item_error(v.py(), k, e))
         })
         .collect()
+}
+
+/// The error of item `k` of a batch: its class and message, the message after `values[k]: `
+/// (the original as its cause).
+pub(crate) fn item_error(py: Python<'_>, k: usize, e: PyErr) -> PyErr {
+    match e.get_type(py).call1((format!("values[{k}]: {}", e.value(py)),)) {
+        Ok(renamed) => {
+            let renamed = PyErr::from_value(renamed);
+            renamed.set_cause(py, Some(e));
+            renamed
+        }
+        Err(_) => e,
+    }
 }
 
 /// `f` of every item in parallel ([`tasks::map_each`]) with the GIL released and Ctrl-C
@@ -56,14 +68,17 @@ pub fn grad_batch<'py>(
     let steps = crate::args::count(steps, "steps", 1)?;
     let params = crate::args::names(params, "params")?;
     let values = crate::args::dicts(values, "values")?;
-    scene::names(&params)?;
+    scene::names(&scene.inner.model, &params)?;
     let m = scene::mode(mode)?;
+    // Checked before the items (an empty batch included), as `Scene.grad` checks it.
+    scene::loss(&scene.inner.model, loss)?;
     let runs = scenes(scene, &values)?;
     let results = each(py, &runs, |s| s.gradient(steps, loss, m, allow_unconverged))?;
     runs.iter()
         .zip(results)
-        .map(|(s, g)| {
-            let g = g?;
+        .enumerate()
+        .map(|(k, (s, g))| {
+            let g = g.map_err(|e| item_error(py, k, e))?;
             scene::warn_stats(py, &g, steps)?;
             let d = scene::grads(py, &s.inner.model, &g, &params)?;
             PyTuple::new(py, [g.loss.into_pyobject(py)?.into_any(), d.into_any()])
@@ -95,7 +110,7 @@ pub fn simulate_batch<'py>(
         .zip(results)
         .enumerate()
         .map(|(k, (s, r))| {
-            let r = r?;
+            let r = r.map_err(|e| item_error(py, k, e))?;
             unconverged |= s.inner.settings.tolerance > 0.0 && r.unconverged_steps() > 0;
             if gain.is_none() {
                 gain = diffsoft::output::solver_energy_gain(&s.inner.model, &r.stats).map(|g| (k, g));

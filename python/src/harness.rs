@@ -3,8 +3,11 @@
 
 use diffsoft::analysis::bounds::{analyze, BoundsParams};
 use diffsoft::analysis::spectral::EigenMethod;
+use diffsoft::base::memory;
 use diffsoft::diff::params::ArrayParam;
+use diffsoft::diff::Options;
 use diffsoft::testing::{gradcheck_settings, Case, Group};
+use diffsoft::Mode;
 use diffsoft_harness::gradients;
 use pyo3::prelude::*;
 
@@ -16,19 +19,26 @@ use crate::scene_core::{self as scene, Scene};
 
 /// Spectral radii and critical time steps of the paper's iterations (19) and (21) on a mesh,
 /// with the appendix's verdicts (the `diffsoft bounds` report).
+/// The numbers are read as `Scene.set` reads them (a bool is refused, not taken as 0 or 1).
 #[pyfunction]
-#[pyo3(signature = (mesh, rho, mu, dt, scale = 1.0, empirical = false, method = "auto"))]
+#[pyo3(
+    signature = (mesh, rho, mu, dt, scale = None, empirical = false, method = "auto"),
+    text_signature = "(mesh, rho, mu, dt, scale=1.0, empirical=False, method='auto')"
+)]
 #[allow(clippy::too_many_arguments)] // the Python signature: keyword arguments with defaults
 pub fn bounds<'py>(
     py: Python<'py>,
     mesh: std::path::PathBuf,
-    rho: f64,
-    mu: f64,
-    dt: f64,
-    scale: f64,
+    rho: &Bound<'py, PyAny>,
+    mu: &Bound<'py, PyAny>,
+    dt: &Bound<'py, PyAny>,
+    scale: Option<&Bound<'py, PyAny>>,
     empirical: bool,
     method: &str,
 ) -> PyResult<Bound<'py, PyAny>> {
+    let [rho, mu, dt] = [(rho, "rho"), (mu, "mu"), (dt, "dt")].map(|(v, name)| arrays::read_scalar(name, v));
+    let (rho, mu, dt) = (rho?, mu?, dt?);
+    let scale = scale.map_or(Ok(1.0), |s| arrays::read_scalar("scale", s))?;
     if !(scale.is_finite() && scale > 0.0) {
         return Err(errors::value(format!("scale must be finite and positive, got {scale}")));
     }
@@ -57,11 +67,21 @@ pub fn bounds<'py>(
     arrays::report(py, &report)
 }
 
+/// The most fixed local-global iterations per step `gradcheck` runs (`iterations`): its runs
+/// stop at no tolerance, so the count is the cost of every step (the library's own cases run 8
+/// to 30).
+pub const MAX_GRADCHECK_ITERATIONS: usize = 1000;
+
 /// Reverse-mode gradients of `scene` checked against central finite differences (step sweeps)
 /// and dual numbers, per parameter group (a `diffsoft gradcheck` case); `iterations` (fixed
-/// local-global iterations per step) is 30 when not given.
+/// local-global iterations per step, at most [`MAX_GRADCHECK_ITERATIONS`]) is 30 when not
+/// given. The parameters, steps and controls are checked as `Scene.grad` checks them, raising
+/// its exceptions.
 #[pyfunction]
-#[pyo3(signature = (scene, steps, loss = "final_com.y", params = None, iterations = None, seed = 2021))]
+#[pyo3(
+    signature = (scene, steps, loss = "final_com.y", params = None, iterations = None, seed = None),
+    text_signature = "(scene, steps, loss='final_com.y', params=None, iterations=None, seed=2021)"
+)]
 pub fn gradcheck<'py>(
     py: Python<'py>,
     scene: &Scene,
@@ -69,15 +89,25 @@ pub fn gradcheck<'py>(
     loss: &str,
     params: Option<&Bound<'py, PyAny>>,
     iterations: Option<&Bound<'py, PyAny>>,
-    seed: u64,
+    seed: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let steps = crate::args::count(steps, "steps", 1)?;
     let iterations = iterations.map_or(Ok(30), |i| crate::args::count(i, "iterations", 1))?;
+    if iterations > MAX_GRADCHECK_ITERATIONS {
+        return Err(errors::value(format!(
+            "iterations must be at most {MAX_GRADCHECK_ITERATIONS} (fixed iterations per step, every one run), got {iterations}"
+        )));
+    }
+    let seed = seed.map_or(Ok(2021), |s| crate::args::count(s, "seed", 0))? as u64;
     let params = match params {
         Some(p) => crate::args::names(p, "params")?,
         None => vec!["youngs_modulus".into(), "initial_velocities".into()],
     };
-    let groups = scene::names(&params)?
+    if params.is_empty() {
+        return Err(errors::value("params: no parameter to check; name at least one"));
+    }
+    let model = &scene.inner.model;
+    let groups = scene::names(model, &params)?
         .into_iter()
         .map(|n| match n {
             Name::Scalar(p) => Ok(Group::Scalar(p)),
@@ -94,6 +124,23 @@ pub fn gradcheck<'py>(
             },
         })
         .collect::<PyResult<Vec<_>>>()?;
+    scene.inputs.check_rows(steps)?;
+    // Unchecked: the check perturbs a start that touches an obstacle on purpose.
+    let mut controls = scene.inputs.controls(model);
+    if let (true, None, Some(act)) = (
+        groups.contains(&Group::Activations),
+        &controls.activations,
+        model.actuators(),
+    ) {
+        // Activations left to the schedules are checked at the schedules' values, each step's
+        // at its end time (as the run reads them; torques likewise, `Case::direction`).
+        let rows = format!("activations of {steps} steps");
+        memory::check(&rows, steps, std::mem::size_of::<Vec<f64>>() + 8 * act.groups.len())
+            .map_err(|e| errors::solver(e.into()))?;
+        let dt = scene.inner.settings.dt;
+        let at = |n: usize| act.groups.iter().map(|g| g.activation.at(n as f64 * dt)).collect();
+        controls.activations = Some((1..=steps).map(at).collect());
+    }
     let case = Case {
         name: scene
             .inner
@@ -101,22 +148,37 @@ pub fn gradcheck<'py>(
             .file_stem()
             .map_or("scene".into(), |s| s.to_string_lossy().into_owned()),
         description: format!("{} (from Python)", scene.inner.path.display()),
-        model: scene.inner.model.clone(),
+        model: model.clone(),
         settings: gradcheck_settings(scene.inner.settings.dt, iterations),
         steps,
-        loss: diffsoft::diff::loss::by_name(loss).map_err(errors::diff)?,
-        controls: scene.inputs.controls(&scene.inner.model),
+        loss: scene::loss(model, loss)?,
+        controls,
         groups,
     };
-    let check = interrupt::run(py, || gradients::check_case(&case, seed))?;
-    arrays::report(py, &check)
+    let check = interrupt::run(py, || {
+        let check = gradients::check_case(&case, seed);
+        // A case that failed: the input errors `Scene.grad` raises (a run too large for
+        // memory, ...) are raised as it raises them, with their class; other failures stay in
+        // the report.
+        let refused = check
+            .error
+            .is_some()
+            .then(|| case.gradient(&case.settings, Options::mode(Mode::Unrolled)).err())
+            .flatten();
+        (check, refused)
+    })?;
+    match check.1.map(errors::diff) {
+        Some(e) if e.is_instance_of::<pyo3::exceptions::PyValueError>(py) => Err(e),
+        _ => arrays::report(py, &check.0),
+    }
 }
 
 /// Jacobians of the joints and of `B = dq/dz` against dual numbers and finite differences
 /// (the `diffsoft jacobians` report).
 #[pyfunction]
-#[pyo3(signature = (seed = 2021))]
-pub fn jacobians(py: Python<'_>, seed: u64) -> PyResult<Bound<'_, PyAny>> {
+#[pyo3(signature = (seed = None), text_signature = "(seed=2021)")]
+pub fn jacobians<'py>(py: Python<'py>, seed: Option<&Bound<'py, PyAny>>) -> PyResult<Bound<'py, PyAny>> {
+    let seed = seed.map_or(Ok(2021), |s| crate::args::count(s, "seed", 0))? as u64;
     let report = interrupt::run(py, || diffsoft_harness::jacobians::run(seed))?;
     arrays::report(py, &report)
 }

@@ -95,6 +95,7 @@ fn _diffsoft(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(scalar_parameters, m)?)?;
     m.add_function(wrap_pyfunction!(scene_data::_scene_from_state, m)?)?;
     m.add_function(wrap_pyfunction!(run::_run_from_state, m)?)?;
+    m.add_function(wrap_pyfunction!(run::_trajectory_steps, m)?)?;
     m.add_function(wrap_pyfunction!(mesh_box, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())

@@ -34,6 +34,21 @@ impl Name {
             (None, None) => unreachable!("a parameter is a scalar or an array"),
         })
     }
+
+    /// Refuse a parameter that `model` has nothing for (a material without bodies, activations
+    /// without actuators, torques without a skeleton): its derivative would be vacuous.
+    pub fn check_applies(self, model: &Model) -> PyResult<()> {
+        match self {
+            Name::Scalar(p) => p.check_applies(model).map_err(errors::diff),
+            Name::Array(ArrayParam::Activations) if groups(model) == 0 => {
+                Err(errors::value("activations: the scene has no actuators"))
+            }
+            Name::Array(ArrayParam::Torques) if dofs(model) == 0 => {
+                Err(errors::value("torques: the scene has no skeleton"))
+            }
+            Name::Array(_) => Ok(()),
+        }
+    }
 }
 
 /// What a scene holds besides its model: the controls a caller set.
@@ -53,11 +68,26 @@ impl Inputs {
     /// The library's controls for a run the user asked for: initial positions set from Python
     /// get the obstacle checks of a scene's own start first (`check_initial_positions`: no
     /// vertex inside an obstacle, no edge through one), an `InputError` naming them otherwise.
-    pub fn checked_controls(&self, model: &Model) -> PyResult<Controls> {
+    pub fn checked_controls(&self, model: &Model, steps: usize) -> PyResult<Controls> {
+        self.check_rows(steps)?;
         if let Some(q) = &self.q0 {
             diffsoft::solver::check_initial_positions(model, q).map_err(errors::solver)?;
         }
         Ok(self.controls(model))
+    }
+
+    /// Refuse per-step controls that do not have one row per step of a run of `steps` steps
+    /// (more rows would be dropped without a word, and their gradient would lose rows).
+    pub fn check_rows(&self, steps: usize) -> PyResult<()> {
+        for (name, rows) in [("activations", &self.activations), ("torques", &self.torques)] {
+            if let Some(rows) = rows.as_ref().filter(|r| r.len() != steps) {
+                return Err(errors::value(format!(
+                    "{name}: {} rows for a run of {steps} steps; give one row per step",
+                    rows.len()
+                )));
+            }
+        }
+        Ok(())
     }
 
     /// The library's controls, unchecked (the gradient-check harness perturbs a start that
@@ -83,6 +113,42 @@ fn groups(model: &Model) -> usize {
 
 fn dofs(model: &Model) -> usize {
     model.skeleton().map_or(0, |s| s.dofs)
+}
+
+/// Refuse activations outside their actuator group's range (as the run would, at its step).
+fn check_activations(model: &Model, rows: &[Vec<f64>]) -> PyResult<()> {
+    let Some(act) = model.actuators() else { return Ok(()) };
+    for (step, row) in rows.iter().enumerate() {
+        for (g, (a, group)) in row.iter().zip(&act.groups).enumerate() {
+            if !group.kind.admits(*a) {
+                return Err(errors::value(format!(
+                    "activations[{step}, {g}]: actuator '{}': activation {a} out of range ({})",
+                    group.name,
+                    group.kind.range()
+                )));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Refuse torques on the coordinates of joints with other than one DoF (as the run would).
+fn check_torques(model: &Model, rows: &[Vec<f64>]) -> PyResult<()> {
+    let Some(sk) = model.skeleton() else { return Ok(()) };
+    for (step, row) in rows.iter().enumerate() {
+        for b in sk.bones.iter().filter(|b| b.joint.dofs() != 1) {
+            let span = b.dof_offset..b.dof_offset + b.joint.dofs();
+            if let Some(k) = span.clone().find(|&k| row[k] != 0.0) {
+                return Err(errors::value(format!(
+                    "torques[{step}, {k}]: {}, but bone '{}' has a {} joint; torques act on one-DoF joints (give 0)",
+                    row[k],
+                    b.name,
+                    b.joint.kind()
+                )));
+            }
+        }
+    }
+    Ok(())
 }
 
 /// A parameter's value, converted from Python, ready to set (checked against the model).
@@ -116,17 +182,17 @@ impl Value {
             Name::Array(ArrayParam::YoungsModulusPerTet) => {
                 Value::PerTet(arrays::read_vector(name, value, model.tets().len())?)
             }
-            Name::Array(ArrayParam::Activations) => {
-                if groups(model) == 0 {
-                    return Err(errors::value("activations: the scene has no actuators"));
-                }
-                Value::PerStep(ArrayParam::Activations, arrays::read_matrix(name, value, None, groups(model))?)
+            Name::Array(a @ ArrayParam::Activations) => {
+                Name::Array(a).check_applies(model)?;
+                let rows = arrays::read_matrix(name, value, None, groups(model))?;
+                check_activations(model, &rows)?;
+                Value::PerStep(a, rows)
             }
-            Name::Array(ArrayParam::Torques) => {
-                if dofs(model) == 0 {
-                    return Err(errors::value("torques: the scene has no skeleton"));
-                }
-                Value::PerStep(ArrayParam::Torques, arrays::read_matrix(name, value, None, dofs(model))?)
+            Name::Array(a @ ArrayParam::Torques) => {
+                Name::Array(a).check_applies(model)?;
+                let rows = arrays::read_matrix(name, value, None, dofs(model))?;
+                check_torques(model, &rows)?;
+                Value::PerStep(a, rows)
             }
             Name::Array(ArrayParam::InitialJointState) => {
                 return Err(errors::value(
@@ -192,7 +258,7 @@ pub fn get<'py>(py: Python<'py>, model: &Model, inputs: &Inputs, name: &str) -> 
 pub fn derivative<'py>(py: Python<'py>, model: &Model, g: &Gradient, name: Name) -> PyResult<Bound<'py, PyAny>> {
     Ok(match name {
         Name::Scalar(p) => {
-            p.check_applies(model).map_err(errors::diff)?;
+            name.check_applies(model)?;
             p.derivative(model, g).into_pyobject(py)?.into_any()
         }
         Name::Array(a) => match a {
@@ -201,15 +267,11 @@ pub fn derivative<'py>(py: Python<'py>, model: &Model, g: &Gradient, name: Name)
             ArrayParam::YoungsModulusPerTet => arrays::array(py, g.youngs_modulus(model), &[model.tets().len()])?,
             ArrayParam::AttachmentTargets => arrays::vectors(py, g.attachment_targets.clone())?,
             ArrayParam::Activations => {
-                if groups(model) == 0 {
-                    return Err(errors::value("activations: the scene has no actuators"));
-                }
+                name.check_applies(model)?;
                 arrays::matrix(py, &g.activations, groups(model))?
             }
             ArrayParam::Torques => {
-                if dofs(model) == 0 {
-                    return Err(errors::value("torques: the scene has no skeleton"));
-                }
+                name.check_applies(model)?;
                 arrays::matrix(py, &g.torques, dofs(model))?
             }
             ArrayParam::InitialJointState => {

@@ -49,6 +49,23 @@ impl Run {
     }
 }
 
+/// `steps` read as `Scene.simulate` reads it, and the memory of its trajectory (positions and
+/// velocities of `steps + 1` states) checked as the rollout checks it: what the JAX wrapper
+/// checks before JAX allocates the trajectory's buffers, so that it raises the same errors.
+#[pyfunction]
+pub fn _trajectory_steps(scene: &crate::scene_core::Scene, steps: &Bound<'_, PyAny>) -> PyResult<usize> {
+    let steps = crate::args::count(steps, "steps", 1)?;
+    let n = scene.inner.model.n();
+    let state = 2 * n * std::mem::size_of::<nalgebra::Vector3<f64>>();
+    diffsoft::base::memory::check(
+        &format!("{steps} steps of {n} vertices"),
+        steps.saturating_add(1),
+        state,
+    )
+    .map_err(|e| crate::errors::solver(e.into()))?;
+    Ok(steps)
+}
+
 /// A `Run` from its four attributes (what unpickling calls).
 #[pyfunction]
 pub fn _run_from_state(positions: Py<PyAny>, velocities: Py<PyAny>, times: Py<PyAny>, stats: Py<PyAny>) -> Run {

@@ -232,7 +232,7 @@ impl Scene {
         let steps = crate::args::count(steps, "steps", 1)?;
         let params = params.map_or(Ok(Vec::new()), |p| crate::args::names(p, "params"))?;
         let (py, s) = snapshot(slf);
-        names(&params)?;
+        names(&s.inner.model, &params)?;
         let m = self::mode(mode)?;
         let g = interrupt::run(py, || s.gradient(steps, loss, m, allow_unconverged))??;
         warn_stats(py, &g, steps)?;
@@ -260,7 +260,7 @@ impl Scene {
         let steps = crate::args::count(steps, "steps", 1)?;
         let params = crate::args::names(params, "params")?;
         let (py, s) = snapshot(slf);
-        names(&params)?;
+        names(&s.inner.model, &params)?;
         let m = self::mode(mode)?;
         let cot = crate::vjp::cotangent(&s, steps, cotangent, velocity_cotangent, "")?;
         let g = interrupt::run(py, || s.vjp_gradient(steps, &cot, m, allow_unconverged))??;

@@ -31,9 +31,24 @@ pub fn mode(name: &str) -> PyResult<Mode> {
     }
 }
 
-/// Parameter names, parsed.
-pub fn names(params: &[String]) -> PyResult<Vec<Name>> {
-    params.iter().map(|p| Name::parse(p)).collect()
+/// Parameter names, parsed, each refused unless `model` has something it applies to (what
+/// `grad`, `vjp`, the batches and `gradcheck` check before they run).
+pub fn names(model: &Model, params: &[String]) -> PyResult<Vec<Name>> {
+    params
+        .iter()
+        .map(|p| {
+            let n = Name::parse(p)?;
+            n.check_applies(model)?;
+            Ok(n)
+        })
+        .collect()
+}
+
+/// The loss named `name`, checked against `model` (a joint loss names one of its bones).
+pub fn loss(model: &Model, name: &str) -> PyResult<Box<dyn diff::loss::Loss>> {
+    let loss = diff::loss::by_name(name).map_err(errors::diff)?;
+    loss.validate(model).map_err(errors::diff)?;
+    Ok(loss)
 }
 
 /// `name -> derivative` for `params`.
@@ -44,7 +59,7 @@ pub fn grads<'py>(
     params: &[String],
 ) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
-    for (p, n) in params.iter().zip(names(params)?) {
+    for (p, n) in params.iter().zip(names(model, params)?) {
         d.set_item(p, params::derivative(py, model, g, n)?)?;
     }
     Ok(d)
@@ -93,8 +108,8 @@ impl Scene {
         allow_unconverged: bool,
     ) -> PyResult<diffsoft::Gradient> {
         Self::check_steps(steps)?;
-        let loss = diff::loss::by_name(loss).map_err(errors::diff)?;
-        let controls = self.inputs.checked_controls(&self.inner.model)?;
+        let loss = self::loss(&self.inner.model, loss)?;
+        let controls = self.inputs.checked_controls(&self.inner.model, steps)?;
         diff::gradient(
             &self.inner.model,
             &self.inner.settings,
@@ -112,7 +127,7 @@ impl Scene {
     /// A rollout (the library's call, without the GIL).
     pub fn rollout(&self, steps: usize) -> PyResult<diff::Rollout> {
         Self::check_steps(steps)?;
-        let controls = self.inputs.checked_controls(&self.inner.model)?;
+        let controls = self.inputs.checked_controls(&self.inner.model, steps)?;
         diff::rollout(&self.inner.model, &self.inner.settings, steps, &controls).map_err(errors::diff)
     }
 }

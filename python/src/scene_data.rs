@@ -5,7 +5,7 @@
 //! temporary directory. (Python objects to JSON: `crate::pyjson`; the mesh accessors:
 //! `crate::mesh_access`.)
 
-use std::path::{Path, PathBuf};
+use std::path::{Component, Path, PathBuf};
 use std::sync::Arc;
 
 use diffsoft::scene as lib_scene;
@@ -32,6 +32,7 @@ pub(crate) fn from_dict(py: Python<'_>, d: &Bound<'_, PyAny>, base_dir: Option<P
         )));
     }
     let mut doc = crate::pyjson::to_json(d, "")?;
+    check_inline_vertices(&doc)?;
     if doc.get("schema").is_none() {
         if let Some(o) = doc.as_object_mut() {
             o.insert("schema".into(), Json::String(lib_scene::format::SCENE_SCHEMA.into()));
@@ -57,6 +58,52 @@ pub(crate) fn from_dict(py: Python<'_>, d: &Bound<'_, PyAny>, base_dir: Option<P
         inputs: Inputs::default(),
         data: Data::new(Source::Document(Arc::new(doc))),
     })
+}
+
+/// Refuse a body's inline mesh with vertices no tet uses: the library drops them and numbers
+/// the rest in order (as it does a mesh file's, whose ids the scene keeps), so row `k` of the
+/// position arrays would no longer be the caller's vertex `k`. Meshes the library refuses
+/// anyway (no tets, an index out of range, not integers) are left to it.
+fn check_inline_vertices(doc: &Json) -> PyResult<()> {
+    let Some(bodies) = doc.get("bodies").and_then(Json::as_array) else {
+        return Ok(());
+    };
+    for (b, body) in bodies.iter().enumerate() {
+        let mesh = body.get("mesh");
+        let (Some(n), Some(tets)) = (
+            mesh.and_then(|m| m.get("vertices"))
+                .and_then(Json::as_array)
+                .map(Vec::len),
+            mesh.and_then(|m| m.get("tets")).and_then(Json::as_array),
+        ) else {
+            continue;
+        };
+        let mut used = vec![false; n];
+        let indices: Option<Vec<usize>> = tets
+            .iter()
+            .flat_map(|t| t.as_array().map_or(&[][..], Vec::as_slice))
+            .map(|i| i.as_u64().and_then(|i| usize::try_from(i).ok()).filter(|&i| i < n))
+            .collect();
+        let Some(indices) = indices.filter(|i| !i.is_empty()) else {
+            continue;
+        };
+        indices.into_iter().for_each(|i| used[i] = true);
+        let unused: Vec<String> = (0..n).filter(|&i| !used[i]).map(|i| i.to_string()).collect();
+        if !unused.is_empty() {
+            let name = body.get("name").and_then(Json::as_str).unwrap_or("?");
+            let more = if unused.len() > 10 {
+                format!(" and {} more", unused.len() - 10)
+            } else {
+                String::new()
+            };
+            return Err(errors::value(format!(
+                "bodies[{b}] ('{name}') mesh: {} vertices that no tet uses ({}{more}); remove them (the rows of the position arrays are the mesh's vertices, in order)",
+                unused.len(),
+                unused[..unused.len().min(10)].join(", ")
+            )));
+        }
+    }
+    Ok(())
 }
 
 /// `Scene.to_dict`: the document with every mesh inline (plain lists; `json.dump` writes it as
@@ -163,8 +210,11 @@ fn load_paper(py: Python<'_>, paper: &Bound<'_, PyDict>) -> PyResult<lib_scene::
     ));
     let io = |e: std::io::Error| errors::Class::File.err(format!("{}: {e}", root.display()));
     let result = (|| {
+        // One normal component each (not `..`, `.`, a root or a path): the files stay under
+        // `root`.
         for part in [&dir, &name] {
-            if Path::new(part).components().count() != 1 {
+            let mut parts = Path::new(part).components();
+            if !matches!((parts.next(), parts.next()), (Some(Component::Normal(_)), None)) {
                 return Err(errors::value(format!("scene state: '{part}' is not a plain name")));
             }
         }

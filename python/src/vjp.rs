@@ -56,7 +56,7 @@ impl Scene {
         mode: Mode,
         allow_unconverged: bool,
     ) -> PyResult<diffsoft::Gradient> {
-        let controls = self.inputs.checked_controls(&self.inner.model)?;
+        let controls = self.inputs.checked_controls(&self.inner.model, steps)?;
         diff::vjp(
             &self.inner.model,
             &self.inner.settings,
@@ -92,7 +92,7 @@ pub fn vjp_batch<'py>(
     let steps = crate::args::count(steps, "steps", 1)?;
     let params = crate::args::names(params, "params")?;
     let values = crate::args::dicts(values, "values")?;
-    scene::names(&params)?;
+    scene::names(&scene.inner.model, &params)?;
     let m = scene::mode(mode)?;
     let items = values.len();
     if cotangents.len() != items {
@@ -126,8 +126,9 @@ pub fn vjp_batch<'py>(
     let results = crate::batch::each(py, &jobs, |(s, c)| s.vjp_gradient(steps, c, m, allow_unconverged))?;
     runs.iter()
         .zip(results)
-        .map(|(s, g)| {
-            let g = g?;
+        .enumerate()
+        .map(|(k, (s, g))| {
+            let g = g.map_err(|e| crate::batch::item_error(py, k, e))?;
             scene::warn_stats(py, &g, steps)?;
             scene::grads(py, &s.inner.model, &g, &params)
         })

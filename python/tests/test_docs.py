@@ -28,7 +28,10 @@ def _block(text: str, after: str, lang: str) -> str:
 def test_the_readme_python_quick_start_runs_verbatim_and_prints_its_numbers():
     readme = (REPO / "README.md").read_text()
     install = _block(readme, "### Python quick start", "sh")
-    assert install.startswith('pip install "./python[torch]"'), install
+    # A virtual environment first (system Pythons refuse pip installs), then the package.
+    venv, pip = install.splitlines()[:2]
+    assert venv.startswith("python3 -m venv .venv && . .venv/bin/activate"), install
+    assert pip.startswith('pip install "./python[torch]"'), install
     code = _block(readme, "### Python quick start", "python")
     printed = _block(readme, "It prints", "text")
     done = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True, timeout=600)

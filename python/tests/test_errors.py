@@ -328,3 +328,70 @@ def test_a_parameter_that_applies_to_nothing_is_refused():
             cloth.grad(2, params=[name])
     _, d = cloth.grad(2, params=["gravity.y"])
     assert d["gravity.y"] != 0.0
+
+
+def test_per_step_controls_are_checked_when_set_and_their_rows_when_run():
+    """`set` checks what it can at once (the range of each activation, torques on coordinates
+    of joints that are not one-DoF); a run refuses rows that are not one per step (more were
+    dropped without a word, and the gradient came back with fewer rows)."""
+    octo = diffsoft.Scene.load(REPO / "verification/paper/octopus/octopus.json")
+    groups = len(octo.actuator_groups)
+    bad = np.full((2, groups), 0.3)
+    bad[1, 3] = 1.5
+    with pytest.raises(diffsoft.InputError, match=r"activations\[1, 3\]: actuator '.*': activation 1.5 out of range"):
+        octo.set("activations", bad)
+    assert octo.get("activations") is None
+    baymax = diffsoft.Scene.load(REPO / "verification/scenes/baymax_skeleton.json")
+    torques = np.zeros((2, baymax.joint_dofs))
+    torques[0, 0] = 1.0
+    with pytest.raises(diffsoft.InputError, match=r"torques\[0, 0\]: .*bone 'torso' has a free joint"):
+        baymax.set("torques", torques)
+    octo.set("activations", np.full((3, groups), 0.3))
+    cot = np.zeros((3, octo.n_vertices, 3))
+    for run in (
+        lambda: octo.simulate(2),
+        lambda: octo.grad(2, params=["activations"]),
+        lambda: octo.vjp(2, ["activations"], cot),
+        lambda: diffsoft.grad_batch(octo, 2, "final_com.y", ["activations"], [{}]),
+    ):
+        with pytest.raises(diffsoft.InputError, match="activations: 3 rows for a run of 2 steps"):
+            run()
+
+
+def test_runtime_errors_of_a_batch_name_the_item(beam):
+    """A run of a batch that fails names its item, keeping its class, with or without an
+    executor (input errors did already)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    values = [{}, {"gravity.y": 1e308}]
+    cots = [np.zeros((3, beam.n_vertices, 3))] * 2
+    with ThreadPoolExecutor(2) as ex:
+        for call in (
+            lambda: diffsoft.simulate_batch(beam, 2, values),
+            lambda: diffsoft.simulate_batch(beam, 2, values, executor=ex),
+            lambda: diffsoft.grad_batch(beam, 2, "final_com.y", ["density"], values),
+            lambda: diffsoft.grad_batch(beam, 2, "final_com.y", ["density"], values, executor=ex),
+            lambda: diffsoft.vjp_batch(beam, 2, ["density"], values, cots),
+        ):
+            raised(diffsoft.DivergenceError, RuntimeError, call, match=r"^values\[1\]: .*non-finite")
+
+
+def test_batches_check_their_arguments_before_running_any_item(beam):
+    """An empty batch still checks the loss and parameters (it returned []), with an executor
+    too; an executor without `submit` is a TypeError naming it (an AttributeError before)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    with ThreadPoolExecutor(1) as ex:
+        for executor in (None, ex):
+            with pytest.raises(diffsoft.InputError, match="unknown loss 'bogus'"):
+                diffsoft.grad_batch(beam, 2, "bogus", ["density"], [], executor=executor)
+            with pytest.raises(diffsoft.InputError, match="torques: the scene has no skeleton"):
+                diffsoft.grad_batch(beam, 2, "final_com.y", ["torques"], [], executor=executor)
+            with pytest.raises(TypeError, match="steps must be an int"):
+                diffsoft.simulate_batch(beam, "2", [], executor=executor)
+    for call in (
+        lambda: diffsoft.grad_batch(beam, 2, "final_com.y", ["density"], [{}], executor=5),
+        lambda: diffsoft.simulate_batch(beam, 2, [], executor=5),
+    ):
+        with pytest.raises(TypeError, match="executor must be a concurrent.futures.Executor .*got int 5"):
+            call()

@@ -79,6 +79,32 @@ def test_wrappers_refuse_bools_complex_numbers_and_a_bad_mode_before_running(bea
         diffsoft.torch.simulate(beam, 2, {"youngs_modulus": torch.tensor(2e4)}, mode="bogus")
 
 
+def test_wrappers_name_the_parameter_of_none_text_and_a_bare_name(beam):
+    """Text was read as a number by JAX ("300" as 300), and None, text or a bare name as
+    `params` gave messages naming nothing."""
+    for simulate in (diffsoft.torch.simulate, diffsoft.jax.simulate):
+        for value, shown in ((None, "NoneType None"), ("300", "str '300'"), (np.array(["300"]), "text")):
+            with pytest.raises(diffsoft.InputError, match=f"density: got {shown}"):
+                simulate(beam, 2, {"density": value})
+        with pytest.raises(TypeError, match="params must be a dict of parameter names to values, got str 'density'"):
+            simulate(beam, 2, "density")
+
+
+def test_jax_reads_steps_as_the_native_calls_do(beam):
+    """JAX compared `steps < 1` (a str or None raised Python's own TypeError, 2.0 a shape
+    error) and allocated the trajectory before any check (JAX's RESOURCE_EXHAUSTED)."""
+    for steps, cls, message in (
+        ("2", TypeError, "steps must be an int, got str '2'"),
+        (None, TypeError, "steps must be an int, got NoneType None"),
+        (2.0, TypeError, "steps must be an int, got float 2.0"),
+        (0, diffsoft.InputError, "steps must be at least 1, got 0"),
+        (10**15, diffsoft.OutOfMemoryError, "memory"),
+    ):
+        for simulate in (diffsoft.torch.simulate, diffsoft.jax.simulate):
+            with pytest.raises(cls, match=message):
+                simulate(beam, steps)
+
+
 def test_jax_gradients_and_jit(beam):
     steps = 6
 

@@ -134,6 +134,37 @@ def test_from_meshio_runs_the_file_scenes_trajectory(tmp_path):
         diffsoft.Scene.from_meshio("beam.vtu", scene=d, **body)
 
 
+def test_from_meshio_refuses_indices_a_cast_would_change():
+    """Float indices were truncated (3.7 read as 3) and a uint64 2**64 - 1 wrapped to -1."""
+    import meshio
+
+    v, t = read_tet_obj(DATA / "beam.obj")
+    d = json.loads((DATA / "beam.json").read_text())
+    body = d.pop("bodies")[0]
+    body.pop("mesh")
+    floats = t.astype(np.float64)
+    floats[2, 1] += 0.7
+    huge = t.astype(np.uint64)
+    huge[5, 3] = 2**64 - 1
+    for cells, message in (
+        ([("triangle", t[:, :3]), ("tetra", floats)], r"cells\[1\] \(tetra\): vertex indices of dtype float64"),
+        ([("tetra", huge)], r"cells\[0\] \(tetra\), entry \(5, 3\): vertex index 18446744073709551615 is out of range"),
+    ):
+        with pytest.raises(diffsoft.InputError, match=message):
+            diffsoft.Scene.from_meshio(meshio.Mesh(v, cells), scene=d, **body)
+    assert diffsoft.Scene.from_meshio(meshio.Mesh(v, [("tetra", t.astype(np.uint32))]), scene=d, **body).n_tets == 24
+
+
+def test_an_inline_mesh_with_vertices_no_tet_uses_is_refused():
+    """The library drops such vertices and numbers the rest: row k of the positions was the
+    caller's vertex k + 1. Refused naming them (a mesh file's are dropped and its ids kept)."""
+    d = beam_dict()
+    v, t = d["bodies"][0]["mesh"]["vertices"], d["bodies"][0]["mesh"]["tets"]
+    d["bodies"][0]["mesh"] = {"vertices": np.vstack([[[9.0, 9.0, 9.0]], v, [[8.0, 8.0, 8.0]]]), "tets": t + 1}
+    with pytest.raises(diffsoft.InputError, match=r"bodies\[0\] \('.*'\) mesh: 2 vertices that no tet uses \(0, 21\)"):
+        diffsoft.Scene.from_dict(d)
+
+
 def test_bad_scene_dicts_raise_input_errors_naming_the_place():
     def build(mutate) -> None:
         d = beam_dict()
@@ -300,6 +331,17 @@ def test_pickled_paper_scene_carries_files_named_through_dot_dot_and_absolute_pa
         again = pickle.loads(blob)
         assert again.n_vertices == scene.n_vertices == 212
         same_run(scene, again, 3)
+
+
+def test_a_crafted_paper_state_cannot_name_a_directory_outside_its_own():
+    """`..` and `.` counted as one path component: `dir = ".."` wrote the scene file beside the
+    temporary directory instead of inside it."""
+    paper = diffsoft.Scene.load(REPO / "verification/paper/bridgesus/bridgesus.json")
+    for key, bad in (("dir", ".."), ("dir", "."), ("name", ".."), ("dir", "a/b"), ("name", "/etc/x.json")):
+        state = paper.__reduce__()[1][0]
+        state["paper"][key] = bad
+        with pytest.raises(diffsoft.InputError, match="is not a plain name"):
+            diffsoft._diffsoft._scene_from_state(state)
 
 
 def test_runs_pickle_by_value():

@@ -79,6 +79,16 @@ def test_torch_vmap_equals_a_loop(beam):
     np.testing.assert_array_equal(nested[1, 2].numpy(), q[2].numpy())
 
 
+def test_torch_vmap_over_an_empty_batch(beam):
+    """Numpy's "need at least one array to stack" before; JAX returned the empty result."""
+    es = torch.zeros(0, dtype=torch.float64, requires_grad=True)
+    q = torch.func.vmap(_torch_sim(beam))(es)
+    assert q.shape == (0, STEPS + 1, beam.n_vertices, 3)
+    q.sum().backward()
+    assert es.grad is not None and es.grad.shape == (0,)
+    assert jax.vmap(lambda e: diffsoft.jax.simulate(beam, STEPS, {"youngs_modulus": e}))(jnp.zeros(0)).shape == q.shape
+
+
 def _loss(q):
     return ((q[-1] - 0.05) ** 2).mean() + q[:, :, 1].mean()
 

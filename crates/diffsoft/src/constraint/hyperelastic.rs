@@ -74,12 +74,12 @@ fn for_batch(
         *fk = model.tet_deformation(h.tets[i0 + k], q);
     }
     let polars = Polars::new(&h.energy[i0..i0 + len], &f[..len]);
-    for k in 0..len {
+    for (k, fk) in f[..len].iter().enumerate() {
         let i = i0 + k;
         each(
             i,
             h.tets[i],
-            h.energy[i].stress_derivative_at(h.lame[i], &f[k], &polars, k),
+            h.energy[i].stress_derivative_at(h.lame[i], fk, &polars, k),
         );
     }
 }
