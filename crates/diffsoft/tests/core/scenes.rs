@@ -273,23 +273,32 @@ fn paper_scenes_refuse_malformed_values() {
     );
 }
 
+/// The octopus scene's load error after `edit` changed the fields of its muscle file's lines
+/// (`muscle sample x y z`, one `Vec` per line).
+fn octopus_with_muscle_lines(tag: &str, edit: impl FnOnce(&mut [Vec<String>])) -> String {
+    let (dir, _) = paper_copy(tag, "octopus/octopus.json");
+    let muscle = dir.join("octopus.muscle");
+    let text = std::fs::read_to_string(&muscle).unwrap();
+    let mut lines: Vec<Vec<String>> = text
+        .lines()
+        .map(|l| l.split_whitespace().map(String::from).collect())
+        .collect();
+    edit(&mut lines);
+    let text: Vec<String> = lines.iter().map(|l| l.join(" ")).collect();
+    std::fs::write(&muscle, text.join("\n")).unwrap();
+    scene::load(dir.join("octopus.json"), LoadOptions::default())
+        .unwrap_err()
+        .to_string()
+}
+
 /// A muscle file that gives one muscle's sample number twice (its polyline's order would be
 /// open) is refused, naming both lines.
 #[test]
 fn paper_muscle_files_refuse_repeated_samples() {
-    let (dir, _) = paper_copy("paper-muscle-repeat", "octopus/octopus.json");
-    let muscle = dir.join("octopus.muscle");
-    let text = std::fs::read_to_string(&muscle).unwrap();
-    let mut lines: Vec<String> = text.lines().map(String::from).collect();
-    let mut fifth: Vec<String> = lines[4].split_whitespace().map(String::from).collect();
-    let first: Vec<&str> = lines[0].split_whitespace().collect();
-    assert_eq!(first[0], fifth[0], "lines 1 and 5 are one muscle's");
-    fifth[1] = first[1].to_string();
-    lines[4] = fifth.join(" ");
-    std::fs::write(&muscle, lines.join("\n")).unwrap();
-    let e = scene::load(dir.join("octopus.json"), LoadOptions::default())
-        .unwrap_err()
-        .to_string();
+    let e = octopus_with_muscle_lines("paper-muscle-repeat", |lines| {
+        assert_eq!(lines[0][0], lines[4][0], "lines 1 and 5 are one muscle's");
+        lines[4][1] = lines[0][1].clone();
+    });
     assert!(
         e.contains("line 5: muscle 0 sample 0 was already given on line 1"),
         "{e}"
@@ -300,17 +309,7 @@ fn paper_muscle_files_refuse_repeated_samples() {
 /// as a muscle without segments.
 #[test]
 fn paper_muscle_files_refuse_negative_numbers() {
-    let (dir, _) = paper_copy("paper-muscle", "octopus/octopus.json");
-    let muscle = dir.join("octopus.muscle");
-    let text = std::fs::read_to_string(&muscle).unwrap();
-    let mut lines: Vec<String> = text.lines().map(String::from).collect();
-    let mut first: Vec<String> = lines[0].split_whitespace().map(String::from).collect();
-    first[0] = "-1".into();
-    lines[0] = first.join(" ");
-    std::fs::write(&muscle, lines.join("\n")).unwrap();
-    let e = scene::load(dir.join("octopus.json"), LoadOptions::default())
-        .unwrap_err()
-        .to_string();
+    let e = octopus_with_muscle_lines("paper-muscle", |lines| lines[0][0] = "-1".into());
     assert!(
         e.contains("line 1: muscle and sample numbers count from 0, got -1"),
         "{e}"
