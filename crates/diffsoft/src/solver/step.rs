@@ -169,8 +169,21 @@ impl Simulator {
             )));
         }
         if kinetic > 1e8 * self.energy_scale {
+            // A step so short that the positions' round-off alone, over one step, is a velocity
+            // with that much energy: the time step, not the dynamics, is what failed.
+            let h = self.integrator.h();
+            let v_roundoff = f64::EPSILON * model.length_scale() / h;
+            let mass: f64 = model.mass.iter().sum();
+            let cause = if 0.5 * mass * v_roundoff * v_roundoff > 1e8 * self.energy_scale {
+                format!(
+                    "; the time step {} s is below what double precision resolves for this scene (a position's round-off over one step is a velocity of {v_roundoff:.1e} m/s)",
+                    crate::base::number(h)
+                )
+            } else {
+                String::new()
+            };
             return Err(SolverError::Diverged(format!(
-                "step {}: kinetic energy {kinetic:.3e} J exceeds 1e8 x the scene's energy scale {:.3e} J",
+                "step {}: kinetic energy {kinetic:.3e} J exceeds 1e8 x the scene's energy scale {:.3e} J{cause}",
                 stats.step, self.energy_scale
             )));
         }

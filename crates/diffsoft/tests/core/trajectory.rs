@@ -193,3 +193,24 @@ fn implicit_tolerances_outside_zero_to_one_are_refused() {
     };
     assert!(diff::vjp(&case.model, &case.settings, 3, &case.controls, &cot, ok).is_ok());
 }
+
+/// A time step so short that the positions' round-off over one step is an absurd velocity
+/// (1e-100 s): the divergence it causes names the time step as the cause; a short but
+/// resolvable one (1e-20 s) runs.
+#[test]
+fn a_time_step_below_double_precision_is_named_when_the_run_diverges() {
+    let case = diffsoft::testing::free_body(1).unwrap();
+    let mut settings = case.settings.clone();
+    settings.dt = 1e-100;
+    let e = Simulator::new(case.model.clone(), settings.clone())
+        .unwrap()
+        .step()
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("the time step 1e-100 s is below what double precision resolves"),
+        "{e}"
+    );
+    settings.dt = 1e-20;
+    Simulator::new(case.model.clone(), settings).unwrap().step().unwrap();
+}
