@@ -132,20 +132,18 @@ fn check_activations(model: &Model, rows: &[Vec<f64>]) -> PyResult<()> {
     Ok(())
 }
 
-/// Refuse torques on the coordinates of joints with other than one DoF (as the run would).
+/// Refuse torques on the coordinates of joints with other than one DoF, by the rule the run
+/// applies ([`diffsoft::skeleton::Skeleton::misplaced_torque`]), naming the entry.
 fn check_torques(model: &Model, rows: &[Vec<f64>]) -> PyResult<()> {
     let Some(sk) = model.skeleton() else { return Ok(()) };
     for (step, row) in rows.iter().enumerate() {
-        for b in sk.bones.iter().filter(|b| b.joint.dofs() != 1) {
-            let span = b.dof_offset..b.dof_offset + b.joint.dofs();
-            if let Some(k) = span.clone().find(|&k| row[k] != 0.0) {
-                return Err(errors::value(format!(
-                    "torques[{step}, {k}]: {}, but bone '{}' has a {} joint; torques act on one-DoF joints (give 0)",
-                    row[k],
-                    b.name,
-                    b.joint.kind()
-                )));
-            }
+        if let Some((k, b)) = sk.misplaced_torque(row) {
+            return Err(errors::value(format!(
+                "torques[{step}, {k}]: {}, but bone '{}' has a {} joint; torques act on one-DoF joints (give 0)",
+                row[k],
+                b.name,
+                b.joint.kind()
+            )));
         }
     }
     Ok(())

@@ -254,19 +254,16 @@ pub(crate) fn set_controls(
                 sk.dofs
             )));
         }
-        for b in &sk.bones {
-            let n = b.joint.dofs();
-            let vals = &row[b.dof_offset..b.dof_offset + n];
-            if n == 1 {
-                sim.set_torque_dof(b.dof_offset, Some(vals[0]))?;
-            } else if vals.iter().any(|&t| t != 0.0) {
-                return Err(DiffError::Input(format!(
-                    "step {}: bone '{}' has a {} joint; torques act on one-DoF joints",
-                    step + 1,
-                    b.name,
-                    b.joint.kind()
-                )));
-            }
+        if let Some((_, b)) = sk.misplaced_torque(row) {
+            return Err(DiffError::Input(format!(
+                "step {}: bone '{}' has a {} joint; torques act on one-DoF joints",
+                step + 1,
+                b.name,
+                b.joint.kind()
+            )));
+        }
+        for b in sk.bones.iter().filter(|b| b.joint.dofs() == 1) {
+            sim.set_torque_dof(b.dof_offset, Some(row[b.dof_offset]))?;
         }
     }
     Ok(())

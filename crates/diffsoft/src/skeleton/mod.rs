@@ -387,6 +387,43 @@ impl Skeleton {
         Ok(())
     }
 
+    /// The first nonzero entry of `row` (one torque per reduced coordinate, `[coordinate]`) on a
+    /// joint with other than one DoF, with its bone; `None` when the row is valid. Torques act on
+    /// one-DoF joints only ([`Skeleton::set_torque`]): this is the one place that rule is
+    /// written for whole rows, which the runs of `diff` and the Python package both apply. A
+    /// NaN entry counts as nonzero. Entries past `row`'s end are not looked at (the callers
+    /// check the row's length first).
+    ///
+    /// ```
+    /// use diffsoft::skeleton::{free::Free, rotational::Rotational, BoneSpec, Skeleton};
+    /// use nalgebra::Vector3;
+    ///
+    /// let rest = [Vector3::zeros(), Vector3::x()];
+    /// let body = BoneSpec { name: "body".into(), parent: None, joint: Box::new(Free::default()), vertices: vec![0], torque: None };
+    /// let arm = BoneSpec {
+    ///     name: "arm".into(),
+    ///     parent: Some(0),
+    ///     joint: Box::new(Rotational::new(Vector3::zeros(), Vector3::z())),
+    ///     vertices: vec![1],
+    ///     torque: None,
+    /// };
+    /// let skeleton = Skeleton::new(vec![body, arm], &rest)?;
+    /// let mut row = vec![0.0; skeleton.dofs];
+    /// row[6] = 2.0; // the arm's angle: a one-DoF joint
+    /// assert!(skeleton.misplaced_torque(&row).is_none());
+    /// row[4] = 0.5; // a coordinate of the free root
+    /// let (k, bone) = skeleton.misplaced_torque(&row).expect("refused");
+    /// assert_eq!((k, bone.name.as_str()), (4, "body"));
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
+    pub fn misplaced_torque(&self, row: &[f64]) -> Option<(usize, &Bone)> {
+        self.bones.iter().filter(|b| b.joint.dofs() != 1).find_map(|b| {
+            (b.dof_offset..b.dof_offset + b.joint.dofs())
+                .find(|&k| row.get(k).is_some_and(|&t| t != 0.0))
+                .map(|k| (k, b))
+        })
+    }
+
     /// The coordinate of the one-DoF joint of bone `name`.
     pub fn scalar_dof(&self, name: &str) -> Result<usize, InputError> {
         let b = self
