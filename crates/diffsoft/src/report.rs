@@ -1,7 +1,7 @@
 //! Versioned JSON files: every report and run log starts with a [`Header`] (schema name with
 //! version, crate version, provenance); written atomically.
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -44,7 +44,7 @@ impl Header {
 
 /// Where and how a report was made: the code (crate version, git commit), the compiler, the
 /// machine (CPU model, worker threads, OS) and the time, so timings in it can be compared.
-#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct Provenance {
     /// `git rev-parse HEAD` of the working directory's repository when the report was written,
     /// with `-dirty` if it had uncommitted changes (`null` outside a git checkout).
@@ -58,7 +58,7 @@ pub struct Provenance {
     /// Logical CPUs of the machine.
     pub cpus: usize,
     /// `rustc --version` of the build.
-    pub rustc_version: &'static str,
+    pub rustc_version: String,
     /// Operating system and architecture, e.g. `linux x86_64`.
     pub os: String,
 }
@@ -86,7 +86,7 @@ impl Provenance {
             threads: rayon::current_num_threads(),
             cpu_model,
             cpus: std::thread::available_parallelism().map_or(1, |n| n.get()),
-            rustc_version: env!("DIFFSOFT_RUSTC_VERSION"),
+            rustc_version: env!("DIFFSOFT_RUSTC_VERSION").to_string(),
             os: format!("{} {}", std::env::consts::OS, std::env::consts::ARCH),
         }
     }

@@ -47,6 +47,22 @@ fn cli_shards_and_merge() {
     let (mut w, mut m) = (read("whole.json"), read("merged.json"));
     assert_eq!(w["schema"], "diffsoft.tradeoff/1");
     assert_eq!(read("a.json")["schema"], "diffsoft.tradeoff_partial/1");
+    // Where each shard ran reaches the merged report (the whole run: one shard); the report
+    // itself says where it was written, as every report does.
+    let shard_provenance = |v: &Value| {
+        v["scenes"][0]["method"]["shard_provenance"]
+            .as_array()
+            .cloned()
+            .unwrap()
+    };
+    assert_eq!(shard_provenance(&w).len(), 1);
+    let merged_shards = shard_provenance(&m);
+    assert_eq!(merged_shards.len(), 2);
+    for (k, part) in ["a.json", "b.json"].iter().enumerate() {
+        assert!(read(part)["provenance"]["git_commit"].is_string() || read(part)["provenance"]["git_commit"].is_null());
+        assert_eq!(merged_shards[k], read(part)["provenance"], "shard {k}");
+    }
+    assert!(m["provenance"]["date_utc"].is_string() && w["provenance"]["cpus"].as_u64() >= Some(1));
     assert!(dir.join("tradeoff_cantilever_24.svg").exists());
     crate::common::strip_keys(&mut w, crate::common::RUN_DEPENDENT_KEYS);
     crate::common::strip_keys(&mut m, crate::common::RUN_DEPENDENT_KEYS);

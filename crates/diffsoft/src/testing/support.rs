@@ -158,6 +158,7 @@ pub const RUN_DEPENDENT_KEYS: &[&str] = &[
     "shards",
     "svg",
     "provenance",
+    "shard_provenance",
 ];
 
 /// The `.json` files in `dir`, sorted.

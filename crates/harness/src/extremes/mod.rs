@@ -25,7 +25,7 @@ use std::time::Instant;
 use serde::{Deserialize, Serialize};
 
 use crate::pool;
-use crate::report::{Verdict, CRATE_VERSION};
+use crate::report::{Provenance, Verdict, CRATE_VERSION};
 use crate::shard::{check_partials, check_same, Partial, Shard, ShardError};
 
 pub use cases::{all, Case};
@@ -101,6 +101,9 @@ pub struct ExtremesPartial {
     pub schema: String,
     /// Version of the crate that wrote it.
     pub crate_version: String,
+    /// Where and how this shard ran (`null` in a partial written before partials carried it).
+    #[serde(default)]
+    pub provenance: Option<Provenance>,
     /// Which shard.
     pub shard: Shard,
     /// Which cases.
@@ -151,10 +154,15 @@ pub struct ExtremesReport {
     pub schema: String,
     /// Crate version.
     pub crate_version: String,
+    /// Where and how this report was written.
+    pub provenance: Provenance,
     /// Which cases.
     pub subset: Subset,
     /// Shards merged.
     pub shards: usize,
+    /// Where and how each shard ran, in shard order (`null` for a partial written before
+    /// partials carried it).
+    pub shard_provenance: Vec<Option<Provenance>>,
     /// Outcome counts.
     pub counts: Counts,
     /// The cases, in list order.
@@ -280,6 +288,7 @@ pub fn run_shard(subset: Subset, shard: Shard, show_progress: bool) -> ExtremesP
     ExtremesPartial {
         schema: PARTIAL_SCHEMA.into(),
         crate_version: CRATE_VERSION.into(),
+        provenance: Some(Provenance::now()),
         shard,
         subset,
         total_cases: total,
@@ -368,15 +377,22 @@ pub fn merge(parts: Vec<ExtremesPartial>, paths: &[String]) -> Result<ExtremesRe
         check_case(c, case)
             .map_err(|e| ShardError::Mismatch(format!("{}: case {} ('{}'): {e}", owner(c.index), c.index, c.name)))?;
     }
+    let mut order: Vec<&ExtremesPartial> = parts.iter().collect();
+    order.sort_by_key(|p| p.shard.index);
     Ok(report(
         subsets[0],
-        parts.len(),
+        order.iter().map(|p| p.provenance.clone()).collect(),
         cases,
         parts.iter().map(|p| p.wall_time_s).sum(),
     ))
 }
 
-fn report(subset: Subset, shards: usize, cases: Vec<CaseResult>, wall_time_s: f64) -> ExtremesReport {
+fn report(
+    subset: Subset,
+    shard_provenance: Vec<Option<Provenance>>,
+    cases: Vec<CaseResult>,
+    wall_time_s: f64,
+) -> ExtremesReport {
     let mut counts = Counts::default();
     for c in &cases {
         match c.outcome {
@@ -416,8 +432,10 @@ fn report(subset: Subset, shards: usize, cases: Vec<CaseResult>, wall_time_s: f6
     ExtremesReport {
         schema: SCHEMA.into(),
         crate_version: CRATE_VERSION.into(),
+        provenance: Provenance::now(),
         subset,
-        shards,
+        shards: shard_provenance.len(),
+        shard_provenance,
         counts,
         cases,
         verdicts,
@@ -428,7 +446,7 @@ fn report(subset: Subset, shards: usize, cases: Vec<CaseResult>, wall_time_s: f6
 /// Run `subset` unsharded.
 pub fn run(subset: Subset, show_progress: bool) -> ExtremesReport {
     let p = run_shard(subset, Shard::ALL, show_progress);
-    report(subset, 1, p.cases, p.wall_time_s)
+    report(subset, vec![p.provenance], p.cases, p.wall_time_s)
 }
 
 /// A table of the cases.

@@ -231,6 +231,7 @@ pub fn finalize(parts: Vec<TradeoffPartial>, paths: &[String]) -> Result<SceneTr
         ));
     }
     let workers: Vec<usize> = parts.iter().map(|p| p.workers).collect();
+    let shard_provenance = parts.iter().map(|p| p.provenance.clone()).collect();
     let wall_time_s = parts.iter().map(|p| p.wall_time_s).sum();
     let grad_ref = |i: Integrator, d: usize| {
         gradient_references
@@ -274,6 +275,7 @@ pub fn finalize(parts: Vec<TradeoffPartial>, paths: &[String]) -> Result<SceneTr
         timing: "each setting and reference runs on one thread (its own one-thread rayon pool); `workers` settings run at once; a setting's forward run is repeated until min_timing_s of CPU time is measured (the thread CPU clock, CLOCK_THREAD_CPUTIME_ID, read to the nanosecond); cpu_s is the total over the runs / runs, wall_s the median run; thread CPU time does not count the time a thread waits for a core, wall time does, but both move with what the concurrent settings do to the shared caches and memory (settings doing identical work differ by about 1.2x in the median); the fronts use the time_axis".into(),
         workers,
         shards: parts.len(),
+        shard_provenance,
         resolution,
     };
     Ok(SceneTradeoff {

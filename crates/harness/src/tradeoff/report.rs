@@ -5,7 +5,7 @@ use serde::{Deserialize, Serialize};
 
 use super::trajectory::Work;
 use super::{SceneSummary, Setting, TimeAxis, TradeoffSpec};
-use crate::report::{Verdict, CRATE_VERSION};
+use crate::report::{Provenance, Verdict, CRATE_VERSION};
 use crate::shard::{Partial, Shard};
 use diffsoft::solver::{Integrator, SolverKind};
 
@@ -198,6 +198,10 @@ pub struct TradeoffPartial {
     pub schema: String,
     /// Version of the crate that wrote it.
     pub crate_version: String,
+    /// Where and how this shard ran (its rows' timings depend on it; `null` in a partial
+    /// written before partials carried it).
+    #[serde(default)]
+    pub provenance: Option<Provenance>,
     /// Which shard.
     pub shard: Shard,
     /// The sweep.
@@ -325,6 +329,9 @@ pub struct Method {
     pub workers: Vec<usize>,
     /// Number of shards merged.
     pub shards: usize,
+    /// Where and how each shard ran, in the order of `workers` (each row's timing comes from
+    /// its shard's machine; `null` for a partial written before partials carried it).
+    pub shard_provenance: Vec<Option<Provenance>>,
     /// Differences below this relative error are not resolved (1; monotonicity verdicts).
     pub resolution: f64,
 }
@@ -373,6 +380,9 @@ pub struct TradeoffReport {
     pub schema: String,
     /// Crate version.
     pub crate_version: String,
+    /// Where and how this report was written (each scene's `method.shard_provenance` says
+    /// where its rows ran).
+    pub provenance: Provenance,
     /// One study per scene.
     pub scenes: Vec<SceneTradeoff>,
 }
@@ -383,6 +393,7 @@ impl TradeoffReport {
         Self {
             schema: SCHEMA.into(),
             crate_version: CRATE_VERSION.into(),
+            provenance: Provenance::now(),
             scenes,
         }
     }

@@ -562,6 +562,7 @@ pub fn run_shard(
     Ok(TradeoffPartial {
         schema: PARTIAL_SCHEMA.into(),
         crate_version: CRATE_VERSION.into(),
+        provenance: Some(crate::report::Provenance::now()),
         shard,
         spec: spec.clone(),
         scene: SceneSummary::of(&model, &base_settings),

@@ -77,7 +77,7 @@ fn fast_subset_has_no_nan_panic_or_unexplained_failure() {
 }
 
 /// What a sharded and an unsharded extremes run differ in.
-const EXTREMES_RUN_KEYS: &[&str] = &["wall_s", "wall_time_s", "shards", "provenance"];
+const EXTREMES_RUN_KEYS: &[&str] = &["wall_s", "wall_time_s", "shards", "provenance", "shard_provenance"];
 
 #[test]
 fn shards_merge_into_the_unsharded_report() {
@@ -91,6 +91,11 @@ fn shards_merge_into_the_unsharded_report() {
         names.push(format!("x{k}.json"));
     }
     let merged = extremes::merge(parts.clone(), &names).unwrap();
+    // Each shard's provenance survives its partial report's round trip, in shard order.
+    assert_eq!(merged.shard_provenance.len(), n);
+    for (got, part) in merged.shard_provenance.iter().zip(&parts) {
+        assert!(got.is_some() && *got == part.provenance, "{got:?}");
+    }
     let mut a = serde_json::to_value(&merged).unwrap();
     let mut b = serde_json::to_value(fast()).unwrap();
     crate::common::strip_keys(&mut a, EXTREMES_RUN_KEYS);
