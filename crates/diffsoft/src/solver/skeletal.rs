@@ -386,20 +386,33 @@ impl Skeletal {
             let mut change = 0.0f64;
             for (j, (r, contact)) in rigid_contacts.iter().enumerate() {
                 let mut x = self.q_r[*r];
+                // x_j = q_j + B_j dz: the three rows' sums side by side (each in its own
+                // order, from -0.0 as `Iterator::sum`), so they are three independent chains.
                 let rows = &self.c_rows[3 * j * dofs..3 * (j + 1) * dofs];
-                for (a, row) in rows.chunks_exact(dofs).enumerate() {
-                    x[a] += row.iter().zip(self.dz.as_slice()).map(|(bk, dk)| bk * dk).sum::<f64>();
+                let (r0, rest) = rows.split_at(dofs);
+                let (r1, r2) = rest.split_at(dofs);
+                let mut sum = [-0.0f64; 3];
+                for (((b0, b1), b2), dk) in r0.iter().zip(r1).zip(r2).zip(self.dz.as_slice()) {
+                    sum[0] += b0 * dk;
+                    sum[1] += b1 * dk;
+                    sum[2] += b2 * dk;
+                }
+                for a in 0..3 {
+                    x[a] += sum[a];
                 }
                 let w = self.c_w[j];
                 let x_hat = x - self.c_lambda[j] / w;
                 let (new, _) = project(&x_hat, w, contact);
                 let delta = new - self.c_lambda[j];
                 if delta != Vector3::zeros() {
-                    for a in 0..3 {
-                        let g = &self.c_g[col(&self.c_g, 3 * j + a)];
-                        for (d, gk) in self.dz.as_mut_slice().iter_mut().zip(g) {
-                            *d += gk * delta[a];
-                        }
+                    // dz += G_j delta, one pass (per entry the three terms in axis order).
+                    let g = &self.c_g[3 * j * dofs..3 * (j + 1) * dofs];
+                    let (g0, rest) = g.split_at(dofs);
+                    let (g1, g2) = rest.split_at(dofs);
+                    for (((d, a0), a1), a2) in self.dz.as_mut_slice().iter_mut().zip(g0).zip(g1).zip(g2) {
+                        *d += a0 * delta[0];
+                        *d += a1 * delta[1];
+                        *d += a2 * delta[2];
                     }
                 }
                 change = change.max((delta / w).amax());

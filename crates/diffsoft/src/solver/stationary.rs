@@ -27,7 +27,6 @@ pub(crate) struct Stationary {
     /// Spectral radius of the relaxed iteration, for Chebyshev.
     chebyshev_rho: Option<f64>,
     control: InnerControl,
-    lx: Vec<Vector3<f64>>,
     x_hat: Vec<Vector3<f64>>,
     x_prev: Vec<Vector3<f64>>,
     /// Each contact's impulse at the last projection (for output only: the backward pass
@@ -63,7 +62,6 @@ impl Stationary {
             contact_relaxation,
             chebyshev_rho,
             control,
-            lx: vec![Vector3::zeros(); n],
             x_hat: vec![Vector3::zeros(); n],
             x_prev: vec![Vector3::zeros(); n],
             // Room for a contact on every vertex, so the solve does not allocate in a step.
@@ -88,7 +86,6 @@ impl GlobalSolver for Stationary {
         x: &mut [Vector3<f64>],
         contacts: &[FreeContact],
     ) -> Result<GlobalStats, SolverError> {
-        let n = sys.n();
         let with_contacts = !contacts.is_empty();
         let gamma = if with_contacts {
             self.contact_relaxation
@@ -104,10 +101,10 @@ impl GlobalSolver for Stationary {
         let mut stats = GlobalStats::default();
         let mut first_update = f64::NAN;
         for k in 0..self.control.max_iterations {
-            sys.l.matvec3(x, &mut self.lx);
-            for i in 0..n {
-                self.x_hat[i] = (b[i] - self.lx[i] + x[i] * self.shift[i]) / self.w[i];
-            }
+            // x_hat = W^-1 (b - L x + shift x), each row where its product with x is made.
+            let (shift, w, xr) = (&self.shift, &self.w, &*x);
+            sys.l
+                .map_rows3(xr, &mut self.x_hat, |i, lx| (b[i] - lx + xr[i] * shift[i]) / w[i]);
             for (c, kept) in contacts.iter().zip(self.lambda.iter_mut()) {
                 let i = c.index;
                 let (lambda, _) = project(&self.x_hat[i], self.w[i], &c.contact);
