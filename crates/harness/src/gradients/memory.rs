@@ -36,8 +36,7 @@ pub struct MemoryPoint {
     /// Backward / forward (1).
     pub ratio: f64,
     /// Wall-clock runs made of this point; the times above are those of the run with the
-    /// median ratio (three for the points a cost verdict reads, each alone on the machine; one
-    /// otherwise, beside other points).
+    /// median ratio (three for the points a cost verdict reads, one otherwise).
     pub timed_runs: usize,
 }
 

@@ -217,10 +217,9 @@ pub fn study(inp: &Inputs<'_>, out: &Path) -> Result<GradientsReport> {
     ];
     // Every point is one gradient on one thread, its heap counted on that thread, so the
     // points run side by side; the longest horizons (and the skeleton's, the slowest) first.
-    // The points a cost verdict reads (100 unrolled steps) are timed TIMED_RUNS times, each run
-    // alone on the machine after the others, and keep the run with the median ratio: with a
-    // neighbour on the other core the backward slows more than the forward, and the median of
-    // three such runs moved a ratio of about 2.5 to 3.4 on a slower machine.
+    // The points a cost verdict reads (100 unrolled steps) are timed TIMED_RUNS times and keep
+    // the run with the median ratio: one wall-clock run, with the other worker busy beside it,
+    // moved a ratio of about 2.5 by +-0.5 between runs of the main job.
     let mut points: Vec<(usize, &Case, usize, Options)> = Vec::new();
     let mut runs_of: Vec<usize> = Vec::new();
     for (c, opts) in runs {
@@ -232,22 +231,18 @@ pub fn study(inp: &Inputs<'_>, out: &Path) -> Result<GradientsReport> {
             runs_of.push(repeats);
         }
     }
-    let (alone, mut shared): (Vec<usize>, Vec<usize>) = (0..points.len()).partition(|&i| runs_of[points[i].0] > 1);
-    shared.sort_by_key(|&i| (std::cmp::Reverse(points[i].2), std::cmp::Reverse(i)));
-    let run_points = |which: &[usize], workers: usize| {
-        let tasks: Vec<pool::Task<'_, Result<MemoryPoint, diffsoft::diff::DiffError>>> = which
-            .iter()
-            .map(|&i| -> pool::Task<'_, Result<MemoryPoint, diffsoft::diff::DiffError>> {
-                let (_, c, steps, opts) = points[i];
-                Box::new(move || memory_point(c, steps, opts))
-            })
-            .collect();
-        pool::run(tasks, workers, &indicatif::ProgressBar::hidden())
-    };
-    let mut results = run_points(&shared, rayon::current_num_threads());
-    results.extend(run_points(&alone, 1));
+    let mut order: Vec<usize> = (0..points.len()).collect();
+    order.sort_by_key(|&i| (std::cmp::Reverse(points[i].2), std::cmp::Reverse(i)));
+    let tasks: Vec<pool::Task<'_, Result<MemoryPoint, diffsoft::diff::DiffError>>> = order
+        .iter()
+        .map(|&i| -> pool::Task<'_, Result<MemoryPoint, diffsoft::diff::DiffError>> {
+            let (_, c, steps, opts) = points[i];
+            Box::new(move || memory_point(c, steps, opts))
+        })
+        .collect();
+    let results = pool::run(tasks, rayon::current_num_threads(), &indicatif::ProgressBar::hidden());
     let mut by_point: Vec<Vec<MemoryPoint>> = runs_of.iter().map(|_| Vec::new()).collect();
-    for (&i, r) in shared.iter().chain(&alone).zip(results) {
+    for (&i, r) in order.iter().zip(results) {
         let p = r.map_err(|panic| anyhow::anyhow!("memory study panicked: {panic}"))??;
         by_point[points[i].0].push(p);
     }
@@ -292,7 +287,7 @@ pub fn study(inp: &Inputs<'_>, out: &Path) -> Result<GradientsReport> {
     for m in mem.iter().filter(|m| verdict_point(m.steps, m.mode)) {
         verdicts.push(Verdict::at_most(
             format!(
-                "{}: unrolled backward at most 3x the forward over 100 steps ({}; the median of {TIMED_RUNS} wall-clock runs, each alone on the machine, see benches/gradient.rs for criterion medians)",
+                "{}: unrolled backward at most 3x the forward over 100 steps ({}; the median of {TIMED_RUNS} wall-clock runs, see benches/gradient.rs for criterion medians)",
                 m.scene,
                 if m.store_budget_bytes == 0 {
                     "pure checkpointing, every step replayed".to_string()
