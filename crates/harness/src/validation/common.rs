@@ -1,7 +1,7 @@
 //! What the validation cases share: the material models and their small-strain moduli, the one
 //! place that selects a model in the engine, meshes, and static solves with Newton's method.
 
-use std::collections::HashMap;
+use diffsoft::contact::pair::boundary_faces;
 
 use nalgebra::Vector3;
 
@@ -141,48 +141,13 @@ pub fn boxed(cells: [usize; 3], size: [f64; 3], origin: [f64; 3]) -> TetMesh {
 
 /// Vertices of `mesh` on its boundary (a vertex of a face that only one tet has).
 pub fn boundary_vertices(mesh: &TetMesh) -> Vec<bool> {
-    let mut faces: HashMap<[usize; 3], usize> = HashMap::new();
-    for t in &mesh.tets {
-        for skip in 0..4 {
-            let mut f = [0; 3];
-            let mut k = 0;
-            for (a, &v) in t.iter().enumerate() {
-                if a != skip {
-                    f[k] = v;
-                    k += 1;
-                }
-            }
-            f.sort_unstable();
-            *faces.entry(f).or_insert(0) += 1;
-        }
-    }
     let mut on = vec![false; mesh.num_vertices()];
-    for (f, c) in faces {
-        if c == 1 {
-            for v in f {
-                on[v] = true;
-            }
+    for f in boundary_faces(&mesh.tets) {
+        for v in f {
+            on[v] = true;
         }
     }
     on
-}
-
-/// Boundary faces of `mesh` (vertex triples, as oriented in their tet's order is not kept).
-pub fn boundary_faces(mesh: &TetMesh) -> Vec<[usize; 3]> {
-    let mut faces: HashMap<[usize; 3], (usize, [usize; 3])> = HashMap::new();
-    for t in &mesh.tets {
-        for skip in 0..4 {
-            let f: Vec<usize> = (0..4).filter(|&a| a != skip).map(|a| t[a]).collect();
-            let mut key = [f[0], f[1], f[2]];
-            key.sort_unstable();
-            faces.entry(key).or_insert((0, key)).0 += 1;
-        }
-    }
-    // Sorted, so what is summed over the faces does not depend on the map's random order
-    // (a contact radius summed in hash order moved in its last bits from run to run).
-    let mut out: Vec<[usize; 3]> = faces.into_values().filter(|(c, _)| *c == 1).map(|(_, f)| f).collect();
-    out.sort_unstable();
-    out
 }
 
 /// Vertices with `pred(rest position)`.
@@ -203,22 +168,4 @@ pub fn mean_position(q: &[Vector3<f64>], set: &[usize]) -> Vector3<f64> {
 /// `|a - b| / |b|`.
 pub fn rel(a: f64, b: f64) -> f64 {
     (a - b).abs() / b.abs().max(f64::MIN_POSITIVE)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn boundary_faces_come_in_one_order() {
-        // Each call builds its own hash map (its own random order): the faces must not follow it.
-        let mesh = boxed([3, 2, 2], [1.0, 0.5, 0.5], [0.0, 0.0, 0.0]);
-        let first = boundary_faces(&mesh);
-        // A 3 x 2 x 2 box of 6-tet cells: two triangles per boundary cell face.
-        assert_eq!(first.len(), 2 * 2 * (3 * 2 + 3 * 2 + 2 * 2));
-        for _ in 0..8 {
-            assert_eq!(boundary_faces(&mesh), first);
-        }
-        assert!(first.windows(2).all(|w| w[0] < w[1]));
-    }
 }

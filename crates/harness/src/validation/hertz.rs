@@ -13,9 +13,10 @@ use nalgebra::Vector3;
 
 use super::case::{moduli, Case, Spec};
 use super::closed::hertz_radius;
-use super::common::{body, boundary_faces, rel};
+use super::common::{body, rel};
 use diffsoft::base::Material;
 use diffsoft::base::{Choice, MaterialModel};
+use diffsoft::contact::pair::boundary_faces;
 use diffsoft::contact::Obstacle;
 use diffsoft::mesh::generate::BoxSpec;
 use diffsoft::mesh::TetMesh;
@@ -203,7 +204,7 @@ pub fn cases(model: MaterialModel) -> Vec<Case> {
         poisson_ratio: 0.4,
     };
     let mesh = hemisphere(CELLS, BETA);
-    let faces = boundary_faces(&mesh);
+    let faces = boundary_faces(&mesh.tets);
     let run = || -> Result<HertzRun, String> {
         let spec = body("hemisphere", mesh.clone(), material, model, RHO)?;
         let m = ModelBuilder::new()
