@@ -326,10 +326,12 @@ impl<'a> Backward<'a> {
         self.s_bar = s_bar;
         r?;
         if entering > 0.0 {
-            // What of the step's adjoint reached its starting guess `x_0 = s`: the share of the
-            // converged step's derivative that the iterations run did not carry.
+            // What of the step's adjoint reached its starting guess `x_0 = s` (and, with a
+            // skeleton, the joint state it started from): the share of the converged step's
+            // derivative that the iterations run did not carry.
             let left = norm(&self.xbar) / entering;
-            g.stats.unrolled_leftover = g.stats.unrolled_leftover.max(left);
+            let joints = self.skel.as_ref().map_or(0.0, |sa| sa.joint_leftover);
+            g.stats.unrolled_leftover = g.stats.unrolled_leftover.max(left).max(joints);
         }
         if self.contact.near_kinks > 0 {
             g.stats.nonsmooth_steps += 1;

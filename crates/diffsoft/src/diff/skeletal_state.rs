@@ -87,6 +87,10 @@ pub(crate) struct SkeletalAdjoint {
     pub(super) gamma: Vec<Vector3<f64>>,
     pub(super) y_tilde: Vec<Vector3<f64>>,
     pub(super) q_prime: Vec<Vector3<f64>>,
+    /// Unrolled mode: the share of the step's joint-state adjoint that reached the joint state
+    /// the iterations started from (`|z_0 bar| / |z_N bar|`), the joints' part of
+    /// [`DiffStats::unrolled_leftover`](super::DiffStats::unrolled_leftover); 0 until measured.
+    pub(super) joint_leftover: f64,
 }
 
 impl SkeletalAdjoint {
@@ -105,6 +109,7 @@ impl SkeletalAdjoint {
             q_r_next: vec![Vector3::zeros(); nr],
             beta: vec![Vector3::zeros(); nr],
             tmp_r: vec![Vector3::zeros(); nr],
+            joint_leftover: 0.0,
             z_bar: vec![0.0; dofs],
             z_after: vec![0.0; dofs],
             dz_bar: vec![0.0; dofs],
