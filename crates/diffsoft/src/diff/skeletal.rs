@@ -31,7 +31,7 @@
 //! matrix terms are `-alpha^T dA gamma - y~^T dA q'` (fixed vertices at their rest positions,
 //! which also differentiates the constant couplings).
 
-use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
+use nalgebra::{DMatrix, DVector, DVectorView, Matrix3, Vector3};
 
 use super::backward::Backward;
 use super::contact::project_jacobian;
@@ -256,7 +256,7 @@ impl Backward<'_> {
         // z_bar_N += B(z_N)^T q_R_bar.
         SkeletalAdjoint::load(&mut sa.work, &rec.skeleton_states[iters], &mut sa.q_r, &mut sa.b)?;
         SkeletalAdjoint::add_bt(&sa.b, &sa.q_r_bar_in, &mut sa.z_bar);
-        let entering = l2(&sa.z_bar);
+        let entering = DVectorView::from(&sa.z_bar[..]).norm();
         let mut sc = std::mem::take(&mut sa.scratch);
         sc.torque_acc.clear();
         sc.torque_acc.resize(dofs, 0.0);
@@ -288,7 +288,11 @@ impl Backward<'_> {
         }
         // What of the joints' adjoint reached the joint state the iterations started from
         // (the previous step's), the joints' share of `unrolled_leftover`.
-        sa.joint_leftover = if entering > 0.0 { l2(&sa.z_bar) / entering } else { 0.0 };
+        sa.joint_leftover = if entering > 0.0 {
+            DVectorView::from(&sa.z_bar[..]).norm() / entering
+        } else {
+            0.0
+        };
         if let (Ok(()), Some(tg)) = (&r, g.torques.get_mut(step)) {
             for (a, b) in tg.iter_mut().zip(&sc.torque_acc) {
                 *a += b;
@@ -624,9 +628,4 @@ impl Backward<'_> {
         g.stats.backward_iterations += 1;
         Ok(())
     }
-}
-
-/// Euclidean norm of a joint-space vector.
-fn l2(v: &[f64]) -> f64 {
-    v.iter().map(|x| x * x).sum::<f64>().sqrt()
 }

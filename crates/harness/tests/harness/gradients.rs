@@ -25,7 +25,7 @@ fn assert_passes(case: &Case) {
 
 /// Largest difference of the initial-state derivatives (`dL/dq_0`, `dL/dv_0`) of `g` from those
 /// of `reference`, relative to the reference's largest.
-fn initial_state_error(g: &diff::Gradient, reference: &diff::Gradient) -> f64 {
+pub(crate) fn initial_state_error(g: &diff::Gradient, reference: &diff::Gradient) -> f64 {
     let components =
         |g: &diff::Gradient| -> Vec<f64> { g.q0.iter().chain(&g.v0).flat_map(|v| v.iter().copied()).collect() };
     let r = components(reference);

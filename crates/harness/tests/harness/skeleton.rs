@@ -545,17 +545,9 @@ fn unrolled_leftover_covers_a_skeleton_step() {
         .unwrap()
     };
     let reference = run(1e-13, Mode::Implicit);
-    let components =
-        |g: &diff::Gradient| -> Vec<f64> { g.q0.iter().chain(&g.v0).flat_map(|v| v.iter().copied()).collect() };
-    let r = components(&reference);
-    let size = r.iter().fold(0.0f64, |m, x| m.max(x.abs()));
     for tolerance in [1e-6, 1e-8] {
         let g = run(tolerance, Mode::Unrolled);
-        let off = components(&g)
-            .iter()
-            .zip(&r)
-            .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()))
-            / size;
+        let off = crate::gradients::initial_state_error(&g, &reference);
         let left = g.stats.unrolled_leftover;
         assert!(
             left > diff::UNROLLED_LEFTOVER_WARNING && (off / 10.0..off * 10.0).contains(&left),
