@@ -29,7 +29,7 @@ use crate::report::{Provenance, Verdict, CRATE_VERSION};
 use crate::shard::{check_partials, check_same, Partial, Shard, ShardError};
 
 pub use cases::{all, Case};
-pub use probe::{Check, GradientCheck, GradientStatus, Trial};
+pub use probe::{Check, Comparison, GradientCheck, GradientStatus, Trial};
 
 /// Schema of a shard's partial report.
 pub const PARTIAL_SCHEMA: &str = "diffsoft.extremes_partial/1";
@@ -336,6 +336,36 @@ fn check_case(c: &CaseResult, case: &Case) -> Result<(), String> {
             diffsoft::base::number(c.wall_s)
         ));
     }
+    if c.outcome == Outcome::Stable && c.steps_run != c.steps {
+        return Err(format!(
+            "is stable (every step ran), but ran {} steps of {}",
+            c.steps_run, c.steps
+        ));
+    }
+    for k in &c.checks {
+        if let Some(m) = k.measured.filter(|m| !m.is_finite()) {
+            return Err(format!(
+                "check '{}' measured {}, not a finite number",
+                k.quantity,
+                diffsoft::base::number(m)
+            ));
+        }
+        if k.threshold.is_some_and(|t| !t.is_finite()) {
+            return Err(format!("check '{}' has a threshold that is not finite", k.quantity));
+        }
+        let holds = Check::verdict(k.comparison, k.measured, k.threshold);
+        if k.holds != holds {
+            return Err(format!(
+                "check '{}' says holds = {}, but its measurement {} against its threshold {} ({:?}) gives {holds}",
+                k.quantity,
+                k.holds,
+                k.measured.map_or("null".into(), diffsoft::base::number),
+                k.threshold.map_or("null".into(), diffsoft::base::number),
+                k.comparison
+            ));
+        }
+    }
+    check_gradient(&c.gradient)?;
     let passes = c.expected.contains(&c.outcome)
         && c.outcome != Outcome::Failed
         && c.checks.iter().all(|k| k.holds)
@@ -349,11 +379,50 @@ fn check_case(c: &CaseResult, case: &Case) -> Result<(), String> {
     Ok(())
 }
 
+/// A case's gradient as [`probe::Probe::gradient`] writes it: finite values, one per parameter,
+/// with status `finite`; no values otherwise, and a message saying why.
+fn check_gradient(g: &GradientCheck) -> Result<(), String> {
+    match (g.status, &g.values) {
+        (GradientStatus::Finite, Some(v)) => {
+            if v.len() != g.parameters.len() {
+                return Err(format!(
+                    "its gradient has {} values for {} parameters",
+                    v.len(),
+                    g.parameters.len()
+                ));
+            }
+            if let Some(x) = v.iter().find(|x| !x.is_finite()) {
+                return Err(format!(
+                    "its gradient is 'finite' but holds {}",
+                    diffsoft::base::number(*x)
+                ));
+            }
+            Ok(())
+        }
+        (GradientStatus::Finite, None) => Err("its gradient is 'finite' but holds no values".into()),
+        (status, Some(_)) => Err(format!("its gradient is {status:?} but holds values")),
+        (status, None) if g.message.as_deref().is_none_or(str::is_empty) => {
+            Err(format!("its gradient is {status:?} without a message saying why"))
+        }
+        _ => Ok(()),
+    }
+}
+
 /// Merge the partial reports of one run into the report of the unsharded run.
 pub fn merge(parts: Vec<ExtremesPartial>, paths: &[String]) -> Result<ExtremesReport, ShardError> {
     check_partials(&parts, paths, PARTIAL_SCHEMA)?;
     let subsets: Vec<Subset> = parts.iter().map(|p| p.subset).collect();
     check_same("subsets", &subsets, paths)?;
+    if let Some((p, path)) = parts
+        .iter()
+        .zip(paths)
+        .find(|(p, _)| !(p.wall_time_s.is_finite() && p.wall_time_s >= 0.0))
+    {
+        return Err(ShardError::Mismatch(format!(
+            "{path}: wall_time_s must be finite and not negative, got {}",
+            diffsoft::base::number(p.wall_time_s)
+        )));
+    }
     let mut cases: Vec<CaseResult> = parts.iter().flat_map(|p| p.cases.iter().cloned()).collect();
     cases.sort_by_key(|c| c.index);
     let total = parts[0].total_cases;

@@ -9,17 +9,31 @@ use diffsoft::diff::{self, loss::Loss, Controls, Mode, Options, Param};
 use diffsoft::model::Model;
 use diffsoft::solver::{CertifyPolicy, Settings, Simulator, SolverError, SolverKind, StepStats};
 
+/// How a check's measurement is compared with its threshold.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum Comparison {
+    /// Holds iff the measurement is finite and at most the threshold.
+    AtMost,
+    /// Holds iff the measurement is finite and at least the threshold.
+    AtLeast,
+    /// Recorded, not bounded: no threshold, always holds.
+    Recorded,
+}
+
 /// A measured quantity and whether it is within its bound.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct Check {
     /// What is measured.
     pub quantity: String,
     /// The measurement, in the unit `quantity` names (`null` when it does not exist, e.g. after a
-    /// failed run).
+    /// failed run, or is not finite).
     pub measured: Option<f64>,
-    /// The bound, in the unit of `measured`.
+    /// The bound, in the unit of `measured` (`null` for a recorded check).
     pub threshold: Option<f64>,
-    /// Whether it holds.
+    /// How `measured` is compared with `threshold`.
+    pub comparison: Comparison,
+    /// Whether it holds (what `comparison` gives for `measured` and `threshold`).
     pub holds: bool,
     /// How to read it.
     pub note: String,
@@ -28,23 +42,46 @@ pub struct Check {
 impl Check {
     /// `measured <= threshold` (a non-finite measurement fails).
     pub fn at_most(quantity: &str, measured: f64, threshold: f64, note: &str) -> Self {
-        Self {
-            quantity: quantity.into(),
-            measured: measured.is_finite().then_some(measured),
-            threshold: Some(threshold),
-            holds: measured <= threshold,
-            note: note.into(),
-        }
+        Self::bounded(quantity, measured, threshold, Comparison::AtMost, note)
     }
 
     /// `measured >= threshold` (a non-finite measurement fails).
     pub fn at_least(quantity: &str, measured: f64, threshold: f64, note: &str) -> Self {
+        Self::bounded(quantity, measured, threshold, Comparison::AtLeast, note)
+    }
+
+    /// A measurement recorded without a bound (it always holds).
+    pub fn recorded(quantity: String, measured: f64, note: &str) -> Self {
+        Self {
+            quantity,
+            measured: measured.is_finite().then_some(measured),
+            threshold: None,
+            comparison: Comparison::Recorded,
+            holds: true,
+            note: note.into(),
+        }
+    }
+
+    fn bounded(quantity: &str, measured: f64, threshold: f64, comparison: Comparison, note: &str) -> Self {
+        let measured = measured.is_finite().then_some(measured);
         Self {
             quantity: quantity.into(),
-            measured: measured.is_finite().then_some(measured),
+            measured,
             threshold: Some(threshold),
-            holds: measured >= threshold,
+            comparison,
+            holds: Self::verdict(comparison, measured, Some(threshold)),
             note: note.into(),
+        }
+    }
+
+    /// Whether a check with these figures holds (false when they do not fit the comparison: a
+    /// bounded check without a threshold, a recorded one with one).
+    pub fn verdict(comparison: Comparison, measured: Option<f64>, threshold: Option<f64>) -> bool {
+        match (comparison, threshold) {
+            (Comparison::AtMost, Some(t)) => measured.is_some_and(|m| m <= t),
+            (Comparison::AtLeast, Some(t)) => measured.is_some_and(|m| m >= t),
+            (Comparison::Recorded, None) => true,
+            _ => false,
         }
     }
 }

@@ -377,13 +377,11 @@ pub(super) fn invariance(
         ..Settings::default()
     });
     if let Some((d, _)) = d_tol {
-        tb.checks.push(Check {
-            quantity: format!("{name}, tolerance 1e-6 (default stopping test)"),
-            measured: Some(d),
-            threshold: None,
-            holds: true,
-            note: "recorded, not bounded: the stopping test scales the tolerance by the bounding-box diagonal, which a rotation changes, so the two runs may stop after different iterations".into(),
-        });
+        tb.checks.push(Check::recorded(
+            format!("{name}, tolerance 1e-6 (default stopping test)"),
+            d,
+            "recorded, not bounded: the stopping test scales the tolerance by the bounding-box diagonal, which a rotation changes, so the two runs may stop after different iterations",
+        ));
     }
     tb.gradient = pb.gradient(&corner_loss(&b), &PARAMS);
     tb
@@ -479,13 +477,11 @@ pub(super) fn hinge_at(angle: f64) -> Trial {
             1e-9,
             "bone vertices move rigidly",
         ));
-        trial.checks.push(Check {
-            quantity: "the angle wrapped across +-pi".into(),
-            measured: Some(f64::from(u8::from(crossed))),
-            threshold: None,
-            holds: true,
-            note: "recorded, not required: whether the block fell through the upside-down position".into(),
-        });
+        trial.checks.push(Check::recorded(
+            "the angle wrapped across +-pi".into(),
+            f64::from(u8::from(crossed)),
+            "recorded, not required: whether the block fell through the upside-down position",
+        ));
     }
     trial.gradient = p.gradient(&corner_loss(&model), &PARAMS);
     trial

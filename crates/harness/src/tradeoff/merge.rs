@@ -51,14 +51,7 @@ fn union_by_divisor<T: Clone + PartialEq>(
 /// non-negative ones (times, errors, counts) not negative; a resolved row names a row of the
 /// grid; a row that failed says why. `Err` names the first figure that is off.
 fn check_row_figures(r: &Row, ids: &std::collections::HashSet<String>, dt: f64) -> Result<(), String> {
-    let fig = |name: &str, v: f64, signed: bool| -> Result<(), String> {
-        if v.is_finite() && (signed || v >= 0.0) {
-            Ok(())
-        } else {
-            let what = if signed { "finite" } else { "finite and not negative" };
-            Err(format!("{name} must be {what}, got {}", diffsoft::base::number(v)))
-        }
-    };
+    let fig = figure;
     let want_dt = dt / r.setting.dt_divisor as f64;
     if !(r.dt > 0.0 && ((r.dt - want_dt) / want_dt).abs() <= 1e-9) {
         return Err(format!(
@@ -130,6 +123,110 @@ fn check_row_figures(r: &Row, ids: &std::collections::HashSet<String>, dt: f64) 
     Ok(())
 }
 
+/// A finite figure, not negative unless `signed`: `Err` says which and what it holds.
+fn figure(name: &str, v: f64, signed: bool) -> Result<(), String> {
+    if v.is_finite() && (signed || v >= 0.0) {
+        Ok(())
+    } else {
+        let what = if signed { "finite" } else { "finite and not negative" };
+        Err(format!("{name} must be {what}, got {}", diffsoft::base::number(v)))
+    }
+}
+
+/// A reference trajectory's figures against the sweep it belongs to: its time step is the
+/// scene's over its divisor, its run covers the sweep's horizon at that step, its tolerance and
+/// cap are the sweep's reference settings, and its scale, drift and time are finite (the scale
+/// positive: every relative error divides by it).
+fn check_reference(r: &Reference, spec: &TradeoffSpec, scene: &SceneSummary) -> Result<(), String> {
+    if r.dt_divisor == 0 {
+        return Err("dt_divisor is 0".into());
+    }
+    let want_dt = scene.dt / r.dt_divisor as f64;
+    if !(r.dt > 0.0 && ((r.dt - want_dt) / want_dt).abs() <= 1e-9) {
+        return Err(format!(
+            "dt is {}, where the scene's step over {} is {}",
+            diffsoft::base::number(r.dt),
+            r.dt_divisor,
+            diffsoft::base::number(want_dt)
+        ));
+    }
+    let steps = spec.steps * r.dt_divisor;
+    if r.work.steps != steps || r.work.unconverged_steps > r.work.steps {
+        return Err(format!(
+            "work counts {} steps ({} unconverged) for {} steps of h/{} ({} steps of h)",
+            r.work.steps, r.work.unconverged_steps, steps, r.dt_divisor, spec.steps
+        ));
+    }
+    if r.tolerance != spec.reference_tolerance || r.max_iterations != spec.reference_max_iterations {
+        return Err(format!(
+            "its tolerance {} and cap {} are not the sweep's reference_tolerance {} and reference_max_iterations {}",
+            diffsoft::base::number(r.tolerance),
+            r.max_iterations,
+            diffsoft::base::number(spec.reference_tolerance),
+            spec.reference_max_iterations
+        ));
+    }
+    if !(r.displacement_scale.is_finite() && r.displacement_scale > 0.0) {
+        return Err(format!(
+            "displacement_scale must be finite and positive, got {}",
+            diffsoft::base::number(r.displacement_scale)
+        ));
+    }
+    figure("wall_s", r.wall_s, false)?;
+    figure("energy_drift", r.energy_drift, true)
+}
+
+/// What a partial report says of its sweep, beyond its rows: its inputs pass the same checks
+/// as a sweep's inputs ([`TradeoffSpec::validate`]), the scene's figures are those of a scene
+/// that ran (vertices, a positive step, length scale and mass), every reference trajectory fits
+/// the sweep ([`check_reference`]), the main reference is at the sweep's reference divisor and
+/// integrator, reference gradients hold finite figures, and the shard's time is finite.
+fn check_partial_figures(p: &TradeoffPartial) -> Result<(), String> {
+    p.spec.validate().map_err(|e| format!("its sweep inputs: {e}"))?;
+    let sc = &p.scene;
+    let positive = |v: f64| v.is_finite() && v > 0.0;
+    if sc.vertices == 0 || sc.fixed_vertices > sc.vertices {
+        return Err(format!(
+            "its scene has {} vertices ({} fixed)",
+            sc.vertices, sc.fixed_vertices
+        ));
+    }
+    for (name, v) in [("dt", sc.dt), ("length_scale", sc.length_scale), ("mass", sc.mass)] {
+        if !positive(v) {
+            return Err(format!(
+                "its scene's {name} must be finite and positive, got {}",
+                diffsoft::base::number(v)
+            ));
+        }
+    }
+    if p.reference.dt_divisor != p.spec.reference_divisor || p.reference.integrator != p.spec.reference_integrator {
+        return Err(format!(
+            "its reference is {} at h/{}, where the sweep's is {} at h/{}",
+            p.reference.integrator.name(),
+            p.reference.dt_divisor,
+            p.spec.reference_integrator.name(),
+            p.spec.reference_divisor
+        ));
+    }
+    check_reference(&p.reference, &p.spec, sc).map_err(|e| format!("reference: {e}"))?;
+    for r in &p.dt_references {
+        check_reference(r, &p.spec, sc)
+            .map_err(|e| format!("reference ({}) at h/{}: {e}", r.integrator.name(), r.dt_divisor))?;
+    }
+    for g in &p.gradient_references {
+        let at = format!("reference gradient ({}) at h/{}", g.integrator.name(), g.dt_divisor);
+        for (k, &v) in g.gradient.values.iter().flatten().enumerate() {
+            figure(&format!("{at}: values[{k}]"), v, true)?;
+        }
+        for (name, v) in [("wall_s", g.gradient.wall_s), ("cpu_s", g.gradient.cpu_s)] {
+            if let Some(v) = v {
+                figure(&format!("{at}: {name}"), v, false)?;
+            }
+        }
+    }
+    figure("wall_time_s", p.wall_time_s, false)
+}
+
 /// Assemble the partial reports of one sweep (every shard once; `paths` name them in errors)
 /// into the scene's study.
 pub fn finalize(parts: Vec<TradeoffPartial>, paths: &[String]) -> Result<SceneTradeoff, ShardError> {
@@ -150,6 +247,9 @@ pub fn finalize(parts: Vec<TradeoffPartial>, paths: &[String]) -> Result<SceneTr
     let grid = spec.grid();
     let total = grid.len();
     let ids: std::collections::HashSet<String> = grid.iter().map(|g| g.id()).collect();
+    for (p, path) in parts.iter().zip(paths) {
+        check_partial_figures(p).map_err(|e| ShardError::Mismatch(format!("{path}: {e}")))?;
+    }
     if let Some((_, path)) = parts.iter().zip(paths).find(|(p, _)| p.workers == 0) {
         return Err(ShardError::Mismatch(format!("{path} says it ran on 0 workers")));
     }

@@ -463,7 +463,7 @@ fn edges_through(col: &diffsoft::contact::pair::Colliders, a: u32, b: u32, x: &[
             .iter()
             .zip(&col.triangle_body)
             .filter(|(_, &t)| t == body)
-            .map(|(t, _)| [t[0] as usize, t[1] as usize, t[2] as usize])
+            .map(|(t, _)| *t)
             .collect()
     };
     let edges = |ts: &[[usize; 3]]| {

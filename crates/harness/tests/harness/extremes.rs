@@ -119,6 +119,70 @@ fn shards_merge_into_the_unsharded_report() {
     other[2].cases[0].name = "something else".into();
     let e = extremes::merge(other, &names).unwrap_err().to_string();
     assert!(e.contains("is not the case the list has at that place"), "{e}");
+    // A check's `holds` follows from its own measurement, threshold and comparison.
+    let (k, c) = (0..n)
+        .find_map(|k| {
+            let c = parts[k]
+                .cases
+                .iter()
+                .position(|c| c.checks.iter().any(|x| x.threshold.is_some()))?;
+            Some((k, c))
+        })
+        .expect("a bounded check");
+    let check = parts[k].cases[c]
+        .checks
+        .iter()
+        .position(|x| x.threshold.is_some())
+        .unwrap();
+    let mut other = parts.clone();
+    let x = &mut other[k].cases[c].checks[check];
+    x.holds = !x.holds;
+    let e = extremes::merge(other, &names).unwrap_err().to_string();
+    assert!(
+        e.contains(&format!("x{k}.json: case")) && e.contains("says holds ="),
+        "{e}"
+    );
+    let mut other = parts.clone();
+    other[k].cases[c].checks[check].measured = None;
+    other[k].cases[c].checks[check].holds = true;
+    let e = extremes::merge(other, &names).unwrap_err().to_string();
+    assert!(e.contains("measurement null"), "{e}");
+    // A gradient's status follows from its values.
+    let (k, c) = (0..n)
+        .find_map(|k| {
+            let c = parts[k]
+                .cases
+                .iter()
+                .position(|c| c.gradient.status == GradientStatus::Finite)?;
+            Some((k, c))
+        })
+        .expect("a case with a finite gradient");
+    let mut other = parts.clone();
+    other[k].cases[c].gradient.values = Some(Vec::new());
+    let e = extremes::merge(other, &names).unwrap_err().to_string();
+    assert!(e.contains("its gradient has 0 values for"), "{e}");
+    let mut other = parts.clone();
+    other[k].cases[c].gradient.values = None;
+    let e = extremes::merge(other, &names).unwrap_err().to_string();
+    assert!(e.contains("its gradient is 'finite' but holds no values"), "{e}");
+    // A stable case ran every step; a shard's time is a time.
+    let (k, c) = (0..n)
+        .find_map(|k| {
+            let c = parts[k].cases.iter().position(|c| c.outcome == Outcome::Stable)?;
+            Some((k, c))
+        })
+        .expect("a stable case");
+    let mut other = parts.clone();
+    other[k].cases[c].steps_run = 0;
+    let e = extremes::merge(other, &names).unwrap_err().to_string();
+    assert!(e.contains("is stable (every step ran), but ran 0 steps"), "{e}");
+    let mut other = parts.clone();
+    other[1].wall_time_s = -1.0;
+    let e = extremes::merge(other, &names).unwrap_err().to_string();
+    assert!(
+        e.contains("x1.json: wall_time_s must be finite and not negative"),
+        "{e}"
+    );
 }
 
 #[test]

@@ -219,6 +219,41 @@ fn shards_merge_into_the_unsharded_report() {
     other[0].workers = 0;
     let e = tradeoff::merge(other, &names).unwrap_err().to_string();
     assert!(e.contains("part0.json says it ran on 0 workers"), "{e}");
+    // Tampered headers, the same in every shard (so they agree with each other): the inputs
+    // pass the sweep's own checks, and the scene's and references' figures are those of a run.
+    let tampered = |edit: &dyn Fn(&mut TradeoffPartial)| {
+        let mut other = parts.clone();
+        other.iter_mut().for_each(edit);
+        tradeoff::merge(other, &names).unwrap_err().to_string()
+    };
+    let e = tampered(&|p| p.spec.targets = vec![-1.0]);
+    assert!(
+        e.contains("part0.json: its sweep inputs") && e.contains("targets must be"),
+        "{e}"
+    );
+    let e = tampered(&|p| p.reference.displacement_scale = 0.0);
+    assert!(
+        e.contains("reference: displacement_scale must be finite and positive, got 0"),
+        "{e}"
+    );
+    let e = tampered(&|p| p.dt_references[0].displacement_scale = -1.0);
+    assert!(
+        e.contains("at h/1: displacement_scale must be finite and positive"),
+        "{e}"
+    );
+    let e = tampered(&|p| p.reference.work.steps = 0);
+    assert!(e.contains("reference: work counts 0 steps"), "{e}");
+    let e = tampered(&|p| p.scene.length_scale = 0.0);
+    assert!(
+        e.contains("its scene's length_scale must be finite and positive"),
+        "{e}"
+    );
+    let e = tampered(&|p| p.scene.vertices = 0);
+    assert!(e.contains("its scene has 0 vertices"), "{e}");
+    let e = tampered(&|p| p.wall_time_s = -5.0);
+    assert!(e.contains("wall_time_s must be finite and not negative, got -5"), "{e}");
+    let e = tampered(&|p| p.reference.tolerance = 1e-3);
+    assert!(e.contains("are not the sweep's reference_tolerance"), "{e}");
 }
 
 /// The material model as a knob: against a refined Neo-Hookean reference, the Neo-Hookean rows
