@@ -55,7 +55,7 @@ macro_rules! warn {
 mod cli;
 
 use cli::choice::choice;
-use cli::files::{emit, find_data, preflight, save, write_mesh};
+use cli::files::{check_plot_paths, emit, find_data, preflight, save, write_mesh};
 use cli::grad::{grad, GradArgs};
 use cli::numbers::{at_least_one, non_negative, positive};
 use cli::overrides::SolverOverrides;
@@ -528,7 +528,16 @@ fn run(command: Command) -> Result<()> {
                     Split::Five => CellSplit::Five,
                 })
                 .jitter(jitter, seed);
-            let m = spec.build()?;
+            let m = spec.build().map_err(|e| {
+                anyhow::anyhow!(
+                    "--cells {} --size {}: {e}",
+                    cells.iter().map(|c| c.to_string()).collect::<Vec<_>>().join(","),
+                    size.iter()
+                        .map(|&s| diffsoft::base::number(s))
+                        .collect::<Vec<_>>()
+                        .join(",")
+                )
+            })?;
             write_mesh(&m, &out, gmsh_version.as_deref())?;
             say!(
                 "wrote {} ({} vertices, {} tets)",
@@ -552,8 +561,9 @@ fn run(command: Command) -> Result<()> {
             overrides.apply(&mut sc.settings)?;
             let mut held = Vec::new();
             for a in &activation {
+                // The value is a number, so the last '=' ends the name (a group's name may hold one).
                 let (name, value) = a
-                    .split_once('=')
+                    .rsplit_once('=')
                     .ok_or_else(|| anyhow::anyhow!("--activation {a}: expected NAME=VALUE"))?;
                 let value: f64 = value
                     .parse()
@@ -717,6 +727,10 @@ fn run(command: Command) -> Result<()> {
                         .or_else(|| out.parent().map(Path::to_path_buf))
                         .filter(|d| !d.as_os_str().is_empty())
                         .unwrap_or_else(|| PathBuf::from("."));
+                    for s in &r.scenes {
+                        let names = diffsoft_harness::tradeoff::plot_names(&s.name);
+                        check_plot_paths(Some(&out), &dir, &names, &sources)?;
+                    }
                     // Data before plots: a plot that fails (nothing to draw) loses no data.
                     let mut plots = Ok(());
                     for s in r.scenes.iter_mut() {

@@ -48,6 +48,27 @@ pub(crate) fn preflight(path: Option<&Path>, inputs: &[&Path]) -> Result<()> {
     Ok(())
 }
 
+/// Refuse a trade-off run whose plots (`names`, written into `dir`) would land on its JSON
+/// report `json` or on one of its `inputs`: the plots are written first, so either would be lost
+/// (or replace what the command read).
+pub(crate) fn check_plot_paths(json: Option<&Path>, dir: &Path, names: &[String], inputs: &[&Path]) -> Result<()> {
+    let same = |a: &Path, b: &Path| match (a.canonicalize(), b.canonicalize()) {
+        (Ok(x), Ok(y)) => x == y,
+        _ => std::path::absolute(a).ok() == std::path::absolute(b).ok(),
+    };
+    for name in names {
+        let plot = dir.join(name);
+        if let Some(j) = json.filter(|j| *j != Path::new("-") && same(j, &plot)) {
+            bail!(
+                "--json {} is where the plot {name} goes: choose another name for the report (or --svg-dir for the plots)",
+                j.display()
+            );
+        }
+        diffsoft::output::refuse_input(&plot, inputs)?;
+    }
+    Ok(())
+}
+
 /// Write a report as JSON to `path` (atomically, never over one of `inputs`, then say so), or
 /// to standard output for `-`.
 pub(crate) fn save<T: serde::Serialize>(path: &Path, report: &T, inputs: &[&Path]) -> Result<()> {

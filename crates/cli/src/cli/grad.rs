@@ -97,7 +97,7 @@ pub(crate) fn grad(a: GradArgs) -> Result<()> {
         .filter(|t| !(t.is_finite() && (0.0..1.0).contains(t)))
     {
         bail!(
-            "--implicit-tolerance is a relative residual and must be in [0, 1), got {}",
+            "--implicit-tolerance is a relative residual and must be in (0, 1), got {}",
             diffsoft::base::number(t)
         );
     }

@@ -108,9 +108,13 @@ pub(crate) fn simulate(
         );
     }
     for (name, a) in activations {
-        sim.set_activation(name, *a)
-            .map_err(|e| fail(&mut run_dir, anyhow::anyhow!("--activation {name}={a}: {e}")))?;
-        say!("activation  {name} held at {a}");
+        sim.set_activation(name, *a).map_err(|e| {
+            fail(
+                &mut run_dir,
+                anyhow::anyhow!("--activation {name}={}: {e}", diffsoft::base::number(*a)),
+            )
+        })?;
+        say!("activation  {name} held at {}", diffsoft::base::number(*a));
     }
     let frames = match (&run_dir, out.every) {
         (Some(d), every) if every > 0 => Some(FrameWriter::new(d.path(), sim.model())),

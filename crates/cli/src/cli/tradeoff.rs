@@ -2,7 +2,7 @@
 //! spec file; one shard's partial report, or the whole study with its plots).
 
 use super::choice::choice;
-use super::files::{preflight, save};
+use super::files::{check_plot_paths, preflight, save};
 use super::prelude::*;
 
 /// Options of `diffsoft tradeoff`.
@@ -195,6 +195,14 @@ pub(crate) fn tradeoff(args: TradeoffArgs) -> Result<()> {
         1024,
     )?;
     let workers = rayon::current_num_threads();
+    let plot_dir = svg_dir
+        .clone()
+        .or_else(|| json.as_ref().and_then(|j| j.parent().map(Path::to_path_buf)))
+        .filter(|d| !d.as_os_str().is_empty())
+        .unwrap_or_else(|| PathBuf::from("."));
+    if shard.is_none() {
+        check_plot_paths(json.as_deref(), &plot_dir, &tradeoff::plot_names(&spec.name), &inputs)?;
+    }
     match shard {
         Some(k) => {
             let Some(path) = json else {
@@ -212,12 +220,8 @@ pub(crate) fn tradeoff(args: TradeoffArgs) -> Result<()> {
         }
         None => {
             let mut s = tradeoff::run_scene(&spec, &base, workers, true)?;
-            let dir = svg_dir
-                .or_else(|| json.as_ref().and_then(|j| j.parent().map(Path::to_path_buf)))
-                .filter(|d| !d.as_os_str().is_empty())
-                .unwrap_or_else(|| PathBuf::from("."));
             // Data before plots: a plot that fails (nothing to draw) loses no data.
-            let plots = tradeoff::write_plots(&mut s, &dir);
+            let plots = tradeoff::write_plots(&mut s, &plot_dir);
             say_raw!("{}", tradeoff::summary(&s));
             let report = tradeoff::TradeoffReport::new(vec![s]);
             if let Some(path) = &json {

@@ -375,7 +375,7 @@ fn counts_and_scales_beyond_reason_are_errors_naming_the_flag() {
                 "--implicit-tolerance",
                 "10",
             ],
-            "--implicit-tolerance is a relative residual and must be in [0, 1), got 10",
+            "--implicit-tolerance is a relative residual and must be in (0, 1), got 10",
         ),
         // A plots directory that is a file: refused before the sweep runs.
         (
@@ -522,6 +522,34 @@ fn counts_and_scales_beyond_reason_are_errors_naming_the_flag() {
     ]);
     assert_eq!(o.status.code(), Some(1));
     assert!(stderr(&o).contains("overflows"), "not 'degenerate': {}", stderr(&o));
+    assert!(
+        stderr(&o).contains("--size 1e308,1e308,1e308"),
+        "names the flag: {}",
+        stderr(&o)
+    );
+    // A negative edge length is refused as such, by the flag and by the library (a box of
+    // negative size used to be built mirrored).
+    let o = diffsoft(&[
+        "generate",
+        "--cells",
+        "2,1,1",
+        "--size",
+        "1,-1,1",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("'--size <SIZE>': must be finite and positive, got -1"),
+        "{}",
+        stderr(&o)
+    );
+    let spec = diffsoft::mesh::generate::BoxSpec::new([2, 1, 1], [-1.0, 1.0, 1.0]);
+    let e = spec.build().unwrap_err().to_string();
+    assert!(
+        e.contains("every edge length must be finite and positive, got -1"),
+        "{e}"
+    );
 }
 
 /// `simulate --tolerance` and `--anderson` mean what they mean on `grad`: tolerance 0 runs

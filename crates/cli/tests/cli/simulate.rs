@@ -203,4 +203,20 @@ fn held_activations_are_recorded_in_the_run_log() {
         "{}",
         log["activations"]
     );
+    // A value is a number, so the last '=' ends the name: `a=b=0.5` holds group `a=b`, and a
+    // group that is not there is named as given.
+    let out = Command::new(env!("CARGO_BIN_EXE_diffsoft"))
+        .args(["--threads", "1", "simulate"])
+        .arg(paper("droneman/droneman.json"))
+        .args(["--steps", "1", "--every", "0", "--out"])
+        .arg(dir.join("eq"))
+        .args(["--activation", "pneumatic=3=0.25"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        e.contains("--activation pneumatic=3=0.25") && !e.contains("is not a number"),
+        "{e}"
+    );
 }

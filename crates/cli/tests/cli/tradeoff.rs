@@ -85,4 +85,29 @@ fn cli_shards_and_merge() {
     ]);
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("0 <= K < N"));
+    // A report named as one of its plots is refused before anything runs (the plot, written
+    // first, would be replaced by the report), by the sweep and by merge alike; the plot that
+    // is there stays.
+    let plot = std::fs::read(dir.join("tradeoff_cantilever_24.svg")).unwrap();
+    let mut a: Vec<&str> = common.to_vec();
+    let target = p("tradeoff_cantilever_24.svg");
+    a.extend_from_slice(&["--json", &target]);
+    let out = diffsoft(&a);
+    assert!(!out.status.success());
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(e.contains("is where the plot tradeoff_cantilever_24.svg goes"), "{e}");
+    let out = diffsoft(&[
+        "merge",
+        &p("a.json"),
+        &p("b.json"),
+        "-o",
+        &p("tradeoff_cantilever_24_gradient.svg"),
+    ]);
+    assert!(!out.status.success());
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        e.contains("is where the plot tradeoff_cantilever_24_gradient.svg goes"),
+        "{e}"
+    );
+    assert_eq!(std::fs::read(dir.join("tradeoff_cantilever_24.svg")).unwrap(), plot);
 }

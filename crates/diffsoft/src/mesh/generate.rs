@@ -159,6 +159,18 @@ fn checked_sizes(spec: &BoxSpec) -> Result<(usize, usize), MeshError> {
         let m = format!("{what}: every axis needs at least one cell");
         return Err(MeshError::file("generated mesh", MeshErrorKind::Syntax(m)));
     }
+    if let Some(bad) = spec.size.iter().find(|s| !(s.is_finite() && **s > 0.0)) {
+        let m = format!(
+            "{what}: every edge length must be finite and positive, got {} in size [{}]",
+            crate::base::number(*bad),
+            spec.size.map(crate::base::number).join(", ")
+        );
+        return Err(MeshError::file("generated mesh", MeshErrorKind::Syntax(m)));
+    }
+    if let Some(bad) = spec.origin.iter().find(|o| !o.is_finite()) {
+        let m = format!("{what}: its origin must be finite, got {}", crate::base::number(*bad));
+        return Err(MeshError::file("generated mesh", MeshErrorKind::Syntax(m)));
+    }
     let (Some(vertices), Some(tets)) = (vertices, tets) else {
         return Err(too_large(format!("{what}: the vertex or tet count overflows")));
     };

@@ -183,6 +183,9 @@ impl Skeleton {
                         rest.len()
                     )));
                 }
+                if owner[v] == i {
+                    return Err(InputError::new(format!("bone '{}' lists vertex {v} twice", s.name)));
+                }
                 if owner[v] != usize::MAX {
                     return Err(InputError::new(format!(
                         "vertex {v} belongs to two bones ('{}' and '{}')",

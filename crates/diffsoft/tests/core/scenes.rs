@@ -350,3 +350,115 @@ fn initial_positions_given_to_a_run_are_checked_like_the_scenes_own() {
     sim.set_initial_state(&shifted(0.5), &v0).unwrap();
     assert!(check_initial_positions(&case.model, &shifted(0.5)[1..]).is_err());
 }
+
+/// Paper scenes whose values the importer would otherwise cast or drop are refused naming the
+/// key (a "Max Iteration" that is not a whole number from 1, a damping outside (0, 1], a
+/// negative mass, an "Obstacles" that is not a list, a fractional bone parent), and two meshes
+/// that would take one body or actuator name are told apart instead of refused with names the
+/// file never uses.
+#[test]
+fn paper_scenes_refuse_cast_values_and_name_their_bodies_apart() {
+    use serde_json::json;
+    let (dir, src) = paper_copy("paper-casts", "droneman/droneman.json");
+    let base: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&src).unwrap()).unwrap();
+    let refused = |name: &str, edit: &dyn Fn(&mut serde_json::Value), want: &str| {
+        let mut v = base.clone();
+        edit(&mut v);
+        let e = scene::load(write(&dir, name, &v.to_string()), LoadOptions::default())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains(want) && e.contains(name),
+            "{name}: expected '{want}' in: {e}"
+        );
+    };
+    for (k, bad) in [json!(-5), json!(0.5), json!(2.7), json!(1e300), json!(0)]
+        .into_iter()
+        .enumerate()
+    {
+        refused(
+            &format!("maxit{k}.json"),
+            &|v| v["Parameters"][0]["Max Iteration"] = bad.clone(),
+            "Parameters[0]: \"Max Iteration\" must be a whole number from 1",
+        );
+    }
+    for (k, bad) in [json!(-1), json!(0), json!(2)].into_iter().enumerate() {
+        refused(
+            &format!("damping{k}.json"),
+            &|v| v["Parameters"][0]["Damping coefficient"] = bad.clone(),
+            "Parameters[0]: \"Damping coefficient\" (velocity kept per step) must be in (0, 1]",
+        );
+    }
+    refused(
+        "mass.json",
+        &|v| v["Meshes"][1]["Mass"] = json!(-1),
+        "Meshes[1]: \"Mass\" (the body's total mass, kg) must be finite and positive, got -1",
+    );
+    for (k, bad) in [json!({"Obj filename": "droneman/ball_tet.obj"}), json!("ground.obj")]
+        .into_iter()
+        .enumerate()
+    {
+        refused(
+            &format!("obstacles{k}.json"),
+            &|v| v["Obstacles"] = bad.clone(),
+            "\"Obstacles\" must be a list",
+        );
+    }
+    // Two meshes of one file, each with pneumatic groups: both load, the second body and its
+    // groups named apart (the first keeps the names a one-mesh scene gives).
+    let mut v = base.clone();
+    let first = v["Meshes"][0].clone();
+    v["Meshes"][1] = first;
+    let sc = scene::load(write(&dir, "twice.json", &v.to_string()), LoadOptions::default()).unwrap();
+    let names: Vec<&str> = sc.model.bodies().iter().map(|b| b.name.as_str()).collect();
+    assert_eq!(names, ["droneman600_tet", "droneman600_tet_1"]);
+    let act = sc.model.actuators().expect("pneumatic groups");
+    let groups: Vec<&str> = act.groups.iter().map(|g| g.name.as_str()).collect();
+    assert_eq!(groups.len(), 16, "{groups:?}");
+    assert!(
+        groups.contains(&"pneumatic0") && groups.contains(&"droneman600_tet_1_pneumatic0"),
+        "{groups:?}"
+    );
+    assert!(
+        sc.notes.iter().any(|n| n.contains("body named 'droneman600_tet_1'")),
+        "{:?}",
+        sc.notes
+    );
+    // A bone parent that is not a whole number is named as such, not as missing.
+    let (dir, src) = paper_copy("paper-parent-float", "baymax/baymax_skeleton.json");
+    let mut v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&src).unwrap()).unwrap();
+    v["Meshes"][0]["Bones"][1]["Parent ID"] = json!(0.5);
+    let e = scene::load(write(&dir, "parent.json", &v.to_string()), LoadOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("Bones[1]: \"Parent ID\" must be a whole number (-1 for the root), got 0.5"),
+        "{e}"
+    );
+}
+
+/// A muscle whose polyline lies on another's gets no tets of its own: the error says so (the
+/// tets near it went to the other muscle), instead of claiming no tet is near it.
+#[test]
+fn paper_muscles_on_one_polyline_are_named() {
+    let e = octopus_with_muscle_lines("paper-muscle-same-line", |lines| {
+        let first = lines[0][0].clone();
+        let second = lines.iter().find(|l| l[0] != first).unwrap()[0].clone();
+        let copies: Vec<Vec<String>> = lines
+            .iter()
+            .filter(|l| l[0] == first)
+            .map(|l| {
+                let mut c = l.clone();
+                c[0] = second.clone();
+                c
+            })
+            .collect();
+        for (k, l) in lines.iter_mut().filter(|l| l[0] == second).enumerate() {
+            *l = copies[k % copies.len()].clone();
+        }
+    });
+    assert!(
+        e.contains("every tet within") && e.contains("is at least as near to muscle(s)"),
+        "{e}"
+    );
+}

@@ -107,7 +107,8 @@ fn is_cap(r: &Row) -> bool {
 /// gradients, `tradeoff_<slug>_gradient.svg` (gradient error against the tight-tolerance gradient
 /// at the same step: against the `h/R` one the time step dominates) into `dir`; returns the file
 /// names written.
-pub fn write(s: &SceneTradeoff, dir: &Path, slug: &str) -> std::io::Result<Vec<String>> {
+pub fn write(s: &SceneTradeoff, dir: &Path) -> std::io::Result<Vec<String>> {
+    let [trajectory_name, gradient_name] = super::plot_names(&s.name);
     std::fs::create_dir_all(dir)?;
     let mut names = Vec::new();
     let time = s.pareto.time_meaning.as_str();
@@ -125,7 +126,7 @@ pub fn write(s: &SceneTradeoff, dir: &Path, slug: &str) -> std::io::Result<Vec<S
             ))
         })
         .collect();
-    let name = format!("tradeoff_{slug}.svg");
+    let name = trajectory_name;
     render(
         &diffsoft::output::own_file(dir, &name)?,
         &Scatter {
@@ -155,7 +156,7 @@ pub fn write(s: &SceneTradeoff, dir: &Path, slug: &str) -> std::io::Result<Vec<S
                 ))
             })
             .collect();
-        let name = format!("tradeoff_{slug}_gradient.svg");
+        let name = gradient_name;
         render(
             &diffsoft::output::own_file(dir, &name)?,
             &Scatter {

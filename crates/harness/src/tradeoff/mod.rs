@@ -42,7 +42,7 @@ pub use report::{
     Fronts, GradientResult, Pick, Recommendation, Reference, Row, SceneTradeoff, Status, TradeoffPartial,
     TradeoffReport, PARTIAL_SCHEMA, SCHEMA,
 };
-pub use run::{run_scene, run_shard, suite_section, write_plots, PARAMETERS};
+pub use run::{plot_names, run_scene, run_shard, suite_section, write_plots, PARAMETERS};
 pub use scene::{Cantilever, SceneSummary};
 pub use summary::summary;
 

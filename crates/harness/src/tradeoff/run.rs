@@ -594,18 +594,33 @@ pub fn run_scene(
 
 /// Write the plots of a study into `dir` and record their names in it.
 pub fn write_plots(s: &mut super::SceneTradeoff, dir: &Path) -> Result<(), TradeoffError> {
-    let slug: String = s
-        .name
-        .chars()
-        .map(|c| if c.is_ascii_alphanumeric() { c } else { '_' })
-        .collect();
     let err = |e: std::io::Error| TradeoffError::Output {
         name: s.name.clone(),
         message: e.to_string(),
     };
-    let names = super::chart::write(s, dir, &slug).map_err(err)?;
+    let names = super::chart::write(s, dir).map_err(err)?;
     s.svg = names;
     Ok(())
+}
+
+/// The part of a sweep's plot names taken from its name (`name` with every character other
+/// than an ASCII letter or digit replaced by `_`).
+fn plot_slug(name: &str) -> String {
+    name.chars()
+        .map(|c| if c.is_ascii_alphanumeric() { c } else { '_' })
+        .collect()
+}
+
+/// The file names [`write_plots`] may give the plots of the sweep `name` (in its directory):
+/// `tradeoff_<slug>.svg` and `tradeoff_<slug>_gradient.svg`.
+///
+/// ```
+/// let names = diffsoft_harness::tradeoff::plot_names("beam 1");
+/// assert_eq!(names, ["tradeoff_beam_1.svg", "tradeoff_beam_1_gradient.svg"]);
+/// ```
+pub fn plot_names(name: &str) -> [String; 2] {
+    let slug = plot_slug(name);
+    [format!("tradeoff_{slug}.svg"), format!("tradeoff_{slug}_gradient.svg")]
 }
 
 /// The main job's section: every sweep of the suite, `out/tradeoff.json` and the plots. The

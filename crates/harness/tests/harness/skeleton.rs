@@ -350,6 +350,11 @@ fn scene_bones_load_and_bad_bones_are_named() {
             "",
             "vertex 1 belongs to two bones ('root' and 'arm')",
         ),
+        (
+            r#"{"name": "root", "joint": {"free": {}}, "vertices": {"indices": [0, 1, 0]}}"#.to_string(),
+            "",
+            "bone 'root' lists vertex 0 twice",
+        ),
         (root_bone.to_string(), r#", "fixed": {"indices": [0]}"#, "vertex 0 is also a fixed"),
         (
             format!(r#"{root_bone}, {{"name": "arm", "parent": "root", "joint": {{"rotational": {{"position": [0,0,0], "axis": [0,0,0]}}}}}}"#),

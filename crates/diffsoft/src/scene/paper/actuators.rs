@@ -171,9 +171,24 @@ pub(super) fn paper_muscles(
             .map(|(t, b)| (t, b.2))
             .collect();
         if fibres.is_empty() {
-            return Err(cx.invalid(format!(
-                "{w}: muscle {id}: no tet centroid within {radius:.3e} of its polyline"
-            )));
+            // Tets near this polyline that went to other muscles (nearer, or as near and first
+            // in the file): this one's polyline restates theirs.
+            let pts: Vec<Vector3<f64>> = samples[id].iter().map(|s| s.1).collect();
+            let near = nearest_segments(mesh, &pts).unwrap_or_default();
+            let taken: std::collections::BTreeSet<i64> = near
+                .iter()
+                .zip(&best)
+                .filter(|((d, _), b)| *d <= radius && b.1 != k)
+                .map(|(_, b)| ids[b.1])
+                .collect();
+            let near_any = !taken.is_empty();
+            return Err(cx.invalid(if near_any {
+                format!(
+                    "{w}: muscle {id}: every tet within {radius:.3e} of its polyline is at least as near to muscle(s) {taken:?} (a polyline on top of another's?)"
+                )
+            } else {
+                format!("{w}: muscle {id}: no tet centroid within {radius:.3e} of its polyline")
+            }));
         }
         out.push(ActuatorSpec::muscle(
             &format!("muscle{id}"),

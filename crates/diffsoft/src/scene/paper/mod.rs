@@ -21,6 +21,9 @@
 //! * `"Muscle filename"` (lines `muscle sample x y z`) as muscle groups `muscle0, muscle1, ...`:
 //!   each tet whose centroid is within half the mean edge length of a muscle's polyline joins
 //!   the nearest one, along its nearest segment; activation 0 (rest) until set.
+//! * Names: a body is named by its file's stem (`box.obj`: `box`), a later mesh whose stem an
+//!   earlier one took by `<stem>_<k>` (`k` its place in `"Meshes"`); an actuator whose name an
+//!   earlier mesh took is prefixed with its body's name (`box_1_pneumatic0`). A note says so.
 //!
 //! * `"Clothes"` as cloth bodies (triangle meshes, see [`crate::cloth`]): `"Area Density"`,
 //!   `"Stretching"`, `"Bending"`, `"Attach Verts"` with `"Attach Stiffness"`, scale 1 by
@@ -114,6 +117,8 @@ const MESH_IGNORED: &[(&str, &str)] = &[
     ),
 ];
 const MESH_UNSUPPORTED: &[(&str, &str)] = &[];
+/// The largest "Max Iteration" a paper scene may give (local-global iterations per step).
+const MAX_ITERATION_CAP: f64 = 1e9;
 const OBSTACLE_KEYS: &[&str] = &["Obj filename", "Scale", "Collision tolerance"];
 const CLOTH_USED: &[&str] = &[
     "Obj filename",
@@ -374,6 +379,8 @@ fn import_with(
         .and_then(|m| m.as_array())
         .ok_or_else(|| cx.invalid("\"Meshes\" must be a list".into()))?;
     let mut meshes = Vec::new();
+    let mut body_names: Vec<String> = Vec::new();
+    let mut actuator_names: Vec<String> = Vec::new();
     for (k, mj) in meshes_json.iter().enumerate() {
         let w = format!("Meshes[{k}]");
         cx.check_keys(&w, mj, MESH_USED, MESH_IGNORED, MESH_UNSUPPORTED)?;
@@ -399,17 +406,35 @@ fn import_with(
             )));
         }
         let total = cx.number(mj, "Mass", 10.0, &w)?;
+        if !(total.is_finite() && total > 0.0) {
+            return Err(cx.invalid(format!(
+                "{w}: \"Mass\" (the body's total mass, kg) must be finite and positive, got {}",
+                crate::base::number(total)
+            )));
+        }
         let material = Material {
             youngs_modulus: cx.number(mj, "Youngs Modulus", 2e5, &w)?,
             poisson_ratio: cx.number(mj, "Poisson Ratio", 0.4, &w)?,
         };
         super::scaled_size(&w, scale, &loaded.mesh.vertices).map_err(|m| cx.invalid(m))?;
         let m = loaded.mesh.scaled(scale);
-        let name = Path::new(file)
+        let stem = Path::new(file)
             .file_stem()
             .and_then(|s| s.to_str())
             .unwrap_or("body")
             .to_string();
+        // Bodies are named by their files' stems; two meshes with one stem (`box.obj` and
+        // `sub/box.obj`, or one file twice) are told apart by their place in "Meshes".
+        let name = if body_names.contains(&stem) {
+            let name = format!("{stem}_{k}");
+            cx.notes.push(format!(
+                "{w}: body named '{name}' (the name '{stem}' of its file is taken by an earlier mesh)"
+            ));
+            name
+        } else {
+            stem
+        };
+        body_names.push(name.clone());
         let mut spec = BodySpec::new(&name, m, material, MassSpec::Total(total));
         spec.gravity = cx.number(mj, "Enable Gravity", 1.0, &w)? != 0.0;
         if let Some(av) = mj.get("Attach Verts") {
@@ -462,6 +487,19 @@ fn import_with(
             let muscles = paper_muscles(&mut cx, &w, &muscle_path, &spec.mesh, scale, stiffness)?;
             spec.actuators.extend(muscles);
         }
+        // Actuator names are the scene's: a later mesh's group whose name an earlier mesh took
+        // is prefixed with its body's name.
+        for a in &mut spec.actuators {
+            if actuator_names.contains(&a.name) {
+                let renamed = format!("{name}_{}", a.name);
+                cx.notes.push(format!(
+                    "{w}: actuator '{}' named '{renamed}' (an earlier mesh has an actuator '{}')",
+                    a.name, a.name
+                ));
+                a.name = renamed;
+            }
+            actuator_names.push(a.name.clone());
+        }
         builder = builder.body(spec);
         meshes.push(loaded.info);
     }
@@ -488,7 +526,10 @@ fn import_with(
         cx.notes
             .push("\"Self-collision\": self-collision within a body is not simulated".into());
     }
-    if let Some(obs) = value.get("Obstacles").and_then(|o| o.as_array()) {
+    if let Some(obs) = value.get("Obstacles") {
+        let obs = obs
+            .as_array()
+            .ok_or_else(|| cx.invalid(format!("\"Obstacles\" must be a list, got {}", excerpt(obs))))?;
         for (k, oj) in obs.iter().enumerate() {
             let w = format!("Obstacles[{k}]");
             cx.check_keys(&w, oj, OBSTACLE_KEYS, &[], &[])?;
@@ -517,10 +558,24 @@ fn import_with(
     // Reference stop rule |dq|_2 / (3N) < 5e-7 as a relative RMS change: |dq|_2 / sqrt(N) / L.
     let n = model.n() as f64;
     let tolerance = 5e-7 * 3.0 * n / n.sqrt() / model.length_scale;
+    let max_iterations = cx.number(params, "Max Iteration", 30.0, "Parameters[0]")?;
+    if !(max_iterations.fract() == 0.0 && (1.0..=MAX_ITERATION_CAP).contains(&max_iterations)) {
+        return Err(cx.invalid(format!(
+            "Parameters[0]: \"Max Iteration\" must be a whole number from 1 to {MAX_ITERATION_CAP:e}, got {}",
+            crate::base::number(max_iterations)
+        )));
+    }
+    let damping = cx.number(params, "Damping coefficient", 0.9999, "Parameters[0]")?;
+    if !(damping > 0.0 && damping <= 1.0) {
+        return Err(cx.invalid(format!(
+            "Parameters[0]: \"Damping coefficient\" (velocity kept per step) must be in (0, 1], got {}",
+            crate::base::number(damping)
+        )));
+    }
     let settings = Settings {
         dt: 1.0 / hz,
-        max_iterations: cx.number(params, "Max Iteration", 30.0, "Parameters[0]")? as usize,
-        damping: cx.number(params, "Damping coefficient", 0.9999, "Parameters[0]")?,
+        max_iterations: max_iterations as usize,
+        damping,
         tolerance,
         ..Settings::default()
     };
@@ -694,10 +749,15 @@ fn paper_bones(
                 return Err(cx.invalid(format!("{w}: Bones[{k}]: unknown key \"{bad}\"")));
             }
         }
-        let parent = b
-            .get("Parent ID")
-            .and_then(|p| p.as_i64())
-            .ok_or_else(|| cx.invalid(format!("{w}: Bones[{k}]: \"Parent ID\" is required")))?;
+        let parent = match b.get("Parent ID") {
+            None => return Err(cx.invalid(format!("{w}: Bones[{k}]: \"Parent ID\" is required"))),
+            Some(p) => p.as_i64().ok_or_else(|| {
+                cx.invalid(format!(
+                    "{w}: Bones[{k}]: \"Parent ID\" must be a whole number (-1 for the root), got {}",
+                    excerpt(p)
+                ))
+            })?,
+        };
         let parent = if parent == -1 {
             None
         } else if parent >= 0 && (parent as usize) < list.len() && parent as usize != k {
