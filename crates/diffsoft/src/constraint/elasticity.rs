@@ -57,6 +57,9 @@ pub(crate) struct Elasticity {
     v_warm_adjoint: Vec<Matrix3<f64>>,
     /// Linearizations at one point (implicit mode: one point, many applications).
     cache: Vec<TetLinearization>,
+    /// Per tet: whether its body has the volume term (its weight `w_vol = nu E V / (1 + nu)` may
+    /// be 0, at Poisson ratio 0, and `dL/dw_vol` still needs the volume target there).
+    volume_on: Vec<bool>,
 }
 
 impl Elasticity {
@@ -69,6 +72,15 @@ impl Elasticity {
             t_warm: vec![0.0; n],
             v_warm_adjoint: vec![Matrix3::identity(); n],
             cache: Vec::new(),
+            volume_on: (0..n)
+                .map(|t| {
+                    model.w_vol[t] > 0.0
+                        || model
+                            .bodies
+                            .iter()
+                            .any(|b| b.volume_constraint && !b.model.is_hyperelastic() && b.tets.contains(&t))
+                })
+                .collect(),
         }
     }
 }
@@ -166,7 +178,7 @@ impl ConstraintSet for Elasticity {
             // Sized once, on the first linearization.
             self.cache.resize(n, TetLinearization::zero());
         }
-        let any_vol = model.w_vol.iter().any(|&w| w > 0.0);
+        let volume_on = &self.volume_on;
         // LANES tets at a time through the batched kernels, as the forward's local step.
         self.v_warm_adjoint
             .par_chunks_mut(LANES)
@@ -174,14 +186,14 @@ impl ConstraintSet for Elasticity {
             .enumerate()
             .with_min_len(8)
             .try_for_each(|(chunk, (vw, lins))| {
-                linearize_chunk(model, q, chunk * LANES, vw, any_vol, |k, lin| lins[k] = *lin)
+                linearize_chunk(model, q, chunk * LANES, vw, volume_on, |k, lin| lins[k] = *lin)
             })
     }
 
     fn adjoint(&mut self, model: &Model, ctx: &mut AdjointContext<'_, '_>) -> Result<(), NotDifferentiable> {
         let (w_rot, w_vol) = (&model.w_rot, &model.w_vol);
         let cache = &self.cache;
-        let any_vol = w_vol.iter().any(|&w| w > 0.0);
+        let volume_on = &self.volume_on;
         let fail = |t: usize, m: &str| NotDifferentiable(format!("tet {t}: {m}"));
         let (q, y, x_next, lin) = (ctx.q, ctx.y, ctx.x_next, ctx.lin);
         // LANES tets at a time: batched (AVX2) SVD and volume projection, as the forward.
@@ -225,13 +237,21 @@ impl ConstraintSet for Elasticity {
                             continue;
                         }
                         let r = rec.get(t).ok_or_else(|| fail(t, "no recorded decomposition"))?;
-                        let x = (w_vol[t] > 0.0).then_some(r.target);
+                        // The forward records the volume target where the weight is positive;
+                        // at weight 0 (a volume term at Poisson ratio 0) it is computed here.
+                        let x = if w_vol[t] > 0.0 {
+                            Some(r.target)
+                        } else if volume_on[t] {
+                            Some(volume::nearest_product(&r.svd.sigma, 1.0).map_err(|e| fail(t, &e.to_string()))?)
+                        } else {
+                            None
+                        };
                         let lin =
                             TetLinearization::with_target(&r.svd, x, w_rot[t], w_vol[t]).map_err(|m| fail(t, m))?;
                         process(k, &lin);
                     }
                 } else {
-                    linearize_chunk(model, q, t0, vw, any_vol, process)?;
+                    linearize_chunk(model, q, t0, vw, volume_on, process)?;
                 }
                 Ok(())
             })
@@ -265,7 +285,7 @@ fn linearize_chunk(
     q: &[Vector3<f64>],
     t0: usize,
     vw: &mut [Matrix3<f64>],
-    any_vol: bool,
+    volume_on: &[bool],
     mut emit: impl FnMut(usize, &TetLinearization),
 ) -> Result<(), NotDifferentiable> {
     let (w_rot, w_vol) = (&model.w_rot, &model.w_vol);
@@ -283,7 +303,7 @@ fn linearize_chunk(
         return Err(fail(t0, "non-finite deformation gradient in this chunk"));
     }
     let svds = svd3_warm_batch(&f, &v0);
-    let xs = if any_vol {
+    let xs = if volume_on[t0..t0 + len].iter().any(|&on| on) {
         let sig: [Vector3<f64>; LANES] = std::array::from_fn(|k| svds[k].sigma);
         let mut tw = [0.0; LANES];
         Some(volume::nearest_product_batch_warm(&sig, 1.0, &mut tw).map_err(|e| fail(t0, &e.to_string()))?)
@@ -297,7 +317,7 @@ fn linearize_chunk(
             emit(k, &TetLinearization::zero());
             continue;
         }
-        let x = xs.as_ref().filter(|_| w_vol[t] > 0.0).map(|x| x[k]);
+        let x = xs.as_ref().filter(|_| volume_on[t]).map(|x| x[k]);
         let lin = TetLinearization::with_target(&svds[k], x, w_rot[t], w_vol[t]).map_err(|m| fail(t, m))?;
         emit(k, &lin);
     }

@@ -116,6 +116,12 @@ impl TetLinearization {
         }
         let mut diag = Matrix3::zeros();
         let mut volume = Matrix3::zeros();
+        // The target enters `volume` (what `dL/dw_vol` reads) whenever it is given, also at
+        // weight 0 (Poisson ratio 0: the weight's derivative is still the target's); its
+        // Jacobian enters with the weight.
+        if let Some(x) = x {
+            volume = svd.compose(&x);
+        }
         if let (true, Some(x)) = (w_vol > 0.0, x) {
             let (jac, _) =
                 nearest_product_jacobian(&s, &x, 1.0).map_err(|_| "volume projection not differentiable here")?;
@@ -126,7 +132,6 @@ impl TetLinearization {
                 pairs[k].0 += w_vol * cs;
                 pairs[k].1 += w_vol * ca;
             }
-            volume = svd.compose(&x);
         }
         Ok(Self {
             u: svd.u,

@@ -10,6 +10,7 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use super::fixtures::{actuated_beam, ActuatedBeam};
+use crate::actuator::ActuatorKind;
 use crate::base::Material;
 use crate::diff::loss::{CenterOfMass, JointAngle, Loss, Sum, VertexPositions};
 use crate::diff::{self, Controls, DiffError, Gradient, Param};
@@ -170,10 +171,23 @@ impl Case {
                 u: random_direction(m.tets.len(), seed),
                 scale: m.bodies.iter().map(|b| b.material.youngs_modulus).fold(0.0, f64::max),
             },
-            Group::Activations => Direction {
-                u: random_direction(activations(self).iter().map(|r| r.len()).sum(), seed),
-                scale: 1.0,
-            },
+            Group::Activations => {
+                // A muscle held at an end of its range [0, 1] is perturbed inwards only, so that
+                // one side of every step stays valid (the check then differences on that side).
+                let acts = activations(self);
+                let mut u = random_direction(acts.iter().map(|r| r.len()).sum(), seed);
+                let groups = m.actuators.as_ref().map(|a| a.groups.as_slice()).unwrap_or_default();
+                for (x, (j, a)) in u.iter_mut().zip(acts.iter().flat_map(|r| r.iter().enumerate())) {
+                    if groups.get(j).is_some_and(|g| g.kind == ActuatorKind::Muscle) {
+                        if *a <= 0.0 {
+                            *x = x.abs();
+                        } else if *a >= 1.0 {
+                            *x = -x.abs();
+                        }
+                    }
+                }
+                Direction { u, scale: 1.0 }
+            }
             Group::AttachmentTargets => Direction {
                 u: random_direction(3 * m.attachments.len(), seed),
                 scale: m.length_scale,

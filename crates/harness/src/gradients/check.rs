@@ -25,8 +25,13 @@ use diffsoft::testing::{Case, Direction, Group};
 pub struct VPoint {
     /// Relative step `e` (1; the perturbation is `e x scale`).
     pub step: f64,
-    /// Central difference (the unit of `analytic`).
+    /// Central difference (the unit of `analytic`), or, where one side of the step leaves the
+    /// parameter's valid range (a value at the edge of its range), the second-order one-sided
+    /// difference `(-3 L(0) + 4 L(e) - L(2e)) / 2e` on the other side (`one_sided`).
     pub fd: f64,
+    /// Whether `fd` is one-sided.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub one_sided: bool,
     /// `|analytic - fd|` (the unit of `analytic`).
     pub abs_error: f64,
     /// `|analytic - fd| / |fd|` (1).
@@ -91,9 +96,19 @@ pub fn check_group(case: &Case, group: &Group, g: &Gradient, seed: u64) -> Resul
 pub struct FdSweep {
     /// The direction `u` (the group's unit perturbation).
     direction: Direction,
-    /// `(e, (L(p + e s u) - L(p - e s u)) / 2e)` for each step `e` of [`steps_sweep`] that stays
-    /// in the parameter's valid range.
-    differences: Vec<(f64, f64)>,
+    /// `(e, (L(p + e s u) - L(p - e s u)) / 2e, false)` for each step `e` of [`steps_sweep`] that
+    /// stays in the parameter's valid range; where only one side does, the second-order
+    /// one-sided difference on that side (`true`).
+    differences: Vec<(f64, f64, bool)>,
+}
+
+/// Whether a perturbed run was refused for its input (a parameter or control stepped out of its
+/// valid range), by the gradient's checks or the simulator's.
+fn out_of_range(e: &DiffError) -> bool {
+    matches!(
+        e,
+        DiffError::Input(_) | DiffError::Solver(diffsoft::solver::SolverError::Input(_))
+    )
 }
 
 /// The V-curve's forward runs of `group` with the direction of `seed`.
@@ -120,17 +135,41 @@ pub fn fd_sweep(case: &Case, group: &Group, seed: u64) -> Result<FdSweep, DiffEr
     };
     let mut differences = Vec::new();
     let mut refused = None;
+    let mut base: Option<f64> = None;
     for e in sweep {
-        // Steps that leave the parameter's valid range (e.g. nu >= 0.5) are skipped.
-        let (p, m) = match (next(), next()) {
-            (Ok(p), Ok(m)) => (p, m),
-            (Err(err @ DiffError::Input(_)), _) | (_, Err(err @ DiffError::Input(_))) => {
+        // A step whose one side leaves the parameter's valid range (a value at the edge of its
+        // range: nu = 0, an activation at 0) takes the second-order one-sided difference on the
+        // other side, `(-3 L(0) + 4 L(se) - L(2se)) / 2se` with `s` the side's sign (its error
+        // is O(e^2) as the central one's); a step that leaves it on both sides is skipped.
+        let (p, m) = (next(), next());
+        let side = match (p, m) {
+            (Ok(p), Ok(m)) => {
+                differences.push((e, (p - m) / (2.0 * e), false));
+                continue;
+            }
+            (Ok(p), Err(err)) if out_of_range(&err) => (1.0, p, err),
+            (Err(err), Ok(m)) if out_of_range(&err) => (-1.0, m, err),
+            (Err(err), Err(other)) if out_of_range(&err) && out_of_range(&other) => {
                 refused.get_or_insert(err);
                 continue;
             }
             (Err(err), _) | (_, Err(err)) => return Err(err),
         };
-        differences.push((e, (p - m) / (2.0 * e)));
+        let (sign, near, err) = side;
+        let far = match case.loss_at(group, &d, 2.0 * sign * e) {
+            Ok(far) => far,
+            Err(err) if out_of_range(&err) => {
+                refused.get_or_insert(err);
+                continue;
+            }
+            Err(err) => return Err(err),
+        };
+        refused.get_or_insert(err);
+        let l0 = match base {
+            Some(l0) => l0,
+            None => *base.insert(case.loss_at(group, &d, 0.0)?),
+        };
+        differences.push((e, sign * (-3.0 * l0 + 4.0 * near - far) / (2.0 * e), true));
     }
     // Every step refused: no finite difference to compare with (the first refusal says why).
     if let (true, Some(err)) = (differences.is_empty(), refused) {
@@ -148,11 +187,12 @@ pub fn assess_group(case: &Case, group: &Group, g: &Gradient, sweep: &FdSweep) -
     let d = &sweep.direction;
     let a = case.analytic(group, g, d);
     let mut curve = Vec::new();
-    for &(e, fd) in &sweep.differences {
+    for &(e, fd, one_sided) in &sweep.differences {
         let abs = (a - fd).abs();
         curve.push(VPoint {
             step: e,
             fd,
+            one_sided,
             abs_error: abs,
             rel_error: abs / fd.abs().max(f64::MIN_POSITIVE),
         });
@@ -163,8 +203,9 @@ pub fn assess_group(case: &Case, group: &Group, g: &Gradient, sweep: &FdSweep) -
     let b = &curve[best];
     let extrapolate = |k: usize| {
         let (c, n) = (&curve[k], curve.get(k + 1)?);
-        // Only neighbouring decades (a skipped step would change the weights).
-        ((c.step / n.step - 10.0).abs() < 1e-6).then(|| (100.0 * n.fd - c.fd) / 99.0)
+        // Only neighbouring decades of one kind of difference (a skipped step, or a central
+        // and a one-sided difference, would change the weights).
+        ((c.step / n.step - 10.0).abs() < 1e-6 && c.one_sided == n.one_sided).then(|| (100.0 * n.fd - c.fd) / 99.0)
     };
     let richardson = extrapolate(best);
     // The fourth-order reference: the Richardson value closest to the analytic one, from steps

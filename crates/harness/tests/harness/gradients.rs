@@ -58,6 +58,34 @@ fn actuator_and_attachment_gradients_match_finite_differences() {
     assert_passes(&diffsoft::testing::actuated(4).unwrap());
 }
 
+/// Values at the edge of their valid range are checked, not failed by the check's own step
+/// leaving the range: a muscle held at activation 0 (its range is [0, 1]) is perturbed inwards,
+/// and it and a Poisson ratio of 0 (range [0, 0.5)) take second-order one-sided differences
+/// `(-3 L(0) + 4 L(e) - L(2e)) / 2e`, which pass as the central ones do inside the range. At
+/// nu = 0 the volume term's weight is 0 but its derivative is not: the backward pass computes
+/// the volume target there too (it used to leave `dL/dw_vol` without it, and `dL/dnu` was
+/// -0.057 against the differences' 0.0051 on this beam).
+#[test]
+fn gradients_at_the_edge_of_a_parameter_range_are_checked_one_sided() {
+    let mut case = diffsoft::testing::actuated(4).unwrap();
+    for row in case.controls.activations.as_mut().unwrap() {
+        row[1] = 0.0; // the muscle layer (the second group) at rest
+    }
+    case.groups = vec![diffsoft::testing::Group::Activations];
+    assert_passes(&case);
+    let c = check_case(&case, 7);
+    // Perturbed inwards, every step's other side leaves the range: one-sided throughout.
+    let curve = &c.modes[0].groups[0].v_curve;
+    assert!(!curve.is_empty() && curve.iter().all(|p| p.one_sided), "{curve:?}");
+    let mut case = diffsoft::testing::actuated(4).unwrap();
+    Param::POISSON_RATIO.set(&mut case.model, 0.0).unwrap();
+    case.groups = vec![diffsoft::testing::Group::Scalar(Param::POISSON_RATIO)];
+    assert_passes(&case);
+    let c = check_case(&case, 7);
+    let curve = &c.modes[0].groups[0].v_curve;
+    assert!(!curve.is_empty() && curve.iter().all(|p| p.one_sided), "{curve:?}");
+}
+
 #[test]
 fn bridgesus_material_gradients_match_finite_differences() {
     let mut case = diffsoft::testing::bridgesus(
