@@ -58,8 +58,10 @@ class Scene:
     def load(path: str | PathLike[str], passive: bool = False) -> Scene:
         """Read a scene: native ``diffsoft.scene/1`` or the paper's format.
 
-        Raises ``FileError`` (an ``OSError``) if the file cannot be read and ``InputError`` (a
-        ``ValueError``, naming file, line and column) if it is malformed."""
+        Raises ``FileError`` (an ``OSError``) if the file cannot be read, ``InputError`` (a
+        ``ValueError``, naming file, line and column) if it is malformed, and ``TypeError`` for a
+        ``path`` that is neither a str nor an ``os.PathLike`` giving one. Each file is read once;
+        the scene and its pickle are built from the same bytes."""
     def set(self, name: str, value: _ParamValue) -> None:
         """Set a scalar (``youngs_modulus``, ``gravity.y``, ...) or array parameter
         (``initial_positions``, ``youngs_modulus_per_tet``, ``activations``, ...): a name of

@@ -36,3 +36,13 @@ def parameters(params: Mapping[str, Any] | None) -> dict[str, Any]:
     for name, value in out.items():
         check_real(name, value)
     return out
+
+
+def flag(name: str, value: Any) -> bool:
+    """A bool argument of the wrappers (``with_velocities``, ``allow_unconverged``), refused with a
+    ``TypeError`` naming it before anything runs (the backward pass, where it is used, would be
+    the first to notice)."""
+    numpy_bool = type(value).__module__ == "numpy" and type(value).__name__ in ("bool", "bool_")
+    if not (isinstance(value, bool) or numpy_bool):
+        raise TypeError(f"{name} must be a bool, got {type(value).__name__} {value!r}")
+    return bool(value)

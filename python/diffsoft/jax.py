@@ -28,7 +28,7 @@ import numpy as np
 
 from ._diffsoft import Scene, _trajectory_steps, scalar_parameters, simulate_batch, vjp_batch
 from ._errors import InputError
-from ._real import parameters
+from ._real import flag, parameters
 
 _SCALARS = frozenset(scalar_parameters())
 
@@ -100,6 +100,8 @@ def simulate(
     (``ConvergenceWarning``) and its gradient raises ``ConvergenceError`` unless
     ``allow_unconverged``.
     """
+    with_velocities = flag("with_velocities", with_velocities)
+    allow_unconverged = flag("allow_unconverged", allow_unconverged)
     params = parameters(params)
     names = tuple(params)
     dtype = jnp.result_type(float)

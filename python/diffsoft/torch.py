@@ -29,7 +29,7 @@ import torch
 
 from ._diffsoft import Scene, scalar_parameters, simulate_batch, vjp_batch
 from ._errors import InputError
-from ._real import parameters
+from ._real import flag, parameters
 
 _SCALARS = frozenset(scalar_parameters())
 
@@ -59,8 +59,24 @@ class _Call:
     device: torch.device
     dtype: torch.dtype
 
-    def output(self, a: np.ndarray) -> torch.Tensor:
-        return torch.from_numpy(np.ascontiguousarray(a)).to(device=self.device, dtype=self.dtype)
+    def output(self, a: np.ndarray, what: str) -> torch.Tensor:
+        return _cast(a, self.dtype, self.device, what)
+
+
+def _cast(a: np.ndarray, dtype: torch.dtype, device: torch.device, what: str) -> torch.Tensor:
+    """``a`` (float64) as a tensor of ``dtype`` on ``device``; ``InputError`` naming ``what``, the
+    dtype and the largest magnitude when a finite value lies beyond the dtype's range (it would
+    come back as inf)."""
+    a = np.ascontiguousarray(a)
+    if dtype.is_floating_point and dtype != torch.float64 and a.size:
+        largest = float(np.max(np.abs(a)))
+        limit = torch.finfo(dtype).max
+        if largest > limit:
+            raise InputError(
+                f"diffsoft.torch.simulate: the {what} reach magnitude {largest:.6g}, beyond {dtype}'s largest "
+                f"finite value {limit:.6g} (they would come back as inf); pass the parameters as float32 or float64"
+            )
+    return torch.from_numpy(a).to(device=device, dtype=dtype)
 
 
 def _numpy(t: torch.Tensor) -> np.ndarray | float:
@@ -119,8 +135,8 @@ class _Forward(torch.autograd.Function):
             q = np.stack([r.positions for r in runs]) if runs else empty
             v = np.stack([r.velocities for r in runs]) if runs else empty
         if call.with_velocities:
-            return call.output(q), call.output(v)
-        return call.output(q)
+            return call.output(q, "positions"), call.output(v, "velocities")
+        return call.output(q, "positions")
 
     @staticmethod
     def setup_context(ctx: Any, inputs: tuple[Any, ...], output: Any) -> None:
@@ -187,7 +203,8 @@ class _Backward(torch.autograd.Function):
                 for n, t in zip(call.names, tensors)
             ]
         return tuple(
-            torch.as_tensor(a, dtype=t.dtype, device=t.device).reshape(t.shape) for a, t in zip(values, tensors)
+            _cast(np.asarray(a, dtype=np.float64), t.dtype, t.device, f"gradients of {n}").reshape(t.shape)
+            for n, a, t in zip(call.names, values, tensors)
         )
 
     @staticmethod
@@ -215,6 +232,15 @@ class _Backward(torch.autograd.Function):
     @staticmethod
     def jvp(ctx: Any, *tangents: Any) -> Any:
         raise NotImplementedError(_SECOND)
+
+
+def _checked_tensor(name: str, t: torch.Tensor) -> None:
+    """Refuse ``t``, naming the parameter, unless its values can be read: a meta tensor has none,
+    and sparse and other layouts than strided are not read."""
+    if t.is_meta:
+        raise InputError(f"{name}: a tensor on the meta device has no values; give one with values")
+    if t.layout != torch.strided:
+        raise InputError(f"{name}: a tensor of layout {t.layout} is not read; give a dense one (.to_dense())")
 
 
 def _placement(names: tuple[str, ...], tensors: tuple[torch.Tensor, ...]) -> tuple[torch.device, torch.dtype]:
@@ -254,11 +280,16 @@ def simulate(
     if mode not in ("unrolled", "implicit"):
         # Checked before the forward runs, as the JAX wrapper does (its backward would refuse it).
         raise InputError(f"mode '{mode}': expected 'unrolled' or 'implicit'")
+    # Checked before the forward runs: the backward is where they are used.
+    with_velocities = flag("with_velocities", with_velocities)
+    allow_unconverged = flag("allow_unconverged", allow_unconverged)
     params = parameters(params)
     names = tuple(params)
     tensors = tuple(
         v if isinstance(v, torch.Tensor) else torch.as_tensor(v, dtype=torch.float64) for v in params.values()
     )
     device, dtype = _placement(names, tensors)
+    for n, t in zip(names, tensors):
+        _checked_tensor(n, t)
     call = _Call(scene, steps, names, mode, with_velocities, allow_unconverged, device, dtype)
     return _Forward.apply(call, None, *tensors)

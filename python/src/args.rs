@@ -81,7 +81,21 @@ pub(crate) fn count(v: &Bound<'_, PyAny>, name: &str, min: usize) -> PyResult<us
     if v.is_instance_of::<PyBool>() {
         return Err(not_int());
     }
-    let index = v.call_method0("__index__").map_err(|_| not_int())?;
+    // Only the failures that say "not an int" become the message (the original its cause); an
+    // exception of the value's own `__index__` (a `KeyboardInterrupt`, a `MemoryError`, a
+    // user's error) propagates unchanged.
+    let index = v.call_method0("__index__").map_err(|e| {
+        let py = v.py();
+        let not_an_int = e.is_instance_of::<pyo3::exceptions::PyAttributeError>(py)
+            || e.is_instance_of::<PyTypeError>(py)
+            || e.is_instance_of::<pyo3::exceptions::PyValueError>(py);
+        if !not_an_int {
+            return e;
+        }
+        let err = not_int();
+        err.set_cause(py, Some(e));
+        err
+    })?;
     let n: i128 = match index.extract() {
         Ok(n) => n,
         // An int beyond 128 bits: far past any count.
@@ -97,4 +111,28 @@ pub(crate) fn count(v: &Bound<'_, PyAny>, name: &str, min: usize) -> PyResult<us
         return Err(errors::value(format!("{name} must be at least {min}, got {n}")));
     }
     usize::try_from(n).map_err(|_| errors::value(format!("{name} must be at most {}, got {n}", usize::MAX)))
+}
+
+/// `v` as a file path, named `name` in errors: a str or an `os.PathLike` whose `__fspath__`
+/// gives a str (a `pathlib.Path`). Anything else (bytes included) is a `TypeError` saying what
+/// it got.
+pub(crate) fn path(v: &Bound<'_, PyAny>, name: &str) -> PyResult<std::path::PathBuf> {
+    let wrong = || {
+        PyTypeError::new_err(format!(
+            "{name} must be a str or an os.PathLike (such as pathlib.Path), got {}",
+            described(v)
+        ))
+    };
+    let fspath = if v.is_instance_of::<PyString>() {
+        v.clone()
+    } else if v.is_instance_of::<pyo3::types::PyBytes>() || !v.hasattr("__fspath__")? {
+        return Err(wrong());
+    } else {
+        v.py().import("os")?.call_method1("fspath", (v,))?
+    };
+    if !fspath.is_instance_of::<PyString>() {
+        return Err(wrong());
+    }
+    // pyo3's conversion, which keeps the bytes of a name Python decoded with `surrogateescape`.
+    fspath.extract::<std::path::PathBuf>()
 }

@@ -39,13 +39,21 @@ pub fn matrix<'py>(py: Python<'py>, rows: &[Vec<f64>], cols: usize) -> PyResult<
 }
 
 /// An input array as float64 values with its shape (any numeric dtype or nested sequence is
-/// converted by numpy first); every entry must be finite.
+/// converted by numpy first); every entry must be finite. A conversion that fails on the value
+/// ([`conversion_failed`]) is an `InputError` naming `name`, the original its cause; any other
+/// exception (a `KeyboardInterrupt`, a `MemoryError`, a user's error) propagates as raised.
 pub fn read(name: &str, value: &Bound<'_, PyAny>) -> PyResult<(Vec<f64>, Vec<usize>)> {
-    let np = value.py().import("numpy")?;
+    let py = value.py();
+    let np = py.import("numpy")?;
     real_numbers(name, value)?;
-    let arr = np
-        .call_method1("ascontiguousarray", (value, "float64"))
-        .map_err(|e| errors::value(format!("{name}: not an array of numbers ({e})")))?;
+    let arr = np.call_method1("ascontiguousarray", (value, "float64")).map_err(|e| {
+        if !conversion_failed(py, &e) {
+            return e;
+        }
+        let err = errors::value(format!("{name}: not an array of numbers ({e})"));
+        err.set_cause(py, Some(e));
+        err
+    })?;
     let arr: PyReadonlyArrayDyn<'_, f64> = arr.extract()?;
     let shape = arr.shape().to_vec();
     let data = arr.as_slice()?.to_vec();
@@ -56,6 +64,16 @@ pub fn read(name: &str, value: &Bound<'_, PyAny>) -> PyResult<(Vec<f64>, Vec<usi
         )));
     }
     Ok((data, shape))
+}
+
+/// Whether `e`, raised while a value converted, says the value is not what was asked for (a
+/// `TypeError`, `ValueError` or `OverflowError`): those become the package's message; any other
+/// exception is the caller's own and propagates unchanged.
+pub fn conversion_failed(py: Python<'_>, e: &PyErr) -> bool {
+    use pyo3::exceptions::{PyOverflowError, PyTypeError, PyValueError};
+    e.is_instance_of::<PyTypeError>(py)
+        || e.is_instance_of::<PyValueError>(py)
+        || e.is_instance_of::<PyOverflowError>(py)
 }
 
 /// Refuse what numpy would quietly turn into numbers that were never given: `None` (NaN),
@@ -79,9 +97,11 @@ pub fn real_numbers(name: &str, value: &Bound<'_, PyAny>) -> PyResult<()> {
             )));
         }
     }
-    let Ok(arr) = np.call_method1("asarray", (value,)) else {
+    let arr = match np.call_method1("asarray", (value,)) {
+        Ok(arr) => arr,
         // What numpy cannot read is reported by the conversion that follows.
-        return Ok(());
+        Err(e) if conversion_failed(value.py(), &e) => return Ok(()),
+        Err(e) => return Err(e),
     };
     let kind: String = arr.getattr("dtype")?.getattr("kind")?.extract()?;
     match kind.as_str() {
@@ -112,26 +132,37 @@ pub fn real_numbers(name: &str, value: &Bound<'_, PyAny>) -> PyResult<()> {
     }
 }
 
-/// A real number: a Python or numpy number, or a 0-d array; refused as [`real_numbers`] says.
+/// A real number: a Python or numpy number, or a 0-d array; refused as [`real_numbers`] says. A
+/// value that does not convert is an `InputError` naming `name` (the original its cause) when the
+/// conversion raised what [`conversion_failed`] admits; any other exception propagates.
 pub fn read_scalar(name: &str, value: &Bound<'_, PyAny>) -> PyResult<f64> {
     real_numbers(name, value)?;
-    value
-        .extract::<f64>()
-        .map_err(|_| errors::value(format!("{name}: expected a number")))
+    let py = value.py();
+    value.extract::<f64>().map_err(|e| {
+        if !conversion_failed(py, &e) {
+            return e;
+        }
+        let err = errors::value(format!("{name}: expected a number"));
+        err.set_cause(py, Some(e));
+        err
+    })
 }
 
-/// An `(rows, 3)` array of vectors.
-pub fn read_vectors(name: &str, value: &Bound<'_, PyAny>, rows: usize) -> PyResult<Vec<Vector3<f64>>> {
-    let (data, shape) = read(name, value)?;
+/// An `(rows, 3)` array of vectors, from what [`read`] returned.
+pub fn vectors_of(name: &str, (data, shape): (Vec<f64>, Vec<usize>), rows: usize) -> PyResult<Vec<Vector3<f64>>> {
     if shape != [rows, 3] {
         return Err(errors::value(format!("{name}: shape {shape:?}, expected ({rows}, 3)")));
     }
     Ok(data.chunks_exact(3).map(|c| Vector3::new(c[0], c[1], c[2])).collect())
 }
 
-/// A `(rows, cols)` array as rows (`rows` free when `None`).
-pub fn read_matrix(name: &str, value: &Bound<'_, PyAny>, rows: Option<usize>, cols: usize) -> PyResult<Vec<Vec<f64>>> {
-    let (data, shape) = read(name, value)?;
+/// A `(rows, cols)` array as rows (`rows` free when `None`), from what [`read`] returned.
+pub fn matrix_of(
+    name: &str,
+    (data, shape): (Vec<f64>, Vec<usize>),
+    rows: Option<usize>,
+    cols: usize,
+) -> PyResult<Vec<Vec<f64>>> {
     let ok = shape.len() == 2 && shape[1] == cols && rows.is_none_or(|r| shape[0] == r);
     if !ok {
         let want = rows.map_or("steps".to_string(), |r| r.to_string());
@@ -145,9 +176,8 @@ pub fn read_matrix(name: &str, value: &Bound<'_, PyAny>, rows: Option<usize>, co
     Ok(data.chunks_exact(cols).map(<[f64]>::to_vec).collect())
 }
 
-/// A `(len,)` array.
-pub fn read_vector(name: &str, value: &Bound<'_, PyAny>, len: usize) -> PyResult<Vec<f64>> {
-    let (data, shape) = read(name, value)?;
+/// A `(len,)` array, from what [`read`] returned.
+pub fn vector_of(name: &str, (data, shape): (Vec<f64>, Vec<usize>), len: usize) -> PyResult<Vec<f64>> {
     if shape != [len] {
         return Err(errors::value(format!("{name}: shape {shape:?}, expected ({len},)")));
     }

@@ -57,7 +57,7 @@ pub(crate) fn each<T: Sync, R: Send>(
 #[allow(clippy::too_many_arguments)]
 pub fn grad_batch<'py>(
     py: Python<'py>,
-    scene: &Scene,
+    scene: &Bound<'py, Scene>,
     steps: &Bound<'py, PyAny>,
     loss: &str,
     params: &Bound<'py, PyAny>,
@@ -68,11 +68,12 @@ pub fn grad_batch<'py>(
     let steps = crate::args::count(steps, "steps", 1)?;
     let params = crate::args::names(params, "params")?;
     let values = crate::args::dicts(values, "values")?;
+    let scene = scene::view(scene, "grad_batch")?;
     scene::names(&scene.inner.model, &params)?;
     let m = scene::mode(mode)?;
     // Checked before the items (an empty batch included), as `Scene.grad` checks it.
     scene::loss(&scene.inner.model, loss)?;
-    let runs = scenes(scene, &values)?;
+    let runs = scenes(&scene, &values)?;
     let results = each(py, &runs, |s| s.gradient(steps, loss, m, allow_unconverged))?;
     runs.iter()
         .zip(results)
@@ -92,13 +93,15 @@ pub fn grad_batch<'py>(
 #[pyfunction]
 pub fn simulate_batch<'py>(
     py: Python<'py>,
-    scene: &Scene,
+    scene: &Bound<'py, Scene>,
     steps: &Bound<'py, PyAny>,
     values: &Bound<'py, PyAny>,
 ) -> PyResult<Vec<Run>> {
     let steps = crate::args::count(steps, "steps", 1)?;
     let values = crate::args::dicts(values, "values")?;
-    let runs = scenes(scene, &values)?;
+    // Held until the batch returns (a `set` meanwhile raises `SceneBusyError`).
+    let scene = scene::view(scene, "simulate_batch")?;
+    let runs = scenes(&scene, &values)?;
     let mut unconverged = false;
     let mut crossed = false;
     let mut inverted = false;

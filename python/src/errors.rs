@@ -207,13 +207,23 @@ pub fn mesh(e: MeshError) -> PyErr {
 /// A scene error: unreadable files are a `FileError`, features not simulated an
 /// `UnsupportedError`, the rest an `InputError`.
 pub fn scene(e: SceneError) -> PyErr {
-    let class = match e {
-        SceneError::Mesh(m) => return mesh(m),
+    scene_shown(e, |m| m)
+}
+
+/// [`scene`] with its message passed through `shown` (a scene built from copies of its files
+/// names the originals).
+pub fn scene_shown(e: SceneError, shown: impl FnOnce(String) -> String) -> PyErr {
+    let class = match &e {
+        SceneError::Mesh(m) => match m.kind {
+            MeshErrorKind::Io(_) => Class::File,
+            MeshErrorKind::UnsupportedFormat(_) => Class::Unsupported,
+            _ => Class::Input,
+        },
         SceneError::Io { .. } => Class::File,
         SceneError::Unsupported { .. } => Class::Unsupported,
         _ => Class::Input,
     };
-    class.err(e.to_string())
+    class.err(shown(e.to_string()))
 }
 
 /// Any other error (a report that could not be produced): a `SimulationError`.

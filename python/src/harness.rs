@@ -52,8 +52,12 @@ pub fn bounds<'py>(
             )))
         }
     };
+    // Read on a thread that Ctrl-C abandons (a named pipe nobody writes to), then analysed on
+    // one that Ctrl-C cancels.
+    let loaded = interrupt::abandonable(py, move || diffsoft::mesh::load(&mesh))?
+        .map_err(errors::mesh)?
+        .scaled(scale);
     let report = interrupt::run(py, || -> PyResult<_> {
-        let loaded = diffsoft::mesh::load(&mesh).map_err(errors::mesh)?.scaled(scale);
         let params = BoundsParams {
             rho,
             mu,
@@ -84,7 +88,7 @@ pub const MAX_GRADCHECK_ITERATIONS: usize = 1000;
 )]
 pub fn gradcheck<'py>(
     py: Python<'py>,
-    scene: &Scene,
+    scene: &Bound<'py, Scene>,
     steps: &Bound<'py, PyAny>,
     loss: &str,
     params: Option<&Bound<'py, PyAny>>,
@@ -106,6 +110,7 @@ pub fn gradcheck<'py>(
     if params.is_empty() {
         return Err(errors::value("params: no parameter to check; name at least one"));
     }
+    let scene = scene::view(scene, "gradcheck")?;
     let model = &scene.inner.model;
     let groups = scene::names(model, &params)?
         .into_iter()

@@ -63,3 +63,40 @@ pub fn run<T: Send>(py: Python<'_>, work: impl FnOnce() -> T + Send) -> PyResult
         }
     })
 }
+
+/// Run `work` on a thread of its own without the GIL, raising the exception of a signal handler
+/// (Ctrl-C: `KeyboardInterrupt`) within [`POLL`] of the signal. Unlike [`run`], the work is not
+/// waited for after a signal: this is for reading files, which can block in the system (a named
+/// pipe nobody writes to) where no cancellation token reaches; the abandoned thread ends when
+/// its read returns, and its result is dropped.
+pub fn abandonable<T: Send + 'static>(py: Python<'_>, work: impl FnOnce() -> T + Send + 'static) -> PyResult<T> {
+    let (tx, rx) = mpsc::channel();
+    std::thread::Builder::new()
+        .name("diffsoft-read".into())
+        .spawn(move || {
+            let out = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| crate::fork::install(work)));
+            // Nobody receives after a signal: the result is dropped.
+            let _ = tx.send(out);
+        })
+        .map_err(|e| crate::errors::other(format!("cannot start a thread to read the file: {e}")))?;
+    let mut rx = rx;
+    loop {
+        let (back, got) = py.detach(move || {
+            let got = rx.recv_timeout(POLL);
+            (rx, got)
+        });
+        rx = back;
+        match got {
+            Ok(Ok(out)) => return Ok(out),
+            Ok(Err(panic)) => {
+                return Err(crate::errors::panicked(diffsoft::base::tasks::panic_message(
+                    panic.as_ref(),
+                )))
+            }
+            Err(mpsc::RecvTimeoutError::Disconnected) => {
+                return Err(crate::errors::panicked("the call ended without a result"))
+            }
+            Err(mpsc::RecvTimeoutError::Timeout) => py.check_signals()?,
+        }
+    }
+}

@@ -6,11 +6,6 @@ use pyo3::types::PyDict;
 
 use crate::scene_core::Scene;
 
-/// `Scene.tets`: every tet, global vertex numbering, `(m, 4)` int64.
-pub(crate) fn tets<'py>(py: Python<'py>, s: &Scene) -> PyResult<Bound<'py, PyAny>> {
-    index_array(py, s.inner.model.tets())
-}
-
 /// `(rows, K)` int64 array of index rows.
 pub(crate) fn index_array<'py, const K: usize>(py: Python<'py>, rows: &[[usize; K]]) -> PyResult<Bound<'py, PyAny>> {
     use numpy::PyArrayMethods;
@@ -19,8 +14,8 @@ pub(crate) fn index_array<'py, const K: usize>(py: Python<'py>, rows: &[[usize; 
 }
 
 /// `Scene.surface_triangles`: the boundary faces of the tets (faces of exactly one tet),
-/// oriented outward, `(k, 3)` int64, sorted by vertex ids.
-pub(crate) fn surface_triangles<'py>(py: Python<'py>, s: &Scene) -> PyResult<Bound<'py, PyAny>> {
+/// oriented outward, sorted by vertex ids (made a `(k, 3)` int64 array by [`index_array`]).
+pub(crate) fn surface_triangles(s: &Scene) -> Vec<[usize; 3]> {
     use std::collections::HashMap;
     let model = &s.inner.model;
     let rest = model.rest();
@@ -48,31 +43,55 @@ pub(crate) fn surface_triangles<'py>(py: Python<'py>, s: &Scene) -> PyResult<Bou
         })
         .collect();
     out.sort_unstable();
-    index_array(py, &out)
+    out
+}
+
+/// A body of `Scene.bodies`: name, kind, vertex range and its tet or triangle range (the key
+/// `tets` or `triangles`).
+pub(crate) struct BodyRow {
+    name: String,
+    kind: &'static str,
+    vertices: (usize, usize),
+    elements: (&'static str, (usize, usize)),
 }
 
 /// `Scene.bodies`: each body's name, kind (`soft`, `cloth`) and vertex range `(start, stop)`
-/// (rows of the position arrays), and its tet (soft) or triangle (cloth) range.
-pub(crate) fn bodies<'py>(py: Python<'py>, s: &Scene) -> PyResult<Vec<Bound<'py, PyDict>>> {
+/// (rows of the position arrays), and its tet (soft) or triangle (cloth) range; made dicts by
+/// [`body_dicts`].
+pub(crate) fn bodies(s: &Scene) -> Vec<BodyRow> {
     let model = &s.inner.model;
     let mut out = Vec::new();
     for b in model.bodies() {
-        let d = PyDict::new(py);
-        d.set_item("name", &b.name)?;
-        d.set_item("kind", "soft")?;
-        d.set_item("vertices", (b.vertices.start, b.vertices.end))?;
-        d.set_item("tets", (b.tets.start, b.tets.end))?;
-        out.push(d);
+        out.push(BodyRow {
+            name: b.name.clone(),
+            kind: "soft",
+            vertices: (b.vertices.start, b.vertices.end),
+            elements: ("tets", (b.tets.start, b.tets.end)),
+        });
     }
     if let Some(c) = model.cloth() {
         for b in &c.bodies {
-            let d = PyDict::new(py);
-            d.set_item("name", &b.name)?;
-            d.set_item("kind", "cloth")?;
-            d.set_item("vertices", (b.vertices.start, b.vertices.end))?;
-            d.set_item("triangles", (b.triangles.start, b.triangles.end))?;
-            out.push(d);
+            out.push(BodyRow {
+                name: b.name.clone(),
+                kind: "cloth",
+                vertices: (b.vertices.start, b.vertices.end),
+                elements: ("triangles", (b.triangles.start, b.triangles.end)),
+            });
         }
     }
-    Ok(out)
+    out
+}
+
+/// The dicts of `Scene.bodies`.
+pub(crate) fn body_dicts(py: Python<'_>, rows: Vec<BodyRow>) -> PyResult<Vec<Bound<'_, PyDict>>> {
+    rows.into_iter()
+        .map(|r| {
+            let d = PyDict::new(py);
+            d.set_item("name", r.name)?;
+            d.set_item("kind", r.kind)?;
+            d.set_item("vertices", r.vertices)?;
+            d.set_item(r.elements.0, r.elements.1)?;
+            Ok(d)
+        })
+        .collect()
 }

@@ -162,37 +162,69 @@ pub enum Value {
     PerStep(ArrayParam, Vec<Vec<f64>>),
 }
 
+/// A parameter's value read from Python but not yet checked against a model ([`Value::convert`]):
+/// what `Scene.set` reads before it takes the scene, so that no Python code runs while it holds
+/// it.
+#[derive(Debug, Clone)]
+pub enum Raw {
+    /// A scalar.
+    Scalar(Param, f64),
+    /// An array: its values and shape.
+    Array(ArrayParam, Vec<f64>, Vec<usize>),
+}
+
 impl Value {
     /// Convert `value` for parameter `name` of `model`.
     pub fn read(model: &Model, name: &str, value: &Bound<'_, PyAny>) -> PyResult<Self> {
+        Self::check(model, name, Self::convert(name, value)?)
+    }
+
+    /// Read `value` for parameter `name` from Python (numbers, finiteness; no model needed).
+    pub fn convert(name: &str, value: &Bound<'_, PyAny>) -> PyResult<Raw> {
         Ok(match Name::parse(name)? {
-            Name::Scalar(p) => {
-                // `True` is an int to Python, not a modulus; a complex number is not a real one.
-                Value::Scalar(p, arrays::read_scalar(name, value)?)
+            // `True` is an int to Python, not a modulus; a complex number is not a real one.
+            Name::Scalar(p) => Raw::Scalar(p, arrays::read_scalar(name, value)?),
+            Name::Array(ArrayParam::InitialJointState) => {
+                return Err(errors::value(
+                    "initial_joint_state can be differentiated but not set (set the bones' initial coordinates in the scene file)",
+                ))
             }
-            Name::Array(a @ (ArrayParam::InitialPositions | ArrayParam::InitialVelocities)) => {
-                Value::Vectors(a, arrays::read_vectors(name, value, model.n())?)
+            Name::Array(a) => {
+                let (data, shape) = arrays::read(name, value)?;
+                Raw::Array(a, data, shape)
             }
-            Name::Array(ArrayParam::AttachmentTargets) => Value::Vectors(
+        })
+    }
+
+    /// A value [`Value::convert`] read, checked against `model` (shapes, ranges); no Python
+    /// code runs.
+    pub fn check(model: &Model, name: &str, raw: Raw) -> PyResult<Self> {
+        let (a, read) = match raw {
+            Raw::Scalar(p, v) => return Ok(Value::Scalar(p, v)),
+            Raw::Array(a, data, shape) => (a, (data, shape)),
+        };
+        Ok(match a {
+            ArrayParam::InitialPositions | ArrayParam::InitialVelocities => {
+                Value::Vectors(a, arrays::vectors_of(name, read, model.n())?)
+            }
+            ArrayParam::AttachmentTargets => Value::Vectors(
                 ArrayParam::AttachmentTargets,
-                arrays::read_vectors(name, value, model.attachments().len())?,
+                arrays::vectors_of(name, read, model.attachments().len())?,
             ),
-            Name::Array(ArrayParam::YoungsModulusPerTet) => {
-                Value::PerTet(arrays::read_vector(name, value, model.tets().len())?)
-            }
-            Name::Array(a @ ArrayParam::Activations) => {
+            ArrayParam::YoungsModulusPerTet => Value::PerTet(arrays::vector_of(name, read, model.tets().len())?),
+            ArrayParam::Activations => {
                 Name::Array(a).check_applies(model)?;
-                let rows = arrays::read_matrix(name, value, None, groups(model))?;
+                let rows = arrays::matrix_of(name, read, None, groups(model))?;
                 check_activations(model, &rows)?;
                 Value::PerStep(a, rows)
             }
-            Name::Array(a @ ArrayParam::Torques) => {
+            ArrayParam::Torques => {
                 Name::Array(a).check_applies(model)?;
-                let rows = arrays::read_matrix(name, value, None, dofs(model))?;
+                let rows = arrays::matrix_of(name, read, None, dofs(model))?;
                 check_torques(model, &rows)?;
                 Value::PerStep(a, rows)
             }
-            Name::Array(ArrayParam::InitialJointState) => {
+            ArrayParam::InitialJointState => {
                 return Err(errors::value(
                     "initial_joint_state can be differentiated but not set (set the bones' initial coordinates in the scene file)",
                 ))
@@ -221,30 +253,56 @@ impl Value {
     }
 }
 
+/// A parameter's current value as Rust data ([`current`]), made a Python object with
+/// [`Current::into_py`] once the scene is no longer borrowed.
+pub enum Current {
+    /// A scalar.
+    Scalar(f64),
+    /// An array of `shape`.
+    Array(Vec<f64>, Vec<usize>),
+    /// A per-step control left to the schedules.
+    None,
+}
+
+impl Current {
+    /// The Python object: a float, an ndarray or `None`.
+    pub fn into_py(self, py: Python<'_>) -> PyResult<Bound<'_, PyAny>> {
+        Ok(match self {
+            Current::Scalar(v) => v.into_pyobject(py)?.into_any(),
+            Current::Array(data, shape) => arrays::array(py, data, &shape)?,
+            Current::None => py.None().into_bound(py),
+        })
+    }
+}
+
 /// The current value of parameter `name` (`None` for per-step controls left to the schedules).
-pub fn get<'py>(py: Python<'py>, model: &Model, inputs: &Inputs, name: &str) -> PyResult<Bound<'py, PyAny>> {
+pub fn current(model: &Model, inputs: &Inputs, name: &str) -> PyResult<Current> {
+    let vectors = |v: Vec<Vector3<f64>>| {
+        let rows = v.len();
+        Current::Array(arrays::flatten(v), vec![rows, 3])
+    };
+    let matrix = |rows: &[Vec<f64>], cols: usize| {
+        Current::Array(rows.iter().flatten().copied().collect(), vec![rows.len(), cols])
+    };
     Ok(match Name::parse(name)? {
-        Name::Scalar(p) => p.get(model).map_err(errors::diff)?.into_pyobject(py)?.into_any(),
+        Name::Scalar(p) => Current::Scalar(p.get(model).map_err(errors::diff)?),
         Name::Array(a) => match a {
-            ArrayParam::InitialPositions => {
-                arrays::vectors(py, inputs.q0.clone().unwrap_or_else(|| model.rest().to_vec()))?
+            ArrayParam::InitialPositions => vectors(inputs.q0.clone().unwrap_or_else(|| model.rest().to_vec())),
+            ArrayParam::InitialVelocities => {
+                vectors(inputs.v0.clone().unwrap_or_else(|| model.initial_velocity().to_vec()))
             }
-            ArrayParam::InitialVelocities => arrays::vectors(
-                py,
-                inputs.v0.clone().unwrap_or_else(|| model.initial_velocity().to_vec()),
-            )?,
             ArrayParam::YoungsModulusPerTet => {
-                arrays::array(py, lib::youngs_modulus_per_tet(model), &[model.tets().len()])?
+                Current::Array(lib::youngs_modulus_per_tet(model), vec![model.tets().len()])
             }
-            ArrayParam::AttachmentTargets => arrays::vectors(py, lib::attachment_targets(model))?,
-            ArrayParam::Activations => match &inputs.activations {
-                Some(a) => arrays::matrix(py, a, groups(model))?,
-                None => py.None().into_bound(py),
-            },
-            ArrayParam::Torques => match &inputs.torques {
-                Some(t) => arrays::matrix(py, t, dofs(model))?,
-                None => py.None().into_bound(py),
-            },
+            ArrayParam::AttachmentTargets => vectors(lib::attachment_targets(model)),
+            ArrayParam::Activations => inputs
+                .activations
+                .as_ref()
+                .map_or(Current::None, |a| matrix(a, groups(model))),
+            ArrayParam::Torques => inputs
+                .torques
+                .as_ref()
+                .map_or(Current::None, |t| matrix(t, dofs(model))),
             ArrayParam::InitialJointState => {
                 return Err(errors::value("initial_joint_state is available as a gradient only"));
             }

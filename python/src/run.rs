@@ -53,9 +53,9 @@ impl Run {
 /// velocities of `steps + 1` states) checked as the rollout checks it: what the JAX wrapper
 /// checks before JAX allocates the trajectory's buffers, so that it raises the same errors.
 #[pyfunction]
-pub fn _trajectory_steps(scene: &crate::scene_core::Scene, steps: &Bound<'_, PyAny>) -> PyResult<usize> {
+pub fn _trajectory_steps(scene: &Bound<'_, crate::scene_core::Scene>, steps: &Bound<'_, PyAny>) -> PyResult<usize> {
     let steps = crate::args::count(steps, "steps", 1)?;
-    let n = scene.inner.model.n();
+    let n = crate::scene_core::view(scene, "steps")?.inner.model.n();
     let state = 2 * n * std::mem::size_of::<nalgebra::Vector3<f64>>();
     diffsoft::base::memory::check(
         &format!("{steps} steps of {n} vertices"),

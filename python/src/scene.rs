@@ -11,24 +11,18 @@ use crate::errors;
 use crate::interrupt;
 use crate::params::{self, Inputs, Value};
 use crate::run::Run;
-use crate::scene_core::{grads, mode, names, warn_stats, Scene};
+use crate::scene_core::{grads, mode, names, snapshot, view, warn_stats, Scene};
 
 #[pymethods]
 impl Scene {
     /// Load a scene file: native `diffsoft.scene/1` or the paper's format. Relative paths in
-    /// the scene resolve against the scene file's directory.
+    /// the scene resolve against the scene file's directory. Each file is read once (a named
+    /// pipe fed once loads), and the scene and what it pickles are built from the same bytes.
     #[staticmethod]
     #[pyo3(signature = (path, passive = false))]
-    fn load(py: Python<'_>, path: std::path::PathBuf, passive: bool) -> PyResult<Self> {
-        let (inner, source) = py
-            .detach(|| {
-                crate::fork::install(|| {
-                    let inner = lib_scene::load(&path, lib_scene::LoadOptions { passive })?;
-                    let source = crate::scene_source::source_of_file(&path, inner.format)?;
-                    Ok((inner, source))
-                })
-            })
-            .map_err(errors::scene)?;
+    fn load(py: Python<'_>, path: &Bound<'_, PyAny>, passive: bool) -> PyResult<Self> {
+        let path = crate::args::path(path, "Scene.load: path")?;
+        let (inner, source) = crate::scene_source::load(py, path, lib_scene::LoadOptions { passive })?;
         Ok(Scene {
             inner,
             inputs: Inputs::default(),
@@ -39,9 +33,13 @@ impl Scene {
     /// Set a parameter: a scalar of the CLI (`youngs_modulus`, `gravity.y`, ...) or an array
     /// (`initial_positions`, `youngs_modulus_per_tet`, `activations`, ...).
     fn set(slf: &Bound<'_, Self>, name: &str, value: &Bound<'_, PyAny>) -> PyResult<()> {
+        // The value is read from Python first (numpy, `__float__`, `__array__`: code that may
+        // switch threads or touch this scene); the scene is held only while the value is
+        // checked and applied, which runs no Python code.
+        let raw = Value::convert(name, value)?;
         let mut this = busy(slf, "set")?;
         let this = &mut *this;
-        let v = Value::read(&this.inner.model, name, value)?;
+        let v = Value::check(&this.inner.model, name, raw)?;
         let mut model = this.inner.model.clone();
         let mut inputs = this.inputs.clone();
         let recorded = v.clone();
@@ -55,8 +53,12 @@ impl Scene {
 
     /// A parameter's current value (float or ndarray; `None` for per-step controls that follow
     /// the scene's schedules).
-    fn get<'py>(&self, py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyAny>> {
-        params::get(py, &self.inner.model, &self.inputs, name)
+    fn get<'py>(slf: &Bound<'py, Self>, name: &str) -> PyResult<Bound<'py, PyAny>> {
+        let current = {
+            let s = view(slf, "Scene.get")?;
+            params::current(&s.inner.model, &s.inputs, name)?
+        };
+        current.into_py(slf.py())
     }
 
     /// Change solver settings by name (`solver`, `tolerance`, `max_iterations`, `dt`,
@@ -65,9 +67,12 @@ impl Scene {
     /// are unchanged.
     #[pyo3(signature = (**settings))]
     fn configure(slf: &Bound<'_, Self>, settings: Option<&Bound<'_, PyDict>>) -> PyResult<()> {
-        let mut this = busy(slf, "configure")?;
-        let Some(settings) = settings else { return Ok(()) };
-        let mut next = this.inner.settings.clone();
+        let Some(settings) = settings else {
+            busy(slf, "configure")?;
+            return Ok(());
+        };
+        // Every value is read from Python before the scene is held (see `set`).
+        let mut values = Vec::with_capacity(settings.len());
         for (k, v) in settings.iter() {
             let key: String = k.extract()?;
             let value: serde_json::Value = match v.cast::<PyFloat>() {
@@ -81,6 +86,11 @@ impl Scene {
                 }
                 _ => crate::pyjson::to_json_for(&v, &format!("configure({key})"))?,
             };
+            values.push((key, value));
+        }
+        let mut this = busy(slf, "configure")?;
+        let mut next = this.inner.settings.clone();
+        for (key, value) in values {
             next.set(&key, value).map_err(errors::solver)?;
         }
         this.inner.settings = next;
@@ -89,46 +99,47 @@ impl Scene {
 
     /// The solver settings as a dict (scene-file names).
     #[getter]
-    fn settings<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        arrays::report(py, &self.inner.settings)
+    fn settings<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyAny>> {
+        let settings = view(slf, "Scene.settings")?.inner.settings.clone();
+        arrays::report(slf.py(), &settings)
     }
 
     /// Number of vertices (rows of the position arrays).
     #[getter]
-    fn n_vertices(&self) -> usize {
-        self.inner.model.n()
+    fn n_vertices(slf: &Bound<'_, Self>) -> PyResult<usize> {
+        Ok(view(slf, "Scene.n_vertices")?.inner.model.n())
     }
 
     /// Lumped mass of every vertex (kg), `(n,)`: for losses such as a centre of mass.
     #[getter]
-    fn masses<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        let m = self.inner.model.mass().to_vec();
+    fn masses<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyAny>> {
+        let m = view(slf, "Scene.masses")?.inner.model.mass().to_vec();
         let n = m.len();
-        arrays::array(py, m, &[n])
+        arrays::array(slf.py(), m, &[n])
     }
 
     /// Whether each vertex is fixed (pinned), `(n,)` bool as a list.
     #[getter]
-    fn fixed(&self) -> Vec<bool> {
-        self.inner.model.fixed().to_vec()
+    fn fixed(slf: &Bound<'_, Self>) -> PyResult<Vec<bool>> {
+        Ok(view(slf, "Scene.fixed")?.inner.model.fixed().to_vec())
     }
 
     /// Number of tets.
     #[getter]
-    fn n_tets(&self) -> usize {
-        self.inner.model.tets().len()
+    fn n_tets(slf: &Bound<'_, Self>) -> PyResult<usize> {
+        Ok(view(slf, "Scene.n_tets")?.inner.model.tets().len())
     }
 
     /// Time step (s).
     #[getter]
-    fn dt(&self) -> f64 {
-        self.inner.settings.dt
+    fn dt(slf: &Bound<'_, Self>) -> PyResult<f64> {
+        Ok(view(slf, "Scene.dt")?.inner.settings.dt)
     }
 
     /// The scene file.
     #[getter]
-    fn path(&self) -> String {
-        self.inner.path.display().to_string()
+    fn path(slf: &Bound<'_, Self>) -> PyResult<String> {
+        Ok(view(slf, "Scene.path")?.inner.path.display().to_string())
     }
 
     /// What the importer noted (defaults applied, keys not simulated), then each body's
@@ -136,10 +147,11 @@ impl Scene {
     /// from the moduli given, a body too soft to carry its own weight), from the scene's
     /// current parameters.
     #[getter]
-    fn notes(&self) -> Vec<String> {
-        let mut notes = self.inner.notes.clone();
-        notes.extend(diffsoft::output::body_notes(&self.inner.model));
-        notes
+    fn notes(slf: &Bound<'_, Self>) -> PyResult<Vec<String>> {
+        let s = view(slf, "Scene.notes")?;
+        let mut notes = s.inner.notes.clone();
+        notes.extend(diffsoft::output::body_notes(&s.inner.model));
+        Ok(notes)
     }
 
     /// Every body's material: `name`, `model` (`projective`, `corotated`, `neo_hookean`),
@@ -147,8 +159,9 @@ impl Scene {
     /// with at small strain, `effective_youngs_modulus = E/(1 + 2nu/3)` and
     /// `effective_poisson_ratio = nu/(3 + 2nu)` (`None` for the true models), as `run.json`.
     #[getter]
-    fn materials<'py>(&self, py: Python<'py>) -> PyResult<Vec<Bound<'py, PyAny>>> {
-        self.inner
+    fn materials<'py>(slf: &Bound<'py, Self>) -> PyResult<Vec<Bound<'py, PyAny>>> {
+        let materials = view(slf, "Scene.materials")?
+            .inner
             .model
             .bodies()
             .iter()
@@ -158,35 +171,41 @@ impl Scene {
                 if let Some(o) = v.as_object_mut() {
                     o.insert("name".into(), serde_json::Value::String(log.name.clone()));
                 }
-                arrays::json(py, &v)
+                Ok(v)
             })
-            .collect()
+            .collect::<PyResult<Vec<_>>>()?;
+        materials.iter().map(|v| arrays::json(slf.py(), v)).collect()
     }
 
     /// Names of the actuator groups (columns of `activations`).
     #[getter]
-    fn actuator_groups(&self) -> Vec<String> {
-        self.inner
+    fn actuator_groups(slf: &Bound<'_, Self>) -> PyResult<Vec<String>> {
+        Ok(view(slf, "Scene.actuator_groups")?
+            .inner
             .model
             .actuators()
-            .map_or(Vec::new(), |a| a.groups.iter().map(|g| g.name.clone()).collect())
+            .map_or(Vec::new(), |a| a.groups.iter().map(|g| g.name.clone()).collect()))
     }
 
     /// Number of reduced joint coordinates (columns of `torques`; 0 without a skeleton).
     #[getter]
-    fn joint_dofs(&self) -> usize {
-        self.inner.model.skeleton().map_or(0, |s| s.dofs)
+    fn joint_dofs(slf: &Bound<'_, Self>) -> PyResult<usize> {
+        Ok(view(slf, "Scene.joint_dofs")?
+            .inner
+            .model
+            .skeleton()
+            .map_or(0, |s| s.dofs))
     }
 
     /// Number of attachments (rows of `attachment_targets`).
     #[getter]
-    fn n_attachments(&self) -> usize {
-        self.inner.model.attachments().len()
+    fn n_attachments(slf: &Bound<'_, Self>) -> PyResult<usize> {
+        Ok(view(slf, "Scene.n_attachments")?.inner.model.attachments().len())
     }
 
     /// An independent copy.
-    fn copy(&self) -> Self {
-        self.clone()
+    fn copy(slf: &Bound<'_, Self>) -> PyResult<Self> {
+        snapshot(slf, "Scene.copy")
     }
 
     /// Simulate `steps` steps: positions and velocities of every state and the run log. Steps
@@ -194,9 +213,9 @@ impl Scene {
     /// `ConvergenceWarning` at the caller's line (another names an unconverged step that raised
     /// the energy of a scene without an energy source); steps that ended with bodies passing
     /// through each other, or with inverted tets, a `UserWarning`.
-    fn simulate(slf: PyRef<'_, Self>, steps: &Bound<'_, PyAny>) -> PyResult<Run> {
+    fn simulate(slf: &Bound<'_, Self>, steps: &Bound<'_, PyAny>) -> PyResult<Run> {
         let steps = crate::args::count(steps, "steps", 1)?;
-        let (py, s) = snapshot(slf);
+        let (py, s) = (slf.py(), snapshot(slf, "Scene.simulate")?);
         let r = interrupt::run(py, || s.rollout(steps))??;
         // A tolerance of 0 asks for a fixed iteration count: no step is meant to converge.
         if s.inner.settings.tolerance > 0.0 && r.unconverged_steps() > 0 {
@@ -221,7 +240,7 @@ impl Scene {
     #[pyo3(signature = (steps, loss = "final_com.y", params = None, mode = "unrolled", allow_unconverged = false, stats = None))]
     #[allow(clippy::too_many_arguments)]
     fn grad<'py>(
-        slf: PyRef<'py, Self>,
+        slf: &Bound<'py, Self>,
         steps: &Bound<'py, PyAny>,
         loss: &str,
         params: Option<&Bound<'py, PyAny>>,
@@ -231,7 +250,7 @@ impl Scene {
     ) -> PyResult<Bound<'py, PyTuple>> {
         let steps = crate::args::count(steps, "steps", 1)?;
         let params = params.map_or(Ok(Vec::new()), |p| crate::args::names(p, "params"))?;
-        let (py, s) = snapshot(slf);
+        let (py, s) = (slf.py(), snapshot(slf, "Scene.grad")?);
         names(&s.inner.model, &params)?;
         let m = self::mode(mode)?;
         let g = interrupt::run(py, || s.gradient(steps, loss, m, allow_unconverged))??;
@@ -248,7 +267,7 @@ impl Scene {
     #[pyo3(signature = (steps, params, cotangent, velocity_cotangent = None, mode = "unrolled", allow_unconverged = false, stats = None))]
     #[allow(clippy::too_many_arguments)]
     fn vjp<'py>(
-        slf: PyRef<'py, Self>,
+        slf: &Bound<'py, Self>,
         steps: &Bound<'py, PyAny>,
         params: &Bound<'py, PyAny>,
         cotangent: &Bound<'py, PyAny>,
@@ -259,7 +278,7 @@ impl Scene {
     ) -> PyResult<Bound<'py, PyDict>> {
         let steps = crate::args::count(steps, "steps", 1)?;
         let params = crate::args::names(params, "params")?;
-        let (py, s) = snapshot(slf);
+        let (py, s) = (slf.py(), snapshot(slf, "Scene.vjp")?);
         names(&s.inner.model, &params)?;
         let m = self::mode(mode)?;
         let cot = crate::vjp::cotangent(&s, steps, cotangent, velocity_cotangent, "")?;
@@ -301,28 +320,32 @@ impl Scene {
     /// The scene as a dict of the scene file's structure, every mesh inline as lists (so
     /// `json.dump` writes a scene file) and `solver` the current settings (`configure`).
     /// Parameters changed with `set` are not part of it (pickling keeps them).
-    fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        crate::scene_data::to_dict(py, self)
+    fn to_dict<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyAny>> {
+        let doc = crate::scene_data::document(&*view(slf, "Scene.to_dict")?)?;
+        arrays::json(slf.py(), &doc)
     }
 
     /// Every tet, `(m, 4)` int64, in the global vertex numbering (rows of the position arrays).
     #[getter]
-    fn tets<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        crate::mesh_access::tets(py, self)
+    fn tets<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyAny>> {
+        let tets = view(slf, "Scene.tets")?.inner.model.tets().to_vec();
+        crate::mesh_access::index_array(slf.py(), &tets)
     }
 
     /// The boundary faces of the tets, `(k, 3)` int64, oriented outward (counter-clockwise seen
     /// from outside at rest), global vertex numbering.
     #[getter]
-    fn surface_triangles<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        crate::mesh_access::surface_triangles(py, self)
+    fn surface_triangles<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyAny>> {
+        let faces = crate::mesh_access::surface_triangles(&*view(slf, "Scene.surface_triangles")?);
+        crate::mesh_access::index_array(slf.py(), &faces)
     }
 
     /// Every body: `name`, `kind` (`soft`, `cloth`), `vertices` `(start, stop)` (its rows of
     /// the position arrays) and `tets` (soft) or `triangles` (cloth) `(start, stop)`.
     #[getter]
-    fn bodies<'py>(&self, py: Python<'py>) -> PyResult<Vec<Bound<'py, PyDict>>> {
-        crate::mesh_access::bodies(py, self)
+    fn bodies<'py>(slf: &Bound<'py, Self>) -> PyResult<Vec<Bound<'py, PyDict>>> {
+        let bodies = crate::mesh_access::bodies(&*view(slf, "Scene.bodies")?);
+        crate::mesh_access::body_dicts(slf.py(), bodies)
     }
 
     /// Pickling by value: the scene's document (meshes inline, or a paper scene's files), its
@@ -330,34 +353,29 @@ impl Scene {
     fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyTuple>> {
         let py = slf.py();
         let f = py.import("diffsoft._diffsoft")?.getattr("_scene_from_state")?;
-        let state = crate::scene_data::state(py, &slf.borrow())?;
+        // A copy, the borrow released: building the state runs Python code.
+        let state = crate::scene_data::state(py, &snapshot(slf, "pickling the scene")?)?;
         PyTuple::new(py, [f, PyTuple::new(py, [state])?.into_any()])
     }
 
-    fn __copy__(&self) -> Self {
-        self.clone()
+    fn __copy__(slf: &Bound<'_, Self>) -> PyResult<Self> {
+        snapshot(slf, "copy.copy(scene)")
     }
 
-    fn __deepcopy__(&self, _memo: &Bound<'_, PyAny>) -> Self {
-        self.clone()
+    fn __deepcopy__(slf: &Bound<'_, Self>, _memo: &Bound<'_, PyAny>) -> PyResult<Self> {
+        snapshot(slf, "copy.deepcopy(scene)")
     }
 
-    fn __repr__(&self) -> String {
-        format!(
+    fn __repr__(slf: &Bound<'_, Self>) -> PyResult<String> {
+        let s = view(slf, "repr(scene)")?;
+        Ok(format!(
             "Scene('{}', vertices={}, tets={}, dt={})",
-            self.inner.path.display(),
-            self.inner.model.n(),
-            self.inner.model.tets().len(),
-            self.inner.settings.dt
-        )
+            s.inner.path.display(),
+            s.inner.model.n(),
+            s.inner.model.tets().len(),
+            s.inner.settings.dt
+        ))
     }
-}
-
-/// A copy of the scene a call runs on, with the borrow of the Python object released: another
-/// thread's `set` or `configure` during the run changes the scene, not the run (the calls
-/// serialise: the run sees the values from before the change).
-fn snapshot(slf: PyRef<'_, Scene>) -> (Python<'_>, Scene) {
-    (slf.py(), slf.clone())
 }
 
 /// The scene for `set`/`configure`, or a `SceneBusyError` while a call on another thread holds

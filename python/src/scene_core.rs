@@ -20,6 +20,26 @@ pub struct Scene {
     pub(crate) data: crate::scene_source::Data,
 }
 
+/// The scene behind `slf` for reading, or a `SceneBusyError` naming `what` (the call, e.g.
+/// `Scene.simulate`) should another call hold it for a change. `Scene.set` and `configure` read
+/// their arguments before they take the scene and run no Python code while they hold it, so
+/// no other thread sees it held: this is the clean error in place of pyo3's panic or plain
+/// `RuntimeError` should that ever change.
+pub(crate) fn view<'py>(slf: &Bound<'py, Scene>, what: &str) -> PyResult<PyRef<'py, Scene>> {
+    slf.try_borrow().map_err(|_| {
+        errors::Class::Busy.err(format!(
+            "{what}: the scene is in use by another call (a set or configure of it); wait for it to return, or use a copy (Scene.copy())"
+        ))
+    })
+}
+
+/// A copy of the scene behind `slf` ([`view`]), the borrow released: what calls that run
+/// Python code or the library on it work on, so another thread's `set` or `configure`
+/// meanwhile changes the scene, not the call.
+pub(crate) fn snapshot(slf: &Bound<'_, Scene>, what: &str) -> PyResult<Scene> {
+    Ok(view(slf, what)?.clone())
+}
+
 /// A differentiation mode by name.
 pub fn mode(name: &str) -> PyResult<Mode> {
     match name {

@@ -43,15 +43,13 @@ pub(crate) fn from_dict(py: Python<'_>, d: &Bound<'_, PyAny>, base_dir: Option<P
         None => PathBuf::from("<dict>"),
     };
     let dir = base_dir.unwrap_or_default();
-    let inner = py
-        .detach(|| {
-            crate::fork::install(|| {
-                lib_scene::inline::inline_meshes(&mut doc, &dir, "<dict>")?;
-                let scene = lib_scene::from_value(doc.clone(), &path)?;
-                Ok::<_, lib_scene::SceneError>((scene, doc))
-            })
-        })
-        .map_err(errors::scene)?;
+    // The meshes are read on a thread that Ctrl-C abandons (a named pipe nobody writes to).
+    let inner = crate::interrupt::abandonable(py, move || {
+        lib_scene::inline::inline_meshes(&mut doc, &dir, "<dict>")?;
+        let scene = lib_scene::from_value(doc.clone(), &path)?;
+        Ok::<_, lib_scene::SceneError>((scene, doc))
+    })?
+    .map_err(errors::scene)?;
     let (inner, doc) = inner;
     Ok(Scene {
         inner,
@@ -106,9 +104,9 @@ fn check_inline_vertices(doc: &Json) -> PyResult<()> {
     Ok(())
 }
 
-/// `Scene.to_dict`: the document with every mesh inline (plain lists; `json.dump` writes it as
-/// a scene file), the solver section as the scene's current settings.
-pub(crate) fn to_dict<'py>(py: Python<'py>, s: &Scene) -> PyResult<Bound<'py, PyAny>> {
+/// `Scene.to_dict`'s document: every mesh inline (plain lists; `json.dump` writes it as a scene
+/// file), the solver section as the scene's current settings. No Python code runs.
+pub(crate) fn document(s: &Scene) -> PyResult<Json> {
     match &s.data.source {
         Some(Source::Document(doc)) => {
             let mut doc = (**doc).clone();
@@ -116,7 +114,7 @@ pub(crate) fn to_dict<'py>(py: Python<'py>, s: &Scene) -> PyResult<Bound<'py, Py
                 o.remove("time_step");
                 o.insert("solver".into(), serde_json::to_value(&s.inner.settings).map_err(errors::other)?);
             }
-            arrays::json(py, &doc)
+            Ok(doc)
         }
         Some(Source::Paper(_)) => Err(errors::Class::Unsupported.err(format!(
             "{}: to_dict writes diffsoft.scene/1 documents; this scene is in the paper's format (it pickles and copies, but has no diffsoft.scene/1 document)",
@@ -188,18 +186,60 @@ fn item<'py>(state: &Bound<'py, PyDict>, key: &str) -> PyResult<Bound<'py, PyAny
         .ok_or_else(|| errors::value(format!("scene state: no '{key}'")))
 }
 
-/// A paper scene written under a fresh temporary directory, loaded, and the directory removed.
+/// A paper scene from a pickled state: its files written under a fresh temporary directory,
+/// loaded, and the directory removed.
 fn load_paper(py: Python<'_>, paper: &Bound<'_, PyDict>) -> PyResult<lib_scene::Scene> {
+    let dir: String = extract(paper, "dir", "paper.dir")?;
+    let name: String = extract(paper, "name", "paper.name")?;
+    let text: String = extract(paper, "text", "paper.text")?;
+    let files = carried_files(paper)?;
+    // One normal component each (not `..`, `.`, a root or a path).
+    for part in [&dir, &name] {
+        let mut parts = Path::new(part).components();
+        if !matches!((parts.next(), parts.next()), (Some(Component::Normal(_)), None)) {
+            return Err(errors::value(format!("scene state: '{part}' is not a plain name")));
+        }
+    }
+    let doc = lib_scene::json::parse_lenient(&text).map_err(|e| errors::value(format!("scene state: {e}")))?;
+    let path = std::env::temp_dir().join(&dir).join(&name);
+    py.detach(|| import_paper_files(&path, &doc, lib_scene::LoadOptions::default(), &files, &[]))
+}
+
+/// The `files` of a pickled paper scene: `{name: bytes}`.
+fn carried_files(paper: &Bound<'_, PyDict>) -> PyResult<Vec<(String, Vec<u8>)>> {
+    let files = item(paper, "files")?;
+    let files = files
+        .cast::<PyDict>()
+        .map_err(|_| errors::value("scene state: 'paper.files' is not a dict"))?;
+    files
+        .iter()
+        .map(|(k, v)| {
+            let key: String = k
+                .extract()
+                .map_err(|_| errors::value("scene state: a name of 'paper.files' is not a str"))?;
+            let bytes: Vec<u8> = v
+                .cast::<PyBytes>()
+                .map_err(|_| errors::value(format!("scene state: 'paper.files'['{key}'] is not bytes")))?
+                .as_bytes()
+                .to_vec();
+            Ok((key, bytes))
+        })
+        .collect()
+}
+
+/// A paper scene at `path` (named in messages; no file is read there) built from `files`, the
+/// files it names (`(name as the scene gives it, contents)`), written under a fresh temporary
+/// directory that is removed after. Where `originals` gives the file each came from (a scene
+/// just loaded), messages and notes name those instead of the copies.
+pub(crate) fn import_paper_files(
+    path: &Path,
+    doc: &Json,
+    opts: lib_scene::LoadOptions,
+    files: &[(String, Vec<u8>)],
+    originals: &[PathBuf],
+) -> PyResult<lib_scene::Scene> {
     use std::sync::atomic::{AtomicUsize, Ordering};
     static COUNT: AtomicUsize = AtomicUsize::new(0);
-    let dir: String = item(paper, "dir")?.extract()?;
-    let name: String = item(paper, "name")?.extract()?;
-    let text: String = item(paper, "text")?.extract()?;
-    let files: Vec<(String, Vec<u8>)> = item(paper, "files")?
-        .cast::<PyDict>()?
-        .iter()
-        .map(|(k, v)| Ok((k.extract()?, v.extract()?)))
-        .collect::<PyResult<_>>()?;
     let nanos = std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
         .map_or(0, |d| d.subsec_nanos());
@@ -209,17 +249,8 @@ fn load_paper(py: Python<'_>, paper: &Bound<'_, PyDict>) -> PyResult<lib_scene::
         COUNT.fetch_add(1, Ordering::Relaxed)
     ));
     let io = |e: std::io::Error| errors::Class::File.err(format!("{}: {e}", root.display()));
+    let mut copies: Vec<(String, String)> = Vec::new();
     let result = (|| {
-        // One normal component each (not `..`, `.`, a root or a path): the files stay under
-        // `root`.
-        for part in [&dir, &name] {
-            let mut parts = Path::new(part).components();
-            if !matches!((parts.next(), parts.next()), (Some(Component::Normal(_)), None)) {
-                return Err(errors::value(format!("scene state: '{part}' is not a plain name")));
-            }
-        }
-        let scene_dir = root.join(&dir);
-        std::fs::create_dir_all(&scene_dir).map_err(io)?;
         // Each carried file under a directory of its own, keeping its file name (the mesh
         // readers go by the extension); the scene's names map to these paths and nothing else.
         let mut carried = std::collections::HashMap::new();
@@ -233,36 +264,58 @@ fn load_paper(py: Python<'_>, paper: &Bound<'_, PyDict>) -> PyResult<lib_scene::
             std::fs::create_dir_all(&holder).map_err(io)?;
             let target = holder.join(file_name);
             std::fs::write(&target, bytes).map_err(io)?;
+            if let Some(original) = originals.get(k) {
+                copies.push((target.display().to_string(), original.display().to_string()));
+            }
             carried.insert(key.clone(), target);
         }
-        let path = scene_dir.join(&name);
-        std::fs::write(&path, &text).map_err(io)?;
-        let doc = lib_scene::json::parse_lenient(&text).map_err(|e| errors::value(format!("scene state: {e}")))?;
-        py.detach(|| {
-            crate::fork::install(|| {
-                lib_scene::paper::import_carried(&path, &doc, lib_scene::LoadOptions::default(), &carried)
-            })
-        })
-        .map_err(errors::scene)
+        let shown = |mut m: String| {
+            for (copy, original) in &copies {
+                m = m.replace(copy.as_str(), original);
+            }
+            m
+        };
+        let mut scene = crate::fork::install(|| lib_scene::paper::import_carried(path, doc, opts, &carried))
+            .map_err(|e| errors::scene_shown(e, shown))?;
+        for note in &mut scene.notes {
+            *note = shown(std::mem::take(note));
+        }
+        Ok(scene)
     })();
     let _ = std::fs::remove_dir_all(&root);
     result
 }
 
+/// Item `key` of a pickled state extracted as `T`, an `InputError` naming it (`shown`) if it is
+/// not one.
+fn extract<'py, T: pyo3::conversion::FromPyObjectOwned<'py>>(
+    state: &Bound<'py, PyDict>,
+    key: &str,
+    shown: &str,
+) -> PyResult<T> {
+    item(state, key)?.extract::<T>().map_err(|e| {
+        let e: PyErr = e.into();
+        errors::value(format!(
+            "scene state: '{shown}' is not what a pickled scene holds ({e})"
+        ))
+    })
+}
+
 /// A scene from the state of [`state`] (what unpickling calls).
 #[pyfunction]
 pub(crate) fn _scene_from_state(py: Python<'_>, state: &Bound<'_, PyDict>) -> PyResult<Scene> {
-    let version: u32 = item(state, "version")?.extract()?;
+    let version: u32 = extract(state, "version", "version")?;
     if version != STATE_VERSION {
         return Err(errors::value(format!(
             "scene state version {version}: this version of diffsoft reads version {STATE_VERSION}"
         )));
     }
-    let path = PathBuf::from(item(state, "path")?.extract::<String>()?);
+    let path = PathBuf::from(extract::<String>(state, "path", "path")?);
     let (mut inner, source) = match state.get_item("document")? {
-        Some(doc) => {
-            let text: String = doc.extract()?;
-            let doc: Json = serde_json::from_str(&text).map_err(errors::other)?;
+        Some(_) => {
+            let text: String = extract(state, "document", "document")?;
+            let doc: Json = serde_json::from_str(&text)
+                .map_err(|e| errors::value(format!("scene state: 'document' is not JSON ({e})")))?;
             let inner = py
                 .detach(|| crate::fork::install(|| lib_scene::from_value(doc.clone(), &path)))
                 .map_err(errors::scene)?;
@@ -270,34 +323,37 @@ pub(crate) fn _scene_from_state(py: Python<'_>, state: &Bound<'_, PyDict>) -> Py
         }
         None => {
             let paper = item(state, "paper")?;
-            let paper = paper.cast::<PyDict>()?;
+            let paper = paper
+                .cast::<PyDict>()
+                .map_err(|_| errors::value("scene state: 'paper' is not a dict"))?;
             let inner = load_paper(py, paper)?;
-            let files: Vec<(String, Vec<u8>)> = item(paper, "files")?
-                .cast::<PyDict>()?
-                .iter()
-                .map(|(k, v)| Ok((k.extract()?, v.extract()?)))
-                .collect::<PyResult<_>>()?;
             let source = Source::Paper(Arc::new(PaperFiles {
-                dir: item(paper, "dir")?.extract()?,
-                name: item(paper, "name")?.extract()?,
-                text: item(paper, "text")?.extract()?,
-                files,
+                dir: extract(paper, "dir", "paper.dir")?,
+                name: extract(paper, "name", "paper.name")?,
+                text: extract(paper, "text", "paper.text")?,
+                files: carried_files(paper)?,
             }));
             (inner, source)
         }
     };
     inner.path = path;
-    inner.notes = item(state, "notes")?.extract()?;
-    let settings: String = item(state, "settings")?.extract()?;
-    inner.settings = serde_json::from_str(&settings).map_err(errors::other)?;
+    inner.notes = extract(state, "notes", "notes")?;
+    let settings: String = extract(state, "settings", "settings")?;
+    inner.settings = serde_json::from_str(&settings)
+        .map_err(|e| errors::value(format!("scene state: 'settings' are not solver settings ({e})")))?;
     let mut scene = Scene {
         inner,
         inputs: Inputs::default(),
         data: Data::new(source),
     };
-    for entry in item(state, "sets")?.try_iter()? {
+    let sets = item(state, "sets")?
+        .try_iter()
+        .map_err(|_| errors::value("scene state: 'sets' is not a list"))?;
+    for entry in sets {
         let entry = entry?;
-        let (name, value): (String, Bound<'_, PyAny>) = entry.extract()?;
+        let (name, value): (String, Bound<'_, PyAny>) = entry
+            .extract()
+            .map_err(|_| errors::value("scene state: an entry of 'sets' is not a (name, value) pair"))?;
         let v = Value::read(&scene.inner.model, &name, &value)?;
         scene.data.record(&name, &v);
         v.apply(&mut scene.inner.model, &mut scene.inputs)?;

@@ -2,12 +2,13 @@
 //! inline, or a paper-format scene's file and the files it names, and the parameters the caller
 //! set since ([`Data`]). `crate::scene_data` turns it into dicts and pickles.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use diffsoft::scene::{self as lib_scene, SceneFormat};
+use diffsoft::scene as lib_scene;
 use serde_json::Value as Json;
 
+use crate::errors;
 use crate::params::Value;
 
 /// Where a scene came from, by value.
@@ -58,64 +59,130 @@ impl Data {
     }
 }
 
-/// The source of a scene just loaded from `path`: native scenes as their document with the
-/// meshes inline, paper scenes as their files.
-pub(crate) fn source_of_file(path: &Path, format: SceneFormat) -> Result<Source, lib_scene::SceneError> {
+/// `Scene.load`: the scene file at `path` and the source it pickles as, built from one read of
+/// each file: the scene file's text is read once (a named pipe fed once loads), a native scene's
+/// meshes are read once and inlined, and the scene is built from that document; a paper scene's
+/// files are read once and the scene is built from those bytes, as unpickling rebuilds it. The
+/// reads run on a thread that Ctrl-C abandons (a pipe nobody writes to does not hang the call).
+pub(crate) fn load(
+    py: pyo3::Python<'_>,
+    path: PathBuf,
+    opts: lib_scene::LoadOptions,
+) -> pyo3::PyResult<(lib_scene::Scene, Source)> {
+    crate::interrupt::abandonable(py, move || build(&path, opts))?
+}
+
+fn build(path: &Path, opts: lib_scene::LoadOptions) -> pyo3::PyResult<(lib_scene::Scene, Source)> {
     let shown = path.display().to_string();
-    let io = |e: std::io::Error| lib_scene::SceneError::Io {
+    let syntax = |message: String| lib_scene::SceneError::Syntax {
         path: shown.clone(),
-        message: e.to_string(),
+        message,
     };
-    let text = std::fs::read_to_string(path).map_err(io)?;
-    let syntax = |e: serde_json::Error| lib_scene::SceneError::Syntax {
+    let io = |message: String| lib_scene::SceneError::Io {
         path: shown.clone(),
-        message: e.to_string(),
+        message,
     };
-    let mut doc = lib_scene::json::parse_lenient(&text).map_err(syntax)?;
-    let abs = std::path::absolute(path).map_err(io)?;
-    let dir = abs.parent().unwrap_or(Path::new("."));
-    match format {
-        SceneFormat::Diffsoft => {
-            lib_scene::inline::inline_meshes(&mut doc, dir, &shown)?;
-            Ok(Source::Document(Arc::new(doc)))
-        }
-        SceneFormat::Paper => {
-            let dir_name = dir
-                .file_name()
-                .map_or("scene".into(), |n| n.to_string_lossy().into_owned());
-            let mut names = Vec::new();
-            strings(&doc, &mut names);
-            // Every string that names a file by the importer's own search, carried under the
-            // name as written (a relative name, one through `..`, or an absolute one): the
-            // rebuilt scene resolves its names through these files alone.
-            let mut files: Vec<(String, Vec<u8>)> = Vec::new();
-            for s in names {
-                if files.iter().any(|(k, _)| *k == s) {
-                    continue;
-                }
-                if let Some(found) = lib_scene::paper::find_file(&abs, &s) {
-                    files.push((s, std::fs::read(found).map_err(io)?));
-                }
-            }
-            let name = path
-                .file_name()
-                .map_or("scene.json".into(), |n| n.to_string_lossy().into_owned());
-            Ok(Source::Paper(Arc::new(PaperFiles {
-                dir: dir_name,
-                name,
-                text,
-                files,
-            })))
-        }
+    let text = diffsoft::base::input_file::read_text(path).map_err(|e| errors::scene(io(e.to_string())))?;
+    let doc = lib_scene::json::parse_lenient(&text).map_err(|e| errors::scene(syntax(e.to_string())))?;
+    let is_diffsoft = doc
+        .get("schema")
+        .and_then(Json::as_str)
+        .is_some_and(|s| s.starts_with("diffsoft.scene"));
+    let abs = std::path::absolute(path).map_err(|e| errors::scene(io(e.to_string())))?;
+    if is_diffsoft {
+        // Parsed strictly first, as the library's `load` does, so that errors carry line and
+        // column.
+        lib_scene::json::typed_from_str::<lib_scene::format::SceneFile>(&text).map_err(|m| errors::scene(syntax(m)))?;
+        let mut doc = doc;
+        let dir = abs.parent().unwrap_or(Path::new("."));
+        lib_scene::inline::inline_meshes(&mut doc, dir, &shown).map_err(errors::scene)?;
+        let scene = lib_scene::from_value(doc.clone(), path).map_err(errors::scene)?;
+        Ok((scene, Source::Document(Arc::new(doc))))
+    } else if doc.get("Meshes").is_some() || doc.get("Parameters").is_some() {
+        paper(path, &abs, text, &doc, opts)
+    } else {
+        Err(errors::scene(syntax(format!(
+            "not a scene: expected \"schema\": \"{}\" or a paper scene with \"Meshes\"",
+            lib_scene::format::SCENE_SCHEMA
+        ))))
     }
 }
 
-/// Every string in `v`.
-fn strings(v: &Json, out: &mut Vec<String>) {
-    match v {
-        Json::String(s) => out.push(s.clone()),
-        Json::Array(a) => a.iter().for_each(|x| strings(x, out)),
-        Json::Object(o) => o.values().for_each(|x| strings(x, out)),
-        _ => {}
+/// The names of the files a paper scene's importer reads (`scene::paper`): each mesh's
+/// `"Obj filename"` and `"Muscle filename"`, each cloth's `"Obj filename"`, and each obstacle's
+/// `"Obj filename"` when `"Handle collision"` is on (the importer ignores obstacles otherwise).
+/// Strings under other keys (`"Material Identifier"`, `"Sampling filename"`, ...) name no file
+/// it reads. Each name once, in the order given.
+fn paper_file_names(doc: &Json) -> Vec<String> {
+    let mut out: Vec<String> = Vec::new();
+    let mut add = |v: Option<&Json>| {
+        if let Some(s) = v.and_then(Json::as_str) {
+            if !out.iter().any(|n| n == s) {
+                out.push(s.to_string());
+            }
+        }
+    };
+    let list = |key: &str| doc.get(key).and_then(Json::as_array).map_or(&[][..], Vec::as_slice);
+    for m in list("Meshes") {
+        add(m.get("Obj filename"));
+        add(m.get("Muscle filename"));
     }
+    for c in list("Clothes") {
+        add(c.get("Obj filename"));
+    }
+    let collisions = doc.pointer("/Parameters/0/Handle collision").and_then(Json::as_bool) == Some(true);
+    if collisions {
+        for o in list("Obstacles") {
+            add(o.get("Obj filename"));
+        }
+    }
+    out
+}
+
+/// A paper scene built from one read of each file it names (copies in a temporary directory,
+/// as unpickling rebuilds it), and those bytes as its source. Messages and notes name the
+/// original files.
+fn paper(
+    path: &Path,
+    abs: &Path,
+    text: String,
+    doc: &Json,
+    opts: lib_scene::LoadOptions,
+) -> pyo3::PyResult<(lib_scene::Scene, Source)> {
+    let mut files: Vec<(String, Vec<u8>)> = Vec::new();
+    let mut found_at: Vec<PathBuf> = Vec::new();
+    for name in paper_file_names(doc) {
+        let Some(found) = lib_scene::paper::find_file(abs, &name) else {
+            // The importer's own error, which says where it looked (it reads no file it cannot
+            // find; the files before it are read again, only to fail).
+            return Err(match lib_scene::paper::import(path, doc, opts) {
+                Err(e) => errors::scene(e),
+                Ok(_) => errors::Class::File.err(format!(
+                    "{}: \"{name}\" appeared while the scene was read; load it again",
+                    path.display()
+                )),
+            });
+        };
+        let bytes = std::fs::read(&found).map_err(|e| {
+            errors::scene(lib_scene::SceneError::Io {
+                path: found.display().to_string(),
+                message: e.to_string(),
+            })
+        })?;
+        files.push((name, bytes));
+        found_at.push(found);
+    }
+    let paper = PaperFiles {
+        dir: abs
+            .parent()
+            .and_then(Path::file_name)
+            .map_or("scene".into(), |n| n.to_string_lossy().into_owned()),
+        name: path
+            .file_name()
+            .map_or("scene.json".into(), |n| n.to_string_lossy().into_owned()),
+        text,
+        files,
+    };
+    let scene = crate::scene_data::import_paper_files(path, doc, opts, &paper.files, &found_at)?;
+    Ok((scene, Source::Paper(Arc::new(paper))))
 }

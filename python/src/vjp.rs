@@ -79,7 +79,7 @@ impl Scene {
 #[pyo3(signature = (scene, steps, params, values, cotangents, velocity_cotangents = None, mode = "unrolled", allow_unconverged = false))]
 #[allow(clippy::too_many_arguments)]
 pub fn vjp_batch<'py>(
-    scene: PyRef<'py, Scene>,
+    scene: &Bound<'py, Scene>,
     steps: &Bound<'py, PyAny>,
     params: &Bound<'py, PyAny>,
     values: &Bound<'py, PyAny>,
@@ -92,6 +92,7 @@ pub fn vjp_batch<'py>(
     let steps = crate::args::count(steps, "steps", 1)?;
     let params = crate::args::names(params, "params")?;
     let values = crate::args::dicts(values, "values")?;
+    let scene = scene::view(scene, "vjp_batch")?;
     scene::names(&scene.inner.model, &params)?;
     let m = scene::mode(mode)?;
     let items = values.len();

@@ -4,7 +4,10 @@ shared by threads."""
 
 from __future__ import annotations
 
+import copy
 import inspect
+import pickle
+import sys
 import threading
 import time
 import warnings
@@ -144,6 +147,42 @@ def test_torch_outputs_follow_the_inputs_dtype_and_device(beam):
     assert diffsoft.torch.simulate(beam, 3).dtype == torch.float64
     with pytest.raises(diffsoft.InputError, match=r"different devices \(youngs_modulus on cpu, density on meta\)"):
         diffsoft.torch.simulate(beam, 3, {"youngs_modulus": e32, "density": torch.empty((), device="meta")})
+
+
+def test_torch_low_precision_outputs_beyond_their_range_are_refused(beam):
+    """A float16 run whose (finite, float64) trajectory passes float16's largest value came back
+    as inf, silently: refused, naming the dtype and the magnitude. One within range is the float64
+    trajectory rounded, as float32 is."""
+    ball = diffsoft.Scene.load(REPO / "verification/scenes/ball_drop.json")
+    q0 = torch.tensor(ball.get("initial_positions") + [64000.0, 0, 0], dtype=torch.float16)
+    v0 = torch.tensor(ball.get("initial_velocities") + [60000.0, 0, 0], dtype=torch.float16)
+    with pytest.raises(
+        diffsoft.InputError, match=r"positions reach magnitude .*torch.float16's largest finite value 65504"
+    ):
+        diffsoft.torch.simulate(ball, 10, {"initial_positions": q0, "initial_velocities": v0})
+    e16 = torch.tensor(2e4, dtype=torch.float16)
+    q16 = diffsoft.torch.simulate(beam, 3, {"youngs_modulus": e16})
+    ref = beam.copy()
+    ref.set("youngs_modulus", float(e16))
+    np.testing.assert_array_equal(q16.numpy(), ref.simulate(3).positions.astype(np.float16))
+    assert q16.shape == (4, beam.n_vertices, 3)
+
+
+def test_torch_flags_and_unreadable_tensors_are_refused_before_the_forward(beam):
+    """``allow_unconverged`` and ``with_velocities`` of the wrong type ran the whole forward and
+    failed in ``backward()`` with pyo3's message; meta and sparse tensors failed inside torch
+    without naming the parameter."""
+    e = torch.tensor(2e4, dtype=torch.float64, requires_grad=True)
+    for flag in ("allow_unconverged", "with_velocities"):
+        for wrapper in (diffsoft.torch.simulate, diffsoft.jax.simulate):
+            with pytest.raises(TypeError, match=rf"{flag} must be a bool, got str 'no'"):
+                wrapper(beam, 3, {"youngs_modulus": 2e4}, **{flag: "no"})
+    assert diffsoft.torch.simulate(beam, 3, {"youngs_modulus": e}, allow_unconverged=np.bool_(True)).shape[0] == 4
+    with pytest.raises(diffsoft.InputError, match="youngs_modulus: a tensor on the meta device"):
+        diffsoft.torch.simulate(beam, 3, {"youngs_modulus": torch.tensor(2e4, device="meta")})
+    v0 = torch.tensor(beam.get("initial_velocities")).to_sparse()
+    with pytest.raises(diffsoft.InputError, match="initial_velocities: a tensor of layout torch.sparse_coo"):
+        diffsoft.torch.simulate(beam, 3, {"initial_velocities": v0})
 
 
 @pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA device")
@@ -366,3 +405,72 @@ def test_a_body_folded_through_itself_warns():
     assert counts[0] == 0 and 0 < max(counts) <= 80  # of the ball's 80 tets
     assert run.stats["summary"]["steps_with_inverted_tets"] == sum(c > 0 for c in counts)
     assert run.stats["summary"]["max_inverted_tets"] == max(counts)
+
+
+def test_a_value_whose_conversion_uses_the_scene_being_set(beam):
+    """``set`` reads its value before it takes the scene: a value whose ``__float__`` pickles,
+    copies, reads or runs the same scene (a logging or caching hook) sees the scene as it was,
+    instead of a Rust panic ("Already mutably borrowed") or pyo3's plain ``RuntimeError``."""
+    seen = {}
+
+    class Hooked:
+        def __float__(self):
+            seen["pickled"] = pickle.loads(pickle.dumps(beam)).get("youngs_modulus")
+            seen["copied"] = copy.copy(beam).get("youngs_modulus")
+            seen["get"] = beam.get("youngs_modulus")
+            seen["n"] = beam.n_vertices
+            seen["run"] = beam.simulate(1).positions.shape
+            return 3e4
+
+    beam.set("youngs_modulus", Hooked())
+    assert seen == {"pickled": 2e4, "copied": 2e4, "get": 2e4, "n": beam.n_vertices, "run": (2, beam.n_vertices, 3)}
+    assert beam.get("youngs_modulus") == 3e4
+
+    class Reconfiguring(np.ndarray):
+        def tolist(self):
+            seen["settings"] = beam.settings["max_iterations"]
+            seen["pickled again"] = pickle.loads(pickle.dumps(beam)).settings["max_iterations"]
+            return 20
+
+    beam.configure(max_iterations=np.array(20).view(Reconfiguring))
+    assert seen["settings"] == seen["pickled again"] == 15 and beam.settings["max_iterations"] == 20
+
+
+def test_readers_of_a_scene_that_another_thread_sets_see_no_borrow_error(beam):
+    """One thread sets an array in a loop (numpy lets the interpreter switch threads while the
+    value converts), another pickles, reads and runs the scene: nothing raises (pyo3's
+    "Already mutably borrowed" ``RuntimeError``, or a panic from pickling, before)."""
+    v0 = beam.get("initial_velocities")
+    stop = threading.Event()
+    errors: list[BaseException] = []
+
+    def setter():
+        while not stop.is_set():
+            try:
+                beam.set("initial_velocities", v0)
+            except BaseException as e:  # noqa: BLE001 - every failure is the test's finding
+                errors.append(e)
+
+    interval = sys.getswitchinterval()
+    sys.setswitchinterval(1e-6)
+    thread = threading.Thread(target=setter)
+    thread.start()
+    try:
+        for _ in range(300):
+            for call in (
+                lambda: beam.simulate(1),
+                lambda: beam.get("density"),
+                lambda: beam.n_vertices,
+                lambda: pickle.dumps(beam),
+                lambda: beam.tets,
+                lambda: beam.to_dict(),
+            ):
+                try:
+                    call()
+                except BaseException as e:  # noqa: BLE001
+                    errors.append(e)
+    finally:
+        stop.set()
+        thread.join()
+        sys.setswitchinterval(interval)
+    assert errors == []

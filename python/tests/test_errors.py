@@ -395,3 +395,95 @@ def test_batches_check_their_arguments_before_running_any_item(beam):
     ):
         with pytest.raises(TypeError, match="executor must be a concurrent.futures.Executor .*got int 5"):
             call()
+
+
+@pytest.mark.parametrize("exc", [KeyboardInterrupt(), MemoryError("out of memory"), ZeroDivisionError("user code")])
+def test_an_exception_of_a_values_own_conversion_propagates(exc):
+    """Ctrl-C, a MemoryError or a user's error raised while a value converts reaches the caller
+    as raised (it became ``InputError: density: expected a number`` or ``TypeError: steps must
+    be an int``, so ``except KeyboardInterrupt`` never saw it)."""
+    scene = diffsoft.Scene.load(DATA / "beam.json")
+
+    class Scalar:
+        def __float__(self):
+            raise exc
+
+    class Count:
+        def __index__(self):
+            raise exc
+
+    class Array:
+        def __array__(self, dtype=None, copy=None):
+            raise exc
+
+    for call in (
+        lambda: scene.set("density", Scalar()),
+        lambda: scene.simulate(Count()),
+        lambda: scene.set("initial_velocities", Array()),
+        lambda: diffsoft.bounds(DATA / "beam.obj", Scalar(), 1e4, 0.01),
+    ):
+        with pytest.raises(type(exc)) as info:
+            call()
+        assert info.value is exc
+    assert scene.get("density") == diffsoft.Scene.load(DATA / "beam.json").get("density")
+
+
+def test_a_value_that_is_not_a_number_is_named_with_the_original_as_its_cause():
+    scene = diffsoft.Scene.load(DATA / "beam.json")
+
+    class NotNumber:
+        def __float__(self):
+            raise TypeError("no float here")
+
+        def __index__(self):
+            raise ValueError("no int here")
+
+    with pytest.raises(diffsoft.InputError, match="density: expected a number") as info:
+        scene.set("density", NotNumber())
+    assert isinstance(info.value.__cause__, TypeError) and "no float here" in str(info.value.__cause__)
+    with pytest.raises(TypeError, match="steps must be an int") as info:
+        scene.simulate(NotNumber())
+    assert isinstance(info.value.__cause__, ValueError)
+    with pytest.raises(diffsoft.InputError, match="density: expected a number"):
+        scene.set("density", 10**400)
+
+
+def test_a_malformed_pickle_state_is_an_input_error():
+    """A state whose entries are not what a pickled scene holds: ``InputError`` naming the entry
+    (``SimulationError`` or a bare ``TypeError`` before)."""
+    beam = diffsoft.Scene.load(DATA / "beam.json")
+    paper = diffsoft.Scene.load(BRIDGESUS)
+    cases = [
+        (beam, "document", "{not json", "'document' is not JSON"),
+        (beam, "document", 3, "'document'"),
+        (beam, "settings", "[1, 2]", "'settings' are not solver settings"),
+        (beam, "notes", 5, "'notes'"),
+        (beam, "sets", 5, "'sets' is not a list"),
+        (beam, "sets", [5], "not a \\(name, value\\) pair"),
+        (beam, "version", "two", "'version'"),
+        (paper, "paper", 5, "'paper' is not a dict"),
+    ]
+    for scene, key, bad, message in cases:
+        state = scene.__reduce__()[1][0]
+        state[key] = bad
+        with pytest.raises(diffsoft.InputError, match=message):
+            diffsoft._diffsoft._scene_from_state(state)
+    state = paper.__reduce__()[1][0]
+    state["paper"]["files"] = {"x.obj": "text"}
+    with pytest.raises(diffsoft.InputError, match=r"'paper.files'\['x.obj'\] is not bytes"):
+        diffsoft._diffsoft._scene_from_state(state)
+
+
+def test_scene_load_takes_a_str_or_a_path_like_and_names_anything_else():
+    import os
+    import pathlib
+
+    class Where(os.PathLike):
+        def __fspath__(self):
+            return str(DATA / "beam.json")
+
+    for path in (str(DATA / "beam.json"), pathlib.Path(DATA / "beam.json"), Where()):
+        assert diffsoft.Scene.load(path).n_vertices > 0
+    for bad in (os.fsencode(DATA / "beam.json"), 3, None):
+        with pytest.raises(TypeError, match=r"Scene.load: path must be a str or an os.PathLike .*, got "):
+            diffsoft.Scene.load(bad)

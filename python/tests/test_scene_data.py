@@ -475,3 +475,110 @@ def test_bad_surfaces_are_refused_with_the_problem_named():
         diffsoft.mesh.tetrahedralize(v, f + 1)
     with pytest.raises(diffsoft.InputError, match="max_volume"):
         diffsoft.mesh.tetrahedralize(v, f, max_volume=-1.0)
+
+
+_FIFO_LOAD = """
+import os, signal, sys, threading, time
+import diffsoft
+scene_text, mesh_text, scene_fifo, mesh_fifo = sys.argv[1:5]
+def feed(path, text):
+    with open(path, "w") as f:
+        f.write(text)
+if scene_fifo != "-":
+    threading.Thread(target=feed, args=(scene_fifo, scene_text), daemon=True).start()
+if mesh_fifo != "-":
+    threading.Thread(target=feed, args=(mesh_fifo, mesh_text), daemon=True).start()
+s = diffsoft.Scene.load(sys.argv[5])
+again = __import__("pickle").loads(__import__("pickle").dumps(s))
+print("loaded", s.n_vertices, again.n_vertices)
+"""
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="named pipes")
+def test_load_reads_each_file_once(tmp_path):
+    """A scene file and a mesh file that are named pipes, each fed once, load (and pickle):
+    each file is read once, the scene and its pickle built from those bytes (the second read of
+    either hung, with Ctrl-C ignored)."""
+    import subprocess
+    import sys
+
+    mesh_text = (DATA / "beam.obj").read_text()
+    scene_text = (DATA / "beam.json").read_text()
+    for scene_is_pipe in (True, False):
+        work = tmp_path / f"pipe{scene_is_pipe}"
+        work.mkdir()
+        mesh = work / "beam.obj"
+        os.mkfifo(mesh)
+        scene = work / "scene.json"
+        if scene_is_pipe:
+            os.mkfifo(scene)
+        else:
+            scene.write_text(scene_text)
+        args = [scene_text, mesh_text, str(scene) if scene_is_pipe else "-", str(mesh), str(scene)]
+        done = subprocess.run(
+            [sys.executable, "-c", _FIFO_LOAD, *args], capture_output=True, text=True, timeout=120, check=False
+        )
+        assert done.returncode == 0, done.stderr
+        n = diffsoft.Scene.load(DATA / "beam.json").n_vertices
+        assert done.stdout.split() == ["loaded", str(n), str(n)]
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="named pipes")
+def test_ctrl_c_stops_a_load_waiting_on_a_pipe_nobody_writes_to(tmp_path):
+    import signal
+    import threading
+    import time
+
+    pipe = tmp_path / "scene.json"
+    os.mkfifo(pipe)
+    timer = threading.Timer(0.5, lambda: os.kill(os.getpid(), signal.SIGINT))
+    start = time.monotonic()
+    timer.start()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            diffsoft.Scene.load(pipe)
+    finally:
+        timer.cancel()
+        # Release the abandoned read (its result is dropped).
+        fd = os.open(pipe, os.O_WRONLY | os.O_NONBLOCK)
+        os.close(fd)
+    assert time.monotonic() - start < 30
+
+
+def test_a_paper_scene_carries_only_the_files_its_importer_reads(tmp_path):
+    """Strings under keys the importer does not read ("Sampling filename", "Material
+    Identifier") name no file the scene needs: none is read or pickled (every file that any
+    string named was, /etc/passwd included)."""
+    src = REPO / "verification/paper/bridgesus"
+    for f in src.iterdir():
+        (tmp_path / f.name).write_bytes(f.read_bytes())
+    (tmp_path / "samples.bin").write_bytes(b"SAMPLES-MARKER" * 100)
+    secret = tmp_path / "secret.txt"
+    secret.write_text("SECRET-MARKER")
+    doc = json.loads((tmp_path / "bridgesus.json").read_text())
+    doc["Meshes"][0]["Sampling filename"] = "samples.bin"
+    doc["Meshes"][0]["Material Identifier"] = str(secret)
+    (tmp_path / "x.json").write_text(json.dumps(doc))
+    scene = diffsoft.Scene.load(tmp_path / "x.json")
+    blob = pickle.dumps(scene)
+    assert b"SAMPLES-MARKER" not in blob and b"SECRET-MARKER" not in blob
+    state = scene.__reduce__()[1][0]
+    assert list(state["paper"]["files"]) == [doc["Meshes"][0]["Obj filename"]]
+    again = pickle.loads(blob)
+    np.testing.assert_array_equal(again.simulate(3).positions, scene.simulate(3).positions)
+
+
+def test_a_paper_scene_names_its_own_files_in_notes_and_errors(tmp_path):
+    """A paper scene is built from copies of its files (read once): its notes and errors name
+    the files it was given, not the copies."""
+    src = REPO / "verification/paper/bridgesus"
+    for f in src.iterdir():
+        (tmp_path / f.name).write_bytes(f.read_bytes())
+    doc = json.loads((tmp_path / "bridgesus.json").read_text())
+    mesh = doc["Meshes"][0]["Obj filename"]
+    loaded = diffsoft.Scene.load(tmp_path / "bridgesus.json")
+    assert not any("diffsoft-scene-" in n for n in loaded.notes)
+    (tmp_path / Path(mesh).name).write_text("v 0 0 0\nv nonsense\n")
+    with pytest.raises(diffsoft.InputError) as info:
+        diffsoft.Scene.load(tmp_path / "bridgesus.json")
+    assert "diffsoft-scene-" not in str(info.value) and Path(mesh).name in str(info.value)

@@ -30,7 +30,7 @@ pub(crate) fn kind_of(t: &std::fs::FileType) -> &'static str {
 /// The text of input file `path` (links followed): a regular file or a pipe (`<(...)`, a FIFO),
 /// UTF-8, a leading byte-order mark removed. A directory, device or socket is an error saying
 /// what it is; errors do not repeat the path (callers name it).
-pub(crate) fn read_text(path: &Path) -> std::io::Result<String> {
+pub fn read_text(path: &Path) -> std::io::Result<String> {
     if path.as_os_str().is_empty() {
         // The system's "No such file or directory" after an empty name says nothing.
         return Err(std::io::Error::new(

@@ -19,7 +19,7 @@ mod body;
 pub mod cancel;
 mod choice;
 mod error;
-pub(crate) mod input_file;
+pub mod input_file;
 mod material;
 pub mod memory;
 mod schedule;
