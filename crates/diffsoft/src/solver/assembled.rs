@@ -102,6 +102,16 @@ impl GlobalSystem {
             }
         }
         let ih2 = 1.0 / (h * h);
+        // `M/h^2` must be a number: a step so short (about 1e-154 s and below) or a mass so
+        // large that it overflows would only show as non-finite positions in the first
+        // iteration, naming neither.
+        if let Some(&v) = free.iter().find(|&&v| !(model.mass[v] * ih2).is_finite()) {
+            return Err(SolverError::input(format!(
+                "time step {} s: vertex {v}'s mass {} kg over h^2 overflows double precision; use a longer time step",
+                crate::base::number(h),
+                crate::base::number(model.mass[v])
+            )));
+        }
         Ok(Self {
             l_diag: l.diagonal(),
             mass: free.iter().map(|&v| model.mass[v]).collect(),

@@ -304,3 +304,20 @@ fn the_scene_time_step_has_two_spellings_and_one_meaning() {
     let e = scene::load(&unknown, LoadOptions::default()).unwrap_err().to_string();
     assert!(e.contains("unknown field `time_step`") && e.contains("line"), "{e}");
 }
+
+/// A time step so short that `M/h^2` overflows (1e-200 s) is refused naming the time step and
+/// the vertex, instead of surfacing as non-finite positions in the first iteration; 1e-150 s
+/// still builds (its run is refused later, by the energy check, with its own message).
+#[test]
+fn a_time_step_whose_inverse_square_overflows_is_named() {
+    let case = diffsoft::testing::free_body(1).unwrap();
+    let settings = case.settings.with_dt(1e-200);
+    let e = diffsoft::Simulator::new(case.model.clone(), settings)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("time step 1e-200 s") && e.contains("over h^2 overflows double precision"),
+        "{e}"
+    );
+    assert!(diffsoft::Simulator::new(case.model.clone(), case.settings.with_dt(1e-150)).is_ok());
+}

@@ -224,6 +224,13 @@ fn check_partial_figures(p: &TradeoffPartial) -> Result<(), String> {
             }
         }
     }
+    let parameters: Vec<String> = super::PARAMETERS.iter().map(|p| p.to_string()).collect();
+    if p.gradient_parameters != parameters {
+        return Err(format!(
+            "its gradient parameters are {:?}, where a sweep differentiates {parameters:?}",
+            p.gradient_parameters
+        ));
+    }
     figure("wall_time_s", p.wall_time_s, false)
 }
 

@@ -161,6 +161,9 @@ fn default_loss() -> String {
 fn default_targets() -> Vec<f64> {
     vec![1e-2, 1e-4, 1e-6]
 }
+/// The largest iteration cap a sweep takes (per step; the references use 20 000).
+pub const MAX_CAP: usize = 1_000_000;
+
 /// Default of [`TradeoffSpec::min_timing_s`]: the thread CPU clock reads to the nanosecond
 /// ([`trajectory::thread_cpu_s`]), so a run is repeated only to average short runs' noise, not
 /// to outlast a clock tick (the 0.2 s of the tick-granular clock used before).
@@ -391,12 +394,19 @@ impl TradeoffSpec {
         if !self.newton_caps.is_empty() && !self.families.contains(&Family::Newton) {
             return bad("newton_caps are given, but newton is not one of families".into());
         }
-        if self.caps.contains(&0)
-            || self.newton_caps.contains(&0)
-            || self.tolerance_max_iterations == 0
-            || self.reference_max_iterations == 0
-        {
+        let caps = || {
+            self.caps
+                .iter()
+                .chain(&self.newton_caps)
+                .chain([&self.tolerance_max_iterations, &self.reference_max_iterations])
+        };
+        if caps().any(|&c| c == 0) {
             return bad("iteration caps must be at least 1".into());
+        }
+        if let Some(c) = caps().find(|&&c| c > MAX_CAP) {
+            return bad(format!(
+                "iteration caps must be at most {MAX_CAP} per step, got {c} (a sweep would run without end)"
+            ));
         }
         let positive = |v: f64| v.is_finite() && v > 0.0;
         // A tolerance is relative to the scene's length scale: the solver refuses 1 or more.

@@ -254,6 +254,25 @@ fn shards_merge_into_the_unsharded_report() {
     assert!(e.contains("wall_time_s must be finite and not negative, got -5"), "{e}");
     let e = tampered(&|p| p.reference.tolerance = 1e-3);
     assert!(e.contains("are not the sweep's reference_tolerance"), "{e}");
+    let e = tampered(&|p| p.gradient_parameters.clear());
+    assert!(e.contains("its gradient parameters are []"), "{e}");
+}
+
+/// Iteration caps are bounded: a cap of 2^63 would run a row without end.
+#[test]
+fn absurd_iteration_caps_are_refused() {
+    let mut spec = small(2);
+    spec.caps = vec![1, 1 << 63];
+    let e = spec.validate().unwrap_err().to_string();
+    assert!(
+        e.contains("iteration caps must be at most 1000000 per step, got 9223372036854775808"),
+        "{e}"
+    );
+    let mut spec = small(2);
+    spec.reference_max_iterations = tradeoff::MAX_CAP + 1;
+    assert!(spec.validate().is_err());
+    spec.reference_max_iterations = tradeoff::MAX_CAP;
+    assert!(spec.validate().is_ok());
 }
 
 /// The material model as a knob: against a refined Neo-Hookean reference, the Neo-Hookean rows
