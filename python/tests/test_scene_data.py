@@ -531,6 +531,9 @@ def test_ctrl_c_stops_a_load_waiting_on_a_pipe_nobody_writes_to(tmp_path):
 
     pipe = tmp_path / "scene.json"
     os.mkfifo(pipe)
+    # A process started in the background by a non-interactive shell (a CI job) inherits SIGINT
+    # ignored, and Python then leaves it ignored: install Python's handler for this test.
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
     timer = threading.Timer(0.5, lambda: os.kill(os.getpid(), signal.SIGINT))
     start = time.monotonic()
     timer.start()
@@ -539,6 +542,7 @@ def test_ctrl_c_stops_a_load_waiting_on_a_pipe_nobody_writes_to(tmp_path):
             diffsoft.Scene.load(pipe)
     finally:
         timer.cancel()
+        signal.signal(signal.SIGINT, previous)
         # Release the abandoned read (its result is dropped).
         fd = os.open(pipe, os.O_WRONLY | os.O_NONBLOCK)
         os.close(fd)
