@@ -46,6 +46,10 @@ fn union_by_divisor<T: Clone + PartialEq>(
     Ok(out.into_values().map(|(x, _)| x).collect())
 }
 
+/// The most workers a partial report may say it ran on: one per thread, and no machine this
+/// harness runs on has more threads than this (a larger count is a damaged or edited file).
+const MAX_WORKERS: usize = 1 << 16;
+
 /// The figures a row holds, checked for what its status says it has: a row that ran holds its
 /// work (as many steps as the row), timing and trajectory errors, every figure finite and the
 /// non-negative ones (times, errors, counts) not negative; a resolved row names a row of the
@@ -257,8 +261,15 @@ pub fn finalize(parts: Vec<TradeoffPartial>, paths: &[String]) -> Result<SceneTr
     for (p, path) in parts.iter().zip(paths) {
         check_partial_figures(p).map_err(|e| ShardError::Mismatch(format!("{path}: {e}")))?;
     }
-    if let Some((_, path)) = parts.iter().zip(paths).find(|(p, _)| p.workers == 0) {
-        return Err(ShardError::Mismatch(format!("{path} says it ran on 0 workers")));
+    if let Some((p, path)) = parts
+        .iter()
+        .zip(paths)
+        .find(|(p, _)| p.workers == 0 || p.workers > MAX_WORKERS)
+    {
+        return Err(ShardError::Mismatch(format!(
+            "{path} says it ran on {} workers (a run uses 1 to {MAX_WORKERS}: one per thread)",
+            p.workers
+        )));
     }
     if let Some((p, path)) = parts.iter().zip(paths).find(|(p, _)| p.total_rows != total) {
         return Err(ShardError::Mismatch(format!(
