@@ -2,12 +2,15 @@
 them: ``True`` read as 1, a complex number read as its real part, text parsed as a number,
 ``None``. The wrappers read their ``params`` with ``parameters``, which calls ``check_real`` on
 each value before converting it to a float64 tensor or array (the package's own readers refuse
-the same)."""
+the same). On the way back, ``check_range`` refuses float64 results that a lower-precision
+output dtype would turn into inf."""
 
 from __future__ import annotations
 
 from collections.abc import Mapping
 from typing import Any
+
+import numpy as np
 
 from ._errors import InputError
 
@@ -46,3 +49,18 @@ def flag(name: str, value: Any) -> bool:
     if not (isinstance(value, bool) or numpy_bool):
         raise TypeError(f"{name} must be a bool, got {type(value).__name__} {value!r}")
     return bool(value)
+
+
+def check_range(a: np.ndarray, dtype: Any, limit: float, *, caller: str, what: str, advice: str) -> None:
+    """Raise ``InputError`` when a value of ``a`` (the float64 results) lies beyond ``limit``, the
+    largest finite value of ``dtype``, the output dtype: naming the caller, ``what`` the values
+    are (``positions``, ``gradients of density``), the dtype, the largest magnitude and the
+    ``advice``. Cast to ``dtype`` they would come back as inf, silently."""
+    if not a.size:
+        return
+    largest = float(np.max(np.abs(a)))
+    if largest > limit:
+        raise InputError(
+            f"{caller}: the {what} reach magnitude {largest:.6g}, beyond {dtype}'s largest finite value "
+            f"{limit:.6g} (they would come back as inf); {advice}"
+        )

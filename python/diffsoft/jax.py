@@ -7,7 +7,9 @@ with respect to every entry of ``params`` (any parameter of ``diffsoft.SCALAR_PA
 ``jax.pure_callback``, so it also works under ``jax.jit``; under ``jax.vmap`` the callbacks
 receive the whole batch and run ``diffsoft.simulate_batch`` / ``diffsoft.vjp_batch`` (the items
 in parallel). Enable 64-bit floats (``jax.config.update("jax_enable_x64", True)``) to keep
-diffsoft's double precision; without them results are rounded to float32.
+diffsoft's double precision; without them results are rounded to float32, and a trajectory or
+gradient beyond float32's range raises ``InputError`` naming the dtype and the largest
+magnitude instead of coming back as inf.
 
 Errors: parameters, shapes, values and the mode are checked before the callback where their
 values are known (outside ``jit``), raising diffsoft's own exceptions; an error inside a
@@ -28,7 +30,7 @@ import numpy as np
 
 from ._diffsoft import Scene, _trajectory_steps, scalar_parameters, simulate_batch, vjp_batch
 from ._errors import InputError
-from ._real import flag, parameters
+from ._real import check_range, flag, parameters
 
 _SCALARS = frozenset(scalar_parameters())
 
@@ -82,6 +84,23 @@ def _flat(a: Any, shape: tuple[int, ...], count: int) -> np.ndarray:
 
 def _item(a: np.ndarray) -> Any:
     return float(a) if a.ndim == 0 else a
+
+
+def _output(a: Any, dtype: Any, what: str) -> np.ndarray:
+    """``a`` (float64 results) as an array of ``dtype``, JAX's default float type; ``InputError``
+    naming ``what``, the dtype and the largest magnitude when a value lies beyond a lower
+    precision's range (it would come back as inf), as the PyTorch wrapper does."""
+    a = np.asarray(a, dtype=np.float64)
+    if np.dtype(dtype) != np.float64:
+        check_range(
+            a,
+            dtype,
+            float(jnp.finfo(dtype).max),
+            caller="diffsoft.jax.simulate",
+            what=what,
+            advice='enable 64-bit floats (jax.config.update("jax_enable_x64", True))',
+        )
+    return np.asarray(a, dtype=dtype)
 
 
 def simulate(
@@ -143,8 +162,8 @@ def simulate(
             q = np.stack([r.positions for r in runs]).reshape(*lead, *traj)
             v = np.stack([r.velocities for r in runs]).reshape(*lead, *traj)
         if with_velocities:
-            return np.asarray(q, dtype=dtype), np.asarray(v, dtype=dtype)
-        return np.asarray(q, dtype=dtype)
+            return _output(q, dtype, "positions"), _output(v, dtype, "velocities")
+        return _output(q, dtype, "positions")
 
     def backward_host(cq: Any, cv: Any, *args: Any) -> Any:
         lead = _leading((cq,), (traj,))
@@ -157,7 +176,7 @@ def simulate(
                 mode=mode,
                 allow_unconverged=allow_unconverged,
             )
-            return tuple(np.asarray(g[n], dtype=dtype).reshape(s) for n, s in zip(names, shapes))
+            return tuple(_output(g[n], dtype, f"gradients of {n}").reshape(s) for n, s in zip(names, shapes))
         count = math.prod(lead)
         # Parameters the vmap did not batch come with the batch broadcast in front.
         wide = tuple(np.broadcast_to(np.asarray(a), (*lead, *s)) for a, s in zip(args, shapes))
@@ -171,9 +190,8 @@ def simulate(
             mode=mode,
             allow_unconverged=allow_unconverged,
         )
-        return tuple(
-            np.stack([np.asarray(g[n], dtype=dtype) for g in gs]).reshape(*lead, *s) for n, s in zip(names, shapes)
-        )
+        stacked = {n: np.stack([np.asarray(g[n], dtype=np.float64) for g in gs]) for n in names}
+        return tuple(_output(stacked[n], dtype, f"gradients of {n}").reshape(*lead, *s) for n, s in zip(names, shapes))
 
     def call(host: Callable[..., Any], result: Any, *args: Any) -> Any:
         try:

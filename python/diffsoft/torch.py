@@ -29,7 +29,7 @@ import torch
 
 from ._diffsoft import Scene, scalar_parameters, simulate_batch, vjp_batch
 from ._errors import InputError
-from ._real import flag, parameters
+from ._real import check_range, flag, parameters
 
 _SCALARS = frozenset(scalar_parameters())
 
@@ -68,14 +68,15 @@ def _cast(a: np.ndarray, dtype: torch.dtype, device: torch.device, what: str) ->
     dtype and the largest magnitude when a finite value lies beyond the dtype's range (it would
     come back as inf)."""
     a = np.ascontiguousarray(a)
-    if dtype.is_floating_point and dtype != torch.float64 and a.size:
-        largest = float(np.max(np.abs(a)))
-        limit = torch.finfo(dtype).max
-        if largest > limit:
-            raise InputError(
-                f"diffsoft.torch.simulate: the {what} reach magnitude {largest:.6g}, beyond {dtype}'s largest "
-                f"finite value {limit:.6g} (they would come back as inf); pass the parameters as float32 or float64"
-            )
+    if dtype.is_floating_point and dtype != torch.float64:
+        check_range(
+            a,
+            dtype,
+            torch.finfo(dtype).max,
+            caller="diffsoft.torch.simulate",
+            what=what,
+            advice="pass the parameters as float32 or float64",
+        )
     return torch.from_numpy(a).to(device=device, dtype=dtype)
 
 

@@ -19,7 +19,7 @@ const POLL: Duration = Duration::from_millis(50);
 pub fn run<T: Send>(py: Python<'_>, work: impl FnOnce() -> T + Send) -> PyResult<T> {
     let token = Cancel::new();
     std::thread::scope(|scope| {
-        let (tx, rx) = mpsc::channel();
+        let (tx, mut rx) = mpsc::channel();
         let worker = {
             let token = token.clone();
             scope.spawn(move || {
@@ -33,32 +33,21 @@ pub fn run<T: Send>(py: Python<'_>, work: impl FnOnce() -> T + Send) -> PyResult
                 .join()
                 .map_err(|p| crate::errors::panicked(diffsoft::base::tasks::panic_message(p.as_ref())))
         };
-        // A receiver is not `Sync`: it moves into each wait and back.
-        let mut rx = rx;
-        loop {
-            let (back, got) = py.detach(move || {
-                let got = rx.recv_timeout(POLL);
-                (rx, got)
-            });
-            rx = back;
-            match got {
-                Ok(out) => {
-                    finish(worker)?;
-                    return Ok(out);
-                }
-                Err(mpsc::RecvTimeoutError::Disconnected) => {
-                    // The worker ended without a result: it panicked.
-                    finish(worker)?;
-                    return Err(crate::errors::panicked("the call ended without a result"));
-                }
-                Err(mpsc::RecvTimeoutError::Timeout) => {
-                    if let Err(signal) = py.check_signals() {
-                        token.cancel();
-                        // The worker stops at its next step; its result is not wanted.
-                        let _ = py.detach(|| finish(worker));
-                        return Err(signal);
-                    }
-                }
+        match wait(py, &mut rx) {
+            Ok(Some(out)) => {
+                finish(worker)?;
+                Ok(out)
+            }
+            Ok(None) => {
+                // The worker ended without a result: it panicked.
+                finish(worker)?;
+                Err(crate::errors::panicked("the call ended without a result"))
+            }
+            Err(signal) => {
+                token.cancel();
+                // The worker stops at its next step; its result is not wanted.
+                let _ = py.detach(|| finish(worker));
+                Err(signal)
             }
         }
     })
@@ -70,7 +59,7 @@ pub fn run<T: Send>(py: Python<'_>, work: impl FnOnce() -> T + Send) -> PyResult
 /// pipe nobody writes to) where no cancellation token reaches; the abandoned thread ends when
 /// its read returns, and its result is dropped.
 pub fn abandonable<T: Send + 'static>(py: Python<'_>, work: impl FnOnce() -> T + Send + 'static) -> PyResult<T> {
-    let (tx, rx) = mpsc::channel();
+    let (tx, mut rx) = mpsc::channel();
     std::thread::Builder::new()
         .name("diffsoft-read".into())
         .spawn(move || {
@@ -79,23 +68,26 @@ pub fn abandonable<T: Send + 'static>(py: Python<'_>, work: impl FnOnce() -> T +
             let _ = tx.send(out);
         })
         .map_err(|e| crate::errors::other(format!("cannot start a thread to read the file: {e}")))?;
-    let mut rx = rx;
+    match wait(py, &mut rx)? {
+        Some(Ok(out)) => Ok(out),
+        Some(Err(panic)) => Err(crate::errors::panicked(diffsoft::base::tasks::panic_message(
+            panic.as_ref(),
+        ))),
+        None => Err(crate::errors::panicked("the call ended without a result")),
+    }
+}
+
+/// Wait for the value `rx` receives, without the GIL, running Python's signal handlers every
+/// [`POLL`] while none has come: `Some(value)`, `None` when the sender is gone without one, or
+/// the exception a handler raised (the caller decides what becomes of the work). The receiver
+/// stays the caller's, so a worker's later send still finds it.
+fn wait<T: Send>(py: Python<'_>, rx: &mut mpsc::Receiver<T>) -> PyResult<Option<T>> {
     loop {
-        let (back, got) = py.detach(move || {
-            let got = rx.recv_timeout(POLL);
-            (rx, got)
-        });
-        rx = back;
-        match got {
-            Ok(Ok(out)) => return Ok(out),
-            Ok(Err(panic)) => {
-                return Err(crate::errors::panicked(diffsoft::base::tasks::panic_message(
-                    panic.as_ref(),
-                )))
-            }
-            Err(mpsc::RecvTimeoutError::Disconnected) => {
-                return Err(crate::errors::panicked("the call ended without a result"))
-            }
+        // A receiver is not `Sync`: the wait borrows it mutably, which is `Send`.
+        let borrowed = &mut *rx;
+        match py.detach(move || borrowed.recv_timeout(POLL)) {
+            Ok(out) => return Ok(Some(out)),
+            Err(mpsc::RecvTimeoutError::Disconnected) => return Ok(None),
             Err(mpsc::RecvTimeoutError::Timeout) => py.check_signals()?,
         }
     }

@@ -1,6 +1,6 @@
 //! `diffsoft.Scene`'s state and the calls every binding module shares: the library's gradient
 //! and rollout on a scene, parameter names and values read from Python, gradients as a dict,
-//! and the warnings a gradient raises. The Python methods are in `crate::scene`.
+//! and the warnings a gradient raises. The Python methods are in the `scene` module.
 
 use diffsoft::diff::{self, Options};
 use diffsoft::{scene as lib_scene, Mode, Model};

@@ -2,8 +2,8 @@
 //! and a scene's state by value for pickling and copying: its document (every mesh inline, so
 //! it needs no file and no directory), the solver settings and the parameters the caller set.
 //! A paper-format scene travels as its file's text and the files it names, restored in a
-//! temporary directory. (Python objects to JSON: `crate::pyjson`; the mesh accessors:
-//! `crate::mesh_access`.)
+//! temporary directory (`crate::scene_source::import_paper_files`). (Python objects to JSON:
+//! `crate::pyjson`; the mesh accessors: `crate::mesh_access`.)
 
 use std::path::{Component, Path, PathBuf};
 use std::sync::Arc;
@@ -17,7 +17,7 @@ use crate::arrays;
 use crate::errors;
 use crate::params::{Inputs, Value};
 use crate::scene_core::Scene;
-use crate::scene_source::{Data, PaperFiles, Source};
+use crate::scene_source::{import_paper_files, Data, PaperFiles, Source};
 
 /// Version of the state `__reduce__` writes (checked when it is read back).
 const STATE_VERSION: u32 = 2;
@@ -225,65 +225,6 @@ fn carried_files(paper: &Bound<'_, PyDict>) -> PyResult<Vec<(String, Vec<u8>)>> 
             Ok((key, bytes))
         })
         .collect()
-}
-
-/// A paper scene at `path` (named in messages; no file is read there) built from `files`, the
-/// files it names (`(name as the scene gives it, contents)`), written under a fresh temporary
-/// directory that is removed after. Where `originals` gives the file each came from (a scene
-/// just loaded), messages and notes name those instead of the copies.
-pub(crate) fn import_paper_files(
-    path: &Path,
-    doc: &Json,
-    opts: lib_scene::LoadOptions,
-    files: &[(String, Vec<u8>)],
-    originals: &[PathBuf],
-) -> PyResult<lib_scene::Scene> {
-    use std::sync::atomic::{AtomicUsize, Ordering};
-    static COUNT: AtomicUsize = AtomicUsize::new(0);
-    let nanos = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0, |d| d.subsec_nanos());
-    let root = std::env::temp_dir().join(format!(
-        "diffsoft-scene-{}-{}-{nanos}",
-        std::process::id(),
-        COUNT.fetch_add(1, Ordering::Relaxed)
-    ));
-    let io = |e: std::io::Error| errors::Class::File.err(format!("{}: {e}", root.display()));
-    let mut copies: Vec<(String, String)> = Vec::new();
-    let result = (|| {
-        // Each carried file under a directory of its own, keeping its file name (the mesh
-        // readers go by the extension); the scene's names map to these paths and nothing else.
-        let mut carried = std::collections::HashMap::new();
-        for (k, (key, bytes)) in files.iter().enumerate() {
-            let file_name = Path::new(key)
-                .file_name()
-                .and_then(|n| n.to_str())
-                .filter(|n| Path::new(n).components().count() == 1)
-                .unwrap_or("file");
-            let holder = root.join(format!("carried-{k}"));
-            std::fs::create_dir_all(&holder).map_err(io)?;
-            let target = holder.join(file_name);
-            std::fs::write(&target, bytes).map_err(io)?;
-            if let Some(original) = originals.get(k) {
-                copies.push((target.display().to_string(), original.display().to_string()));
-            }
-            carried.insert(key.clone(), target);
-        }
-        let shown = |mut m: String| {
-            for (copy, original) in &copies {
-                m = m.replace(copy.as_str(), original);
-            }
-            m
-        };
-        let mut scene = crate::fork::install(|| lib_scene::paper::import_carried(path, doc, opts, &carried))
-            .map_err(|e| errors::scene_shown(e, shown))?;
-        for note in &mut scene.notes {
-            *note = shown(std::mem::take(note));
-        }
-        Ok(scene)
-    })();
-    let _ = std::fs::remove_dir_all(&root);
-    result
 }
 
 /// Item `key` of a pickled state extracted as `T`, an `InputError` naming it (`shown`) if it is

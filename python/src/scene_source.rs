@@ -1,6 +1,9 @@
 //! Where a `diffsoft.Scene` came from, by value: a native scene's document with every mesh
 //! inline, or a paper-format scene's file and the files it names, and the parameters the caller
-//! set since ([`Data`]). `crate::scene_data` turns it into dicts and pickles.
+//! set since ([`Data`]); `Scene.load`, which reads a scene file into one; and
+//! [`import_paper_files`], which builds a paper scene from the files it carries (what loading
+//! and unpickling both call). The `scene_data` module turns a source into dicts and pickles
+//! and back, and `scene_core`'s `Scene` holds one; this module depends on neither.
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -183,6 +186,65 @@ fn paper(
         text,
         files,
     };
-    let scene = crate::scene_data::import_paper_files(path, doc, opts, &paper.files, &found_at)?;
+    let scene = import_paper_files(path, doc, opts, &paper.files, &found_at)?;
     Ok((scene, Source::Paper(Arc::new(paper))))
+}
+
+/// A paper scene at `path` (named in messages; no file is read there) built from `files`, the
+/// files it names (`(name as the scene gives it, contents)`), written under a fresh temporary
+/// directory that is removed after. Where `originals` gives the file each came from (a scene
+/// just loaded), messages and notes name those instead of the copies.
+pub(crate) fn import_paper_files(
+    path: &Path,
+    doc: &Json,
+    opts: lib_scene::LoadOptions,
+    files: &[(String, Vec<u8>)],
+    originals: &[PathBuf],
+) -> pyo3::PyResult<lib_scene::Scene> {
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    static COUNT: AtomicUsize = AtomicUsize::new(0);
+    let nanos = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.subsec_nanos());
+    let root = std::env::temp_dir().join(format!(
+        "diffsoft-scene-{}-{}-{nanos}",
+        std::process::id(),
+        COUNT.fetch_add(1, Ordering::Relaxed)
+    ));
+    let io = |e: std::io::Error| errors::Class::File.err(format!("{}: {e}", root.display()));
+    let mut copies: Vec<(String, String)> = Vec::new();
+    let result = (|| {
+        // Each carried file under a directory of its own, keeping its file name (the mesh
+        // readers go by the extension); the scene's names map to these paths and nothing else.
+        let mut carried = std::collections::HashMap::new();
+        for (k, (key, bytes)) in files.iter().enumerate() {
+            let file_name = Path::new(key)
+                .file_name()
+                .and_then(|n| n.to_str())
+                .filter(|n| Path::new(n).components().count() == 1)
+                .unwrap_or("file");
+            let holder = root.join(format!("carried-{k}"));
+            std::fs::create_dir_all(&holder).map_err(io)?;
+            let target = holder.join(file_name);
+            std::fs::write(&target, bytes).map_err(io)?;
+            if let Some(original) = originals.get(k) {
+                copies.push((target.display().to_string(), original.display().to_string()));
+            }
+            carried.insert(key.clone(), target);
+        }
+        let shown = |mut m: String| {
+            for (copy, original) in &copies {
+                m = m.replace(copy.as_str(), original);
+            }
+            m
+        };
+        let mut scene = crate::fork::install(|| lib_scene::paper::import_carried(path, doc, opts, &carried))
+            .map_err(|e| errors::scene_shown(e, shown))?;
+        for note in &mut scene.notes {
+            *note = shown(std::mem::take(note));
+        }
+        Ok(scene)
+    })();
+    let _ = std::fs::remove_dir_all(&root);
+    result
 }

@@ -168,6 +168,41 @@ def test_torch_low_precision_outputs_beyond_their_range_are_refused(beam):
     assert q16.shape == (4, beam.n_vertices, 3)
 
 
+def test_jax_float32_outputs_beyond_their_range_are_refused(beam):
+    """Without 64-bit floats the JAX wrapper's results are float32, and a (finite, float64)
+    trajectory or gradient past float32's largest value came back as inf, silently: refused as
+    the PyTorch wrapper refuses them, naming the dtype and the magnitude, eagerly and under
+    ``jit``. One within range is the float64 trajectory rounded."""
+    fast = beam.copy()
+    # Velocities beyond float32's range over a step so short that the positions stay near the
+    # start (the parameter is set on the scene: a float32 input cannot hold it).
+    fast.configure(dt=1e-40)
+    fast.set("initial_velocity.x", 1e39)
+    beyond = r"velocities reach magnitude 1e\+39, beyond float32's largest finite value 3.40282e\+38"
+    with jax.enable_x64(False):
+        with pytest.raises(diffsoft.InputError, match=beyond):
+            diffsoft.jax.simulate(fast, 3, {"youngs_modulus": 2e4}, with_velocities=True)
+        jitted = jax.jit(lambda e: diffsoft.jax.simulate(fast, 3, {"youngs_modulus": e}, with_velocities=True))
+        with pytest.raises(jax.errors.JaxRuntimeError, match=beyond):
+            jitted(jnp.asarray(2e4))
+        # A cotangent within range whose gradient is not: every state's positions move with the
+        # initial ones, so the gradient sums the cotangents of the four states.
+        q0 = jnp.asarray(beam.get("initial_positions"), dtype=jnp.float32)
+        q, pullback = jax.vjp(lambda x: diffsoft.jax.simulate(beam, 3, {"initial_positions": x}), q0)
+        with pytest.raises(
+            diffsoft.InputError, match=r"gradients of initial_positions reach magnitude .* float32's largest finite"
+        ):
+            pullback(jnp.full(q.shape, 3e38, dtype=jnp.float32))
+        q32 = diffsoft.jax.simulate(beam, 3, {"youngs_modulus": 2e4})
+    ref = beam.copy()
+    ref.set("youngs_modulus", 2e4)
+    assert q32.dtype == jnp.float32
+    np.testing.assert_array_equal(np.asarray(q32), ref.simulate(3).positions.astype(np.float32))
+    # With 64-bit floats the same run comes back whole.
+    _, v = diffsoft.jax.simulate(fast, 3, {"youngs_modulus": 2e4}, with_velocities=True)
+    assert v.dtype == jnp.float64 and float(jnp.max(jnp.abs(v))) == pytest.approx(1e39)
+
+
 def test_torch_flags_and_unreadable_tensors_are_refused_before_the_forward(beam):
     """``allow_unconverged`` and ``with_velocities`` of the wrong type ran the whole forward and
     failed in ``backward()`` with pyo3's message; meta and sparse tensors failed inside torch
