@@ -316,7 +316,7 @@ pub(crate) fn forward(
     } = keep;
     loss.validate(model)?;
     if let Some((q, v)) = &controls.initial {
-        sim.set_state_from(q, v)?;
+        sim.start_from(q, v)?;
     }
     let mut recording = None;
     if record_contacts {

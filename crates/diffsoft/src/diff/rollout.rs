@@ -89,7 +89,7 @@ pub fn rollout(model: &Model, settings: &Settings, steps: usize, controls: &Cont
     crate::base::memory::check(&format!("{steps} steps of {n} vertices"), steps + 1, row_bytes)?;
     let mut sim = Simulator::new(model.clone(), settings.clone())?;
     if let Some((q, v)) = &controls.initial {
-        sim.set_state_from(q, v)?;
+        sim.start_from(q, v)?;
     }
     let mut out = Rollout {
         n,

@@ -151,14 +151,17 @@ impl Simulator {
 
     /// A fresh simulator of the same model and settings on this one's systems (no assembly,
     /// factorisation or certification: the systems keep theirs): the backward pass replays
-    /// steps from their checkpoints on one.
+    /// steps from their checkpoints on one. It keeps this run's energy scale (the divergence
+    /// check's, [`Simulator::start_from`]), so a replayed step is judged as the forward's was.
     pub(crate) fn replayer(&self) -> Result<Self, SolverError> {
         let scheme = Self::first_scheme(&self.settings);
         let system = match self.system_for(scheme.h_e()) {
             Some(s) => s,
             None => self.systems.get(&self.model, scheme.h_e())?,
         };
-        Self::with_system(self.model.clone(), self.settings.clone(), &self.systems, system)
+        let mut replayer = Self::with_system(self.model.clone(), self.settings.clone(), &self.systems, system)?;
+        replayer.energy_scale = self.energy_scale;
+        Ok(replayer)
     }
 
     /// The system this run built for step `h_e`, if it built one (the current scheme's or the
@@ -198,11 +201,7 @@ impl Simulator {
             time: 0.0,
             step: 0,
         };
-        let g = model.accel.iter().map(|a| a.norm()).fold(0.0, f64::max);
-        let total_mass: f64 = model.mass.iter().sum();
-        let v0 = state.v.iter().map(|v| v.norm()).fold(0.0, f64::max);
-        let stiffness = model.w_rot.iter().sum::<f64>() + model.hyper.as_ref().map_or(0.0, |h| h.weight.iter().sum());
-        let e_scale = total_mass * (g * model.length_scale + v0 * v0) + stiffness * 1e-6;
+        let e_scale = energy_scale(&model, &state.v);
         let dofs = model.skeleton.as_ref().map_or(0, |sk| sk.dofs);
         let groups = model.actuators.as_ref().map_or(0, |a| a.groups.len());
         Ok(Self {
@@ -240,7 +239,7 @@ impl Simulator {
                 torque: vec![0.0; dofs],
             },
             skeleton: model.skeleton.clone(),
-            energy_scale: e_scale.max(f64::MIN_POSITIVE),
+            energy_scale: e_scale,
             model,
             settings,
             state,
@@ -266,9 +265,22 @@ impl Simulator {
         &self.state
     }
 
-    /// Replace the state (positions and velocities must have the model's vertex count).
+    /// Replace the state (positions and velocities must have the model's vertex count). The
+    /// run then starts from it: the divergence check's energy scale takes its velocities in
+    /// ([`Simulator::start_from`]).
     pub fn set_state(&mut self, q: Vec<Vector3<f64>>, v: Vec<Vector3<f64>>) -> Result<(), SolverError> {
-        self.set_state_from(&q, &v)
+        self.start_from(&q, &v)
+    }
+
+    /// [`Simulator::set_state_from`] for a state a run starts from (not a checkpoint of its
+    /// own): the energy scale of the divergence check (a step whose kinetic energy exceeds
+    /// 1e8 times it is refused as diverged) grows to count the state's velocities, as it counts
+    /// the model's initial velocities, so a body thrown faster than the model's own initial
+    /// velocities is not refused for its own kinetic energy.
+    pub(crate) fn start_from(&mut self, q: &[Vector3<f64>], v: &[Vector3<f64>]) -> Result<(), SolverError> {
+        self.set_state_from(q, v)?;
+        self.energy_scale = self.energy_scale.max(energy_scale(&self.model, v));
+        Ok(())
     }
 
     /// Start the run from `q` and `v` instead of the model's rest positions and initial
@@ -278,7 +290,7 @@ impl Simulator {
     pub fn set_initial_state(&mut self, q: &[Vector3<f64>], v: &[Vector3<f64>]) -> Result<(), SolverError> {
         self.check_state(q, v)?;
         check_initial_positions(&self.model, q)?;
-        self.set_state_from(q, v)
+        self.start_from(q, v)
     }
 
     /// Positions and velocities with the model's vertex count, finite.
@@ -297,7 +309,9 @@ impl Simulator {
         Ok(())
     }
 
-    /// Replace the state by copies of `q` and `v` (no allocation).
+    /// Replace the state by copies of `q` and `v` (no allocation), keeping the divergence
+    /// check's energy scale: for a state the run itself reached (a checkpoint). A state a run
+    /// starts from goes through [`Simulator::set_state`] or [`Simulator::set_initial_state`].
     pub fn set_state_from(&mut self, q: &[Vector3<f64>], v: &[Vector3<f64>]) -> Result<(), SolverError> {
         self.check_state(q, v)?;
         self.state.q.copy_from_slice(q);
@@ -681,4 +695,16 @@ fn check_initial_overlap(model: &Model, q: &[Vector3<f64>]) -> Result<(), Solver
         "body '{a}' starts through body '{b}': its surface edge from vertex {} to {} of the model crosses the other's surface, with both ends at least {:.3e} m from it (the collision thickness is {:e} m); move the bodies apart before the first step",
         c.edge[0], c.edge[1], c.depth, col.settings.thickness
     )))
+}
+
+/// The energy scale of the divergence check: `M (g L + v^2) + 1e-6 sum w`, with `M` the total
+/// mass, `g` the largest acceleration of a vertex by gravity, `L` the model's length scale, `v`
+/// the largest speed in `v` and `w` the elastic weights (at least the smallest positive
+/// number).
+fn energy_scale(model: &Model, v: &[Vector3<f64>]) -> f64 {
+    let g = model.accel.iter().map(|a| a.norm()).fold(0.0, f64::max);
+    let total_mass: f64 = model.mass.iter().sum();
+    let v0 = v.iter().map(|v| v.norm()).fold(0.0, f64::max);
+    let stiffness = model.w_rot.iter().sum::<f64>() + model.hyper.as_ref().map_or(0.0, |h| h.weight.iter().sum());
+    (total_mass * (g * model.length_scale + v0 * v0) + stiffness * 1e-6).max(f64::MIN_POSITIVE)
 }

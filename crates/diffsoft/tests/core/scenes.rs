@@ -351,6 +351,52 @@ fn initial_positions_given_to_a_run_are_checked_like_the_scenes_own() {
     assert!(check_initial_positions(&case.model, &shifted(0.5)[1..]).is_err());
 }
 
+/// A run started from a state of its own (`Simulator::set_initial_state`, `set_state`, a
+/// gradient's or rollout's initial state) is checked for divergence against an energy scale
+/// that counts that state's velocities, as it counts the model's own initial velocities (the
+/// backward pass's replays of steps keep the forward's scale): a
+/// free body thrown at 1e5 m/s as a whole runs (it was refused as diverged for its own kinetic
+/// energy, about 1e9 times the scale of a body at rest), and one whose velocity grows by itself
+/// past 1e8 times the scale is still refused.
+#[test]
+fn a_state_a_run_starts_from_sets_the_divergence_checks_energy_scale() {
+    use diffsoft::solver::Simulator;
+    use nalgebra::Vector3;
+    let case = diffsoft::testing::free_body(2).unwrap();
+    let q0 = case.model.rest().to_vec();
+    let fast = vec![Vector3::new(1e5, 0.0, 0.0); q0.len()];
+    let mut sim = Simulator::new(case.model.clone(), case.settings.clone()).unwrap();
+    sim.set_initial_state(&q0, &fast).unwrap();
+    for _ in 0..2 {
+        sim.step().unwrap();
+    }
+    let v = sim.state().v.iter().map(|v| v.x).sum::<f64>() / q0.len() as f64;
+    assert!((v - 1e5).abs() < 1.0, "mean velocity {v}");
+    let mut sim = Simulator::new(case.model.clone(), case.settings.clone()).unwrap();
+    sim.set_state(q0.clone(), fast.clone()).unwrap();
+    sim.step().unwrap();
+    // The gradient's forward pass starts from its controls' state the same way.
+    let controls = diffsoft::diff::Controls {
+        initial: Some((q0.clone(), fast.clone())),
+        ..case.controls.clone()
+    };
+    let g = diffsoft::diff::gradient(
+        &case.model,
+        &case.settings,
+        2,
+        &controls,
+        case.loss.as_ref(),
+        diffsoft::diff::Options::default(),
+    );
+    assert!(g.is_ok(), "{:?}", g.err());
+    // The check itself still holds: a state from the model's scale whose kinetic energy then
+    // exceeds 1e8 times that scale in one step (set without `start_from`) is refused.
+    let mut sim = Simulator::new(case.model.clone(), case.settings.clone()).unwrap();
+    sim.set_state_from(&q0, &fast).unwrap();
+    let e = sim.step().unwrap_err().to_string();
+    assert!(e.contains("exceeds 1e8 x the scene's energy scale"), "{e}");
+}
+
 /// Paper scenes whose values the importer would otherwise cast or drop are refused naming the
 /// key (a "Max Iteration" that is not a whole number from 1, a damping outside (0, 1], a
 /// negative mass, an "Obstacles" that is not a list, a fractional bone parent), and two meshes
