@@ -222,7 +222,10 @@ fn shards_merge_into_the_unsharded_report() {
     let mut other = parts.clone();
     other[0].workers = usize::MAX;
     let e = tradeoff::merge(other, &names).unwrap_err().to_string();
-    assert!(e.contains(&format!("part0.json says it ran on {} workers", usize::MAX)), "{e}");
+    assert!(
+        e.contains(&format!("part0.json says it ran on {} workers", usize::MAX)),
+        "{e}"
+    );
     // Tampered headers, the same in every shard (so they agree with each other): the inputs
     // pass the sweep's own checks, and the scene's and references' figures are those of a run.
     let tampered = |edit: &dyn Fn(&mut TradeoffPartial)| {

@@ -7,7 +7,7 @@ use std::path::Path;
 use nalgebra::Vector3;
 use serde_json::Value;
 
-use super::Ctx;
+use super::context::Ctx;
 use crate::scene::SceneError;
 
 /// The paper's "Volume Verts" groups as pneumatic groups (see the module docs).
