@@ -69,13 +69,15 @@ def _cast(a: np.ndarray, dtype: torch.dtype, device: torch.device, what: str) ->
     come back as inf)."""
     a = np.ascontiguousarray(a)
     if dtype.is_floating_point and dtype != torch.float64:
+        # Advise only the dtypes that would hold the values: float64 alone past float32's range.
+        fits_float32 = a.size == 0 or bool(np.nanmax(np.abs(a)) <= torch.finfo(torch.float32).max)
         check_range(
             a,
             dtype,
             torch.finfo(dtype).max,
             caller="diffsoft.torch.simulate",
             what=what,
-            advice="pass the parameters as float32 or float64",
+            advice="pass the parameters as float32 or float64" if fits_float32 else "pass the parameters as float64",
         )
     return torch.from_numpy(a).to(device=device, dtype=dtype)
 

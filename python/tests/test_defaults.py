@@ -168,6 +168,21 @@ def test_torch_low_precision_outputs_beyond_their_range_are_refused(beam):
     assert q16.shape == (4, beam.n_vertices, 3)
 
 
+def test_torch_range_advice_names_only_dtypes_that_hold_the_values():
+    """The refusal of an output beyond its dtype's range advises the dtypes that would hold it:
+    float32 or float64 past float16's range, float64 alone past float32's."""
+    torch = pytest.importorskip("torch")
+    from diffsoft.torch import _cast
+
+    cpu = torch.device("cpu")
+    with pytest.raises(diffsoft.InputError, match=r"pass the parameters as float32 or float64"):
+        _cast(np.array([1e5]), torch.float16, cpu, "positions")
+    only_float64 = r"float32's largest finite value .*; pass the parameters as float64$"
+    with pytest.raises(diffsoft.InputError, match=only_float64):
+        _cast(np.array([0.0, 1e39]), torch.float32, cpu, "velocities")
+    assert _cast(np.array([1e39]), torch.float64, cpu, "velocities").item() == 1e39
+
+
 def test_jax_float32_outputs_beyond_their_range_are_refused(beam):
     """Without 64-bit floats the JAX wrapper's results are float32, and a (finite, float64)
     trajectory or gradient past float32's largest value came back as inf, silently: refused as
