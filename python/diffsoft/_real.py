@@ -7,7 +7,7 @@ output dtype would turn into inf."""
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import numpy as np
@@ -51,16 +51,20 @@ def flag(name: str, value: Any) -> bool:
     return bool(value)
 
 
-def check_range(a: np.ndarray, dtype: Any, limit: float, *, caller: str, what: str, advice: str) -> None:
+def check_range(
+    a: np.ndarray, dtype: Any, limit: float, *, caller: str, what: str, advice: str | Callable[[float], str]
+) -> None:
     """Raise ``InputError`` when a value of ``a`` (the float64 results) lies beyond ``limit``, the
     largest finite value of ``dtype``, the output dtype: naming the caller, ``what`` the values
     are (``positions``, ``gradients of density``), the dtype, the largest magnitude and the
-    ``advice``. Cast to ``dtype`` they would come back as inf, silently."""
+    ``advice`` (text, or a function of the largest magnitude that gives it). Cast to ``dtype``
+    they would come back as inf, silently."""
     if not a.size:
         return
     largest = float(np.max(np.abs(a)))
     if largest > limit:
+        text = advice(largest) if callable(advice) else advice
         raise InputError(
             f"{caller}: the {what} reach magnitude {largest:.6g}, beyond {dtype}'s largest finite value "
-            f"{limit:.6g} (they would come back as inf); {advice}"
+            f"{limit:.6g} (they would come back as inf); {text}"
         )

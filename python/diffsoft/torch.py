@@ -69,17 +69,22 @@ def _cast(a: np.ndarray, dtype: torch.dtype, device: torch.device, what: str) ->
     come back as inf)."""
     a = np.ascontiguousarray(a)
     if dtype.is_floating_point and dtype != torch.float64:
-        # Advise only the dtypes that would hold the values: float64 alone past float32's range.
-        fits_float32 = a.size == 0 or bool(np.nanmax(np.abs(a)) <= torch.finfo(torch.float32).max)
         check_range(
             a,
             dtype,
             torch.finfo(dtype).max,
             caller="diffsoft.torch.simulate",
             what=what,
-            advice="pass the parameters as float32 or float64" if fits_float32 else "pass the parameters as float64",
+            advice=_range_advice,
         )
     return torch.from_numpy(a).to(device=device, dtype=dtype)
+
+
+def _range_advice(largest: float) -> str:
+    """The dtypes that would hold a magnitude ``largest``: float64 alone past float32's range."""
+    if largest <= torch.finfo(torch.float32).max:
+        return "pass the parameters as float32 or float64"
+    return "pass the parameters as float64"
 
 
 def _numpy(t: torch.Tensor) -> np.ndarray | float:

@@ -266,8 +266,8 @@ impl Simulator {
     }
 
     /// Replace the state (positions and velocities must have the model's vertex count). The
-    /// run then starts from it: the divergence check's energy scale takes its velocities in
-    /// ([`Simulator::start_from`]).
+    /// run then starts from it: the divergence check's energy scale takes its velocities in, as
+    /// it takes the model's initial velocities.
     pub fn set_state(&mut self, q: Vec<Vector3<f64>>, v: Vec<Vector3<f64>>) -> Result<(), SolverError> {
         self.start_from(&q, &v)
     }
