@@ -185,8 +185,12 @@ pub fn run_case(index: usize, case: &Case) -> CaseResult {
     let expected_ok = case.expected.contains(&trial.outcome) && trial.outcome != Outcome::Failed;
     let failing_checks: Vec<&Check> = trial.checks.iter().filter(|c| !c.holds).collect();
     let gradient_ok = trial.gradient.status != GradientStatus::NonFinite;
-    let passes = expected_ok && failing_checks.is_empty() && gradient_ok;
+    let checks_ok = check_set(trial.outcome, &trial.checks, &case.checks);
+    let passes = expected_ok && failing_checks.is_empty() && gradient_ok && checks_ok.is_ok();
     let mut explanation = String::new();
+    if let Err(e) = &checks_ok {
+        let _ = write!(explanation, "its run {e}; ");
+    }
     if !expected_ok {
         let _ = write!(
             explanation,
@@ -366,6 +370,7 @@ fn check_case(c: &CaseResult, case: &Case) -> Result<(), String> {
         }
     }
     check_gradient(&c.gradient)?;
+    check_set(c.outcome, &c.checks, &case.checks)?;
     let passes = c.expected.contains(&c.outcome)
         && c.outcome != Outcome::Failed
         && c.checks.iter().all(|k| k.holds)
@@ -377,6 +382,31 @@ fn check_case(c: &CaseResult, case: &Case) -> Result<(), String> {
         ));
     }
     Ok(())
+}
+
+/// Whether `checks` are the checks a run of a case that declares `declared`
+/// ([`Case::checks`]) records on ending in `outcome`: all of them, in order, when it ends
+/// stable; some of them, in order, otherwise (a run that stops early records what it reached).
+/// The error says what was recorded and what was declared.
+pub(crate) fn check_set(outcome: Outcome, checks: &[Check], declared: &[String]) -> Result<(), String> {
+    let recorded: Vec<&str> = checks.iter().map(|k| k.quantity.as_str()).collect();
+    let fits = if outcome == Outcome::Stable {
+        recorded.len() == declared.len() && recorded.iter().zip(declared).all(|(r, d)| *r == d.as_str())
+    } else {
+        let mut rest = declared.iter();
+        recorded.iter().all(|r| rest.any(|d| d.as_str() == *r))
+    };
+    if fits {
+        return Ok(());
+    }
+    Err(format!(
+        "records the checks {recorded:?}, where {} {declared:?}",
+        if outcome == Outcome::Stable {
+            "a stable run of this case records"
+        } else {
+            "a run of this case records some of"
+        }
+    ))
 }
 
 /// A case's gradient as [`probe::Probe::gradient`] writes it: finite values, one per parameter,
@@ -563,3 +593,37 @@ diffsoft::choice!(Subset {
     Fast => "fast",
     Full => "full",
 });
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn recorded(names: &[&str]) -> Vec<Check> {
+        names.iter().map(|n| Check::at_most(n, 0.0, 1.0, "a bound")).collect()
+    }
+
+    #[test]
+    fn a_stable_run_records_every_declared_check_and_a_stopped_one_some_in_order() {
+        let declared: Vec<String> = ["a", "b", "c"].iter().map(|s| s.to_string()).collect();
+        assert!(check_set(Outcome::Stable, &recorded(&["a", "b", "c"]), &declared).is_ok());
+        for wrong in [
+            &["a", "b"][..],
+            &[],
+            &["a", "c", "b"],
+            &["a", "b", "c", "c"],
+            &["a", "b", "d"],
+        ] {
+            let e = check_set(Outcome::Stable, &recorded(wrong), &declared).unwrap_err();
+            assert!(e.contains("a stable run of this case records"), "{wrong:?}: {e}");
+        }
+        let stopped = Outcome::DetectedDivergence;
+        for fine in [&["a", "c"][..], &[], &["c"], &["a", "b", "c"]] {
+            assert!(check_set(stopped, &recorded(fine), &declared).is_ok(), "{fine:?}");
+        }
+        for wrong in [&["c", "a"][..], &["d"], &["a", "a"]] {
+            let e = check_set(stopped, &recorded(wrong), &declared).unwrap_err();
+            assert!(e.contains("records some of"), "{wrong:?}: {e}");
+        }
+        assert!(check_set(Outcome::Stable, &[], &[]).is_ok());
+    }
+}

@@ -76,6 +76,68 @@ fn spin(model: &Model, omega: f64) -> Vec<Vector3<f64>> {
         .collect()
 }
 
+// The quantities of the checks the scenarios record, one name each: the cases declare the
+// checks a stable run of theirs records from these ([`super::cases::Case::checks`]).
+const MOMENTUM: &str = "linear momentum error |P(T) - P(0) - T sum m a| / (M v_ref)";
+const ENERGY_GAIN: &str = "energy gain (E(T) - E(0)) / E_scale";
+const REORIENTED: &str = "tets re-oriented by the reader";
+const INVERTED_AT_START: &str = "tets inverted at the start";
+const SMALLEST_VOLUME: &str = "smallest signed volume / rest volume after 1 s";
+const LARGEST_ANGLE: &str = "largest |joint angle| over the run";
+const BONE_DISTANCE: &str = "largest change of a distance within the bone (m)";
+const WRAPPED: &str = "the angle wrapped across +-pi";
+const LOWEST_HEIGHT: &str = "lowest vertex height over the run (m)";
+const DEEPEST_PENETRATION: &str = "deepest penetration (m)";
+const LARGEST_SLIP: &str = "largest tangential slip of a bottom vertex on the ground (m)";
+const OFF_GROUND: &str = "bottom vertices off the ground (fraction)";
+
+fn fixed_count_check(name: &str) -> String {
+    format!("{name}, 20 iterations per step")
+}
+
+fn default_test_check(name: &str) -> String {
+    format!("{name}, tolerance 1e-6 (default stopping test)")
+}
+
+fn names(quantities: &[&str]) -> Vec<String> {
+    quantities.iter().map(|q| q.to_string()).collect()
+}
+
+/// The checks a stable run of [`jelly`], [`jelly_from`] or [`sliver`] records (free flight).
+pub(super) fn free_flight_checks() -> Vec<String> {
+    names(&[MOMENTUM, ENERGY_GAIN])
+}
+
+/// The checks a stable run of [`inverted_in_file`] records.
+pub(super) fn inverted_in_file_checks() -> Vec<String> {
+    names(&[MOMENTUM, ENERGY_GAIN, REORIENTED])
+}
+
+/// The checks a stable run of [`inverted_start`] records.
+pub(super) fn inverted_start_checks() -> Vec<String> {
+    names(&[INVERTED_AT_START, SMALLEST_VOLUME])
+}
+
+/// The checks a stable run of [`invariance`] named `name` records.
+pub(super) fn invariance_checks(name: &str) -> Vec<String> {
+    vec![fixed_count_check(name), default_test_check(name)]
+}
+
+/// The checks a stable run of [`hinge_at`] records.
+pub(super) fn hinge_checks() -> Vec<String> {
+    names(&[LARGEST_ANGLE, BONE_DISTANCE, WRAPPED])
+}
+
+/// The checks a stable run of [`impact`] records.
+pub(super) fn impact_checks() -> Vec<String> {
+    names(&[LOWEST_HEIGHT, DEEPEST_PENETRATION])
+}
+
+/// The checks a stable run of [`sticking`] records.
+pub(super) fn sticking_checks() -> Vec<String> {
+    names(&[LARGEST_SLIP, OFF_GROUND])
+}
+
 /// The loss of the gradient checks: the far corner's position, weighted.
 fn corner_loss(model: &Model) -> VertexPositions {
     let corner = (0..model.n())
@@ -124,7 +186,7 @@ fn free_flight(probe: Probe) -> Trial {
         };
         let floor = (f64::EPSILON * kappa * extent + inner) * trial.steps_run as f64 / (s.dt * v_ref);
         trial.checks.push(Check::at_most(
-            "linear momentum error |P(T) - P(0) - T sum m a| / (M v_ref)",
+            MOMENTUM,
             dp.norm() / (total * v_ref),
             MOMENTUM_FACTOR * floor,
             &format!(
@@ -135,7 +197,7 @@ fn free_flight(probe: Probe) -> Trial {
         let e0 = energy(&model, &q0, &v0);
         let e1 = energy(&model, &st.q, &st.v) + elastic;
         trial.checks.push(Check::at_most(
-            "energy gain (E(T) - E(0)) / E_scale",
+            ENERGY_GAIN,
             (e1 - e0) / scale,
             1e-2,
             "implicit Euler dissipates; a gain above 1% of the energy scale would signal instability (E(T) takes the elastic energy of the last local step)",
@@ -220,7 +282,7 @@ pub(super) fn inverted_in_file() -> Trial {
     let reoriented = loaded.info.reoriented_tets;
     let mut t = jelly_from(loaded.mesh.map_vertices(|v| v * EDGE), 50);
     t.checks.push(Check::at_least(
-        "tets re-oriented by the reader",
+        REORIENTED,
         reoriented as f64,
         1.0,
         "the second tet is listed with negative orientation",
@@ -286,13 +348,13 @@ pub(super) fn inverted_start() -> Trial {
             .map(|(k, t)| signed(qe, t) / model.fem().geometry[k].volume)
             .fold(f64::INFINITY, f64::min);
         trial.checks.push(Check::at_least(
-            "tets inverted at the start",
+            INVERTED_AT_START,
             inverted0 as f64,
             1.0,
             "the corner is pushed through the opposite faces of its tets",
         ));
         trial.checks.push(Check::at_least(
-            "smallest signed volume / rest volume after 1 s",
+            SMALLEST_VOLUME,
             worst,
             0.0,
             "the corotated projection maps an inverted F to a proper rotation, which pushes the tets back",
@@ -365,7 +427,7 @@ pub(super) fn invariance(
         let kappa = condition_estimate(&a, fixed.dt);
         let floor = f64::EPSILON * kappa * extent * (steps as f64).powf(1.5) / a.length_scale();
         tb.checks.push(Check::at_most(
-            &format!("{name}, 20 iterations per step"),
+            &fixed_count_check(name),
             d,
             MOMENTUM_FACTOR * floor,
             &format!("{note}; bound {MOMENTUM_FACTOR} x eps kappa X N^1.5 / L with kappa = {kappa:.2e}, X = {extent:.3e} m, N = {steps}"),
@@ -378,7 +440,7 @@ pub(super) fn invariance(
     });
     if let Some((d, _)) = d_tol {
         tb.checks.push(Check::recorded(
-            format!("{name}, tolerance 1e-6 (default stopping test)"),
+            default_test_check(name),
             d,
             "recorded, not bounded: the stopping test scales the tolerance by the bounding-box diagonal, which a rotation changes, so the two runs may stop after different iterations",
         ));
@@ -466,19 +528,16 @@ pub(super) fn hinge_at(angle: f64) -> Trial {
     });
     if trial.outcome == Outcome::Stable {
         trial.checks.push(Check::at_most(
-            "largest |joint angle| over the run",
+            LARGEST_ANGLE,
             if finite { largest } else { f64::NAN },
             PI,
             "the atan2 update (Eq. 35) keeps the angle on the circle, in [-pi, pi]",
         ));
-        trial.checks.push(Check::at_most(
-            "largest change of a distance within the bone (m)",
-            bone,
-            1e-9,
-            "bone vertices move rigidly",
-        ));
+        trial
+            .checks
+            .push(Check::at_most(BONE_DISTANCE, bone, 1e-9, "bone vertices move rigidly"));
         trial.checks.push(Check::recorded(
-            "the angle wrapped across +-pi".into(),
+            WRAPPED.into(),
             f64::from(u8::from(crossed)),
             "recorded, not required: whether the block fell through the upside-down position",
         ));
@@ -525,13 +584,13 @@ pub(super) fn impact(speed: f64, plate: Option<f64>) -> Trial {
     });
     if trial.outcome == Outcome::Stable {
         trial.checks.push(Check::at_least(
-            "lowest vertex height over the run (m)",
+            LOWEST_HEIGHT,
             lowest,
             -1e-9,
             "no vertex tunnels through the obstacle: contacts are found on the segment from the start to the predicted position",
         ));
         trial.checks.push(Check::at_most(
-            "deepest penetration (m)",
+            DEEPEST_PENETRATION,
             pen,
             1e-9,
             "the Coulomb projection keeps contact vertices on the surface",
@@ -581,13 +640,13 @@ pub(super) fn sticking(mu: f64) -> Trial {
             })
             .fold(0.0, f64::max);
         trial.checks.push(Check::at_most(
-            "largest tangential slip of a bottom vertex on the ground (m)",
+            LARGEST_SLIP,
             slip,
             1e-6,
             "Coulomb: with tan(30 deg) < mu the contact sticks",
         ));
         trial.checks.push(Check::at_most(
-            "bottom vertices off the ground (fraction)",
+            OFF_GROUND,
             1.0 - on.len() as f64 / bottom.len().max(1) as f64,
             0.5,
             "the resultant stays inside the base: most of the bottom face stays on the ground",

@@ -176,6 +176,42 @@ fn shards_merge_into_the_unsharded_report() {
     other[k].cases[c].steps_run = 0;
     let e = extremes::merge(other, &names).unwrap_err().to_string();
     assert!(e.contains("is stable (every step ran), but ran 0 steps"), "{e}");
+    // A stable case carries the checks its run records, all of them in order: none dropped
+    // (an empty list), none renamed, none reordered.
+    let (k, c) = (0..n)
+        .find_map(|k| {
+            let c = parts[k]
+                .cases
+                .iter()
+                .position(|c| c.outcome == Outcome::Stable && c.checks.len() >= 2)?;
+            Some((k, c))
+        })
+        .expect("a stable case with two checks");
+    let mut other = parts.clone();
+    other[k].cases[c].checks.clear();
+    let e = extremes::merge(other, &names).unwrap_err().to_string();
+    assert!(
+        e.contains(&format!("x{k}.json: case"))
+            && e.contains("records the checks [], where a stable run of this case records"),
+        "{e}"
+    );
+    let mut other = parts.clone();
+    other[k].cases[c].checks[0].quantity = "something else".into();
+    let e = extremes::merge(other, &names).unwrap_err().to_string();
+    assert!(e.contains("records the checks [\"something else\""), "{e}");
+    let mut other = parts.clone();
+    other[k].cases[c].checks.swap(0, 1);
+    assert!(extremes::merge(other, &names).is_err());
+    // Every case of the run records exactly what its case declares.
+    for part in &parts {
+        for r in &part.cases {
+            let case = &extremes::all()[r.index];
+            let got: Vec<&str> = r.checks.iter().map(|x| x.quantity.as_str()).collect();
+            if r.outcome == Outcome::Stable {
+                assert_eq!(got, case.checks, "{}", r.name);
+            }
+        }
+    }
     let mut other = parts.clone();
     other[1].wall_time_s = -1.0;
     let e = extremes::merge(other, &names).unwrap_err().to_string();
