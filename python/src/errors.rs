@@ -207,12 +207,6 @@ pub fn mesh(e: MeshError) -> PyErr {
 /// A scene error: unreadable files are a `FileError`, features not simulated an
 /// `UnsupportedError`, the rest an `InputError`.
 pub fn scene(e: SceneError) -> PyErr {
-    scene_shown(e, |m| m)
-}
-
-/// [`scene`] with its message passed through `shown` (a scene built from copies of its files
-/// names the originals).
-pub fn scene_shown(e: SceneError, shown: impl FnOnce(String) -> String) -> PyErr {
     let class = match &e {
         SceneError::Mesh(m) => match m.kind {
             MeshErrorKind::Io(_) => Class::File,
@@ -223,7 +217,7 @@ pub fn scene_shown(e: SceneError, shown: impl FnOnce(String) -> String) -> PyErr
         SceneError::Unsupported { .. } => Class::Unsupported,
         _ => Class::Input,
     };
-    class.err(shown(e.to_string()))
+    class.err(e.to_string())
 }
 
 /// Any other error (a report that could not be produced): a `SimulationError`.

@@ -1,8 +1,8 @@
 //! Scenes as data: `Scene.from_dict` / `to_dict` (the scene file's structure, meshes inline),
 //! and a scene's state by value for pickling and copying: its document (every mesh inline, so
 //! it needs no file and no directory), the solver settings and the parameters the caller set.
-//! A paper-format scene travels as its file's text and the files it names, restored in a
-//! temporary directory (`crate::scene_source::import_paper_files`). (Python objects to JSON:
+//! A paper-format scene travels as its file's text and the files it names, rebuilt from their
+//! contents in memory (`crate::scene_source::import_paper_files`). (Python objects to JSON:
 //! `crate::pyjson`; the mesh accessors: `crate::mesh_access`.)
 
 use std::path::{Component, Path, PathBuf};
@@ -186,9 +186,10 @@ fn item<'py>(state: &Bound<'py, PyDict>, key: &str) -> PyResult<Bound<'py, PyAny
         .ok_or_else(|| errors::value(format!("scene state: no '{key}'")))
 }
 
-/// A paper scene from a pickled state: its files written under a fresh temporary directory,
-/// loaded, and the directory removed.
-fn load_paper(py: Python<'_>, paper: &Bound<'_, PyDict>) -> PyResult<lib_scene::Scene> {
+/// A paper scene from a pickled state, at `path` (the scene's path when it was loaded, named in
+/// messages): built from the contents of the files it carries, in memory (no file is read or
+/// written), each named in messages by the name the scene gives it.
+fn load_paper(py: Python<'_>, path: &Path, paper: &Bound<'_, PyDict>) -> PyResult<lib_scene::Scene> {
     let dir: String = extract(paper, "dir", "paper.dir")?;
     let name: String = extract(paper, "name", "paper.name")?;
     let text: String = extract(paper, "text", "paper.text")?;
@@ -201,8 +202,7 @@ fn load_paper(py: Python<'_>, paper: &Bound<'_, PyDict>) -> PyResult<lib_scene::
         }
     }
     let doc = lib_scene::json::parse_lenient(&text).map_err(|e| errors::value(format!("scene state: {e}")))?;
-    let path = std::env::temp_dir().join(&dir).join(&name);
-    py.detach(|| import_paper_files(&path, &doc, lib_scene::LoadOptions::default(), &files, &[]))
+    py.detach(|| import_paper_files(path, &doc, lib_scene::LoadOptions::default(), &files, &[]))
 }
 
 /// The `files` of a pickled paper scene: `{name: bytes}`.
@@ -267,7 +267,7 @@ pub(crate) fn _scene_from_state(py: Python<'_>, state: &Bound<'_, PyDict>) -> Py
             let paper = paper
                 .cast::<PyDict>()
                 .map_err(|_| errors::value("scene state: 'paper' is not a dict"))?;
-            let inner = load_paper(py, paper)?;
+            let inner = load_paper(py, &path, paper)?;
             let source = Source::Paper(Arc::new(PaperFiles {
                 dir: extract(paper, "dir", "paper.dir")?,
                 name: extract(paper, "name", "paper.name")?,

@@ -1,9 +1,10 @@
 //! Where a `diffsoft.Scene` came from, by value: a native scene's document with every mesh
 //! inline, or a paper-format scene's file and the files it names, and the parameters the caller
 //! set since ([`Data`]); `Scene.load`, which reads a scene file into one; and
-//! [`import_paper_files`], which builds a paper scene from the files it carries (what loading
-//! and unpickling both call). The `scene_data` module turns a source into dicts and pickles
-//! and back, and `scene_core`'s `Scene` holds one; this module depends on neither.
+//! [`import_paper_files`], which builds a paper scene from the contents of the files it
+//! carries, in memory (what loading and unpickling both call). The `scene_data` module turns a
+//! source into dicts and pickles and back, and `scene_core`'s `Scene` holds one; this module
+//! depends on neither.
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -142,9 +143,10 @@ fn paper_file_names(doc: &Json) -> Vec<String> {
     out
 }
 
-/// A paper scene built from one read of each file it names (copies in a temporary directory,
+/// A paper scene built from one read of each file it names (parsed from those bytes in memory,
 /// as unpickling rebuilds it), and those bytes as its source. Messages and notes name the
-/// original files.
+/// files read. A name in a TetGen pair brings the other half of the pair, read beside it, under
+/// the name [`lib_scene::paper::companion_file`] gives.
 fn paper(
     path: &Path,
     abs: &Path,
@@ -152,28 +154,47 @@ fn paper(
     doc: &Json,
     opts: lib_scene::LoadOptions,
 ) -> pyo3::PyResult<(lib_scene::Scene, Source)> {
+    // The importer's own error where a file cannot be found or read: it says where it looked
+    // (it reads no file it cannot find; the files before it are read again, only to fail).
+    let importer_error = |name: &str| match lib_scene::paper::import(path, doc, opts) {
+        Err(e) => errors::scene(e),
+        Ok(_) => errors::Class::File.err(format!(
+            "{}: \"{name}\" appeared while the scene was read; load it again",
+            path.display()
+        )),
+    };
     let mut files: Vec<(String, Vec<u8>)> = Vec::new();
     let mut found_at: Vec<PathBuf> = Vec::new();
     for name in paper_file_names(doc) {
+        if files.iter().any(|(n, _)| *n == name) {
+            continue;
+        }
         let Some(found) = lib_scene::paper::find_file(abs, &name) else {
-            // The importer's own error, which says where it looked (it reads no file it cannot
-            // find; the files before it are read again, only to fail).
-            return Err(match lib_scene::paper::import(path, doc, opts) {
-                Err(e) => errors::scene(e),
-                Ok(_) => errors::Class::File.err(format!(
-                    "{}: \"{name}\" appeared while the scene was read; load it again",
-                    path.display()
-                )),
-            });
+            return Err(importer_error(&name));
         };
-        let bytes = std::fs::read(&found).map_err(|e| {
-            errors::scene(lib_scene::SceneError::Io {
-                path: found.display().to_string(),
-                message: e.to_string(),
-            })
-        })?;
-        files.push((name, bytes));
-        found_at.push(found);
+        let companion = lib_scene::paper::companion_file(&name).and_then(|other| {
+            let file_name = Path::new(&other).file_name()?.to_owned();
+            Some((other, found.with_file_name(file_name)))
+        });
+        for (name, found) in std::iter::once((name, found)).chain(companion) {
+            if files.iter().any(|(n, _)| *n == name) {
+                continue;
+            }
+            // A file that cannot be read: the importer's error, unless it is only the other
+            // half of a pair that the importer would also fail to read.
+            let bytes = std::fs::read(&found).map_err(|e| {
+                if found.is_file() {
+                    errors::scene(lib_scene::SceneError::Io {
+                        path: found.display().to_string(),
+                        message: e.to_string(),
+                    })
+                } else {
+                    importer_error(&name)
+                }
+            })?;
+            files.push((name, bytes));
+            found_at.push(found);
+        }
     }
     let paper = PaperFiles {
         dir: abs
@@ -191,60 +212,23 @@ fn paper(
 }
 
 /// A paper scene at `path` (named in messages; no file is read there) built from `files`, the
-/// files it names (`(name as the scene gives it, contents)`), written under a fresh temporary
-/// directory that is removed after. Where `originals` gives the file each came from (a scene
-/// just loaded), messages and notes name those instead of the copies.
+/// files it names (`(name as the scene gives it, contents)`), in memory: no other file is read
+/// and none is written. Messages and notes name each file as `shown` gives where it came from
+/// (a scene just loaded), else by the name the scene gives it (an unpickled one).
 pub(crate) fn import_paper_files(
     path: &Path,
     doc: &Json,
     opts: lib_scene::LoadOptions,
     files: &[(String, Vec<u8>)],
-    originals: &[PathBuf],
+    shown: &[PathBuf],
 ) -> pyo3::PyResult<lib_scene::Scene> {
-    use std::sync::atomic::{AtomicUsize, Ordering};
-    static COUNT: AtomicUsize = AtomicUsize::new(0);
-    let nanos = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0, |d| d.subsec_nanos());
-    let root = std::env::temp_dir().join(format!(
-        "diffsoft-scene-{}-{}-{nanos}",
-        std::process::id(),
-        COUNT.fetch_add(1, Ordering::Relaxed)
-    ));
-    let io = |e: std::io::Error| errors::Class::File.err(format!("{}: {e}", root.display()));
-    let mut copies: Vec<(String, String)> = Vec::new();
-    let result = (|| {
-        // Each carried file under a directory of its own, keeping its file name (the mesh
-        // readers go by the extension); the scene's names map to these paths and nothing else.
-        let mut carried = std::collections::HashMap::new();
-        for (k, (key, bytes)) in files.iter().enumerate() {
-            let file_name = Path::new(key)
-                .file_name()
-                .and_then(|n| n.to_str())
-                .filter(|n| Path::new(n).components().count() == 1)
-                .unwrap_or("file");
-            let holder = root.join(format!("carried-{k}"));
-            std::fs::create_dir_all(&holder).map_err(io)?;
-            let target = holder.join(file_name);
-            std::fs::write(&target, bytes).map_err(io)?;
-            if let Some(original) = originals.get(k) {
-                copies.push((target.display().to_string(), original.display().to_string()));
-            }
-            carried.insert(key.clone(), target);
-        }
-        let shown = |mut m: String| {
-            for (copy, original) in &copies {
-                m = m.replace(copy.as_str(), original);
-            }
-            m
-        };
-        let mut scene = crate::fork::install(|| lib_scene::paper::import_carried(path, doc, opts, &carried))
-            .map_err(|e| errors::scene_shown(e, shown))?;
-        for note in &mut scene.notes {
-            *note = shown(std::mem::take(note));
-        }
-        Ok(scene)
-    })();
-    let _ = std::fs::remove_dir_all(&root);
-    result
+    let carried: std::collections::HashMap<String, lib_scene::paper::CarriedFile> = files
+        .iter()
+        .enumerate()
+        .map(|(k, (name, bytes))| {
+            let shown = shown.get(k).cloned().unwrap_or_else(|| PathBuf::from(name));
+            (name.clone(), lib_scene::paper::CarriedFile::new(shown, bytes.clone()))
+        })
+        .collect();
+    crate::fork::install(|| lib_scene::paper::import_carried_bytes(path, doc, opts, &carried)).map_err(errors::scene)
 }

@@ -307,9 +307,9 @@ def test_pickled_scene_needs_no_files(tmp_path):
 
 def test_pickled_paper_scene_carries_files_named_through_dot_dot_and_absolute_paths(tmp_path, monkeypatch):
     """A paper scene naming its mesh through `..` (or by an absolute path) carries that file:
-    unpickled where another file lies at that name relative to the temporary directory, or
-    where the original is gone, it is the same scene (it loaded whatever lay at
-    `$TMPDIR/../name`, or failed, before)."""
+    unpickled where another file lies at that name relative to `$TMPDIR`, or where the original
+    is gone, it is the same scene (it loaded whatever lay at `$TMPDIR/../name`, or failed, when
+    it was rebuilt in a temporary directory)."""
     src = REPO / "verification/paper/bridgesus"
     text = (src / "bridgesus.json").read_text()
     (tmp_path / "shared").mkdir()
@@ -331,6 +331,54 @@ def test_pickled_paper_scene_carries_files_named_through_dot_dot_and_absolute_pa
         again = pickle.loads(blob)
         assert again.n_vertices == scene.n_vertices == 212
         same_run(scene, again, 3)
+
+
+@pytest.mark.parametrize(
+    "scene", ["bridgesus/bridgesus.json", "octopus/octopus.json", "cloth_ball/cloth_ball.json", "baymax/baymax.json"]
+)
+def test_paper_scenes_load_and_unpickle_where_no_temporary_directory_can_be_used(tmp_path, monkeypatch, scene):
+    """Loading and unpickling a paper scene write no file: both work where `$TMPDIR` cannot
+    exist (below a regular file) or is a read-only directory, and leave nothing there (each
+    wrote the scene's files under a temporary directory, and failed where it could not)."""
+    path = REPO / "verification/paper" / scene
+    reference = diffsoft.Scene.load(path)
+    blocker = tmp_path / "a-file"
+    blocker.write_text("")
+    read_only = tmp_path / "read-only"
+    read_only.mkdir()
+    read_only.chmod(0o500)
+    try:
+        for tmpdir in (blocker / "tmp", read_only):
+            monkeypatch.setenv("TMPDIR", str(tmpdir))
+            loaded = diffsoft.Scene.load(path)
+            again = pickle.loads(pickle.dumps(loaded))
+            assert loaded.notes == again.notes == reference.notes
+            assert again.n_vertices == reference.n_vertices
+            same_run(reference, again, 3)
+            assert list(read_only.iterdir()) == []
+    finally:
+        read_only.chmod(0o700)
+
+
+def test_a_paper_scene_with_a_tetgen_mesh_carries_both_halves_of_the_pair(tmp_path):
+    """A paper scene whose mesh is a TetGen pair, named by either half, loads and pickles with
+    both files (only the named half was carried: the other was missing where the scene was
+    rebuilt)."""
+    (tmp_path / "m.node").write_text("5 3 0 0\n1 0 0 0\n2 1 0 0\n3 0 1 0\n4 0 0 1\n5 1 1 1\n")
+    (tmp_path / "m.ele").write_text("2 4 0\n1 1 2 3 4\n2 2 3 4 5\n")
+    blobs, scenes = [], []
+    for half, other in (("m.node", "m.ele"), ("m.ele", "m.node")):
+        doc = {"Parameters": [{"Simulation HZ": 100}], "Meshes": [{"Obj filename": half, "Scale": 1.0}]}
+        (tmp_path / f"{half}.json").write_text(json.dumps(doc))
+        scene = diffsoft.Scene.load(tmp_path / f"{half}.json")
+        assert (scene.n_vertices, scene.n_tets) == (5, 2)
+        assert list(scene.__reduce__()[1][0]["paper"]["files"]) == [half, other]
+        scenes.append(scene)
+        blobs.append(pickle.dumps(scene))
+    for f in ("m.node", "m.ele"):
+        (tmp_path / f).unlink()
+    for scene, blob in zip(scenes, blobs):
+        same_run(scene, pickle.loads(blob), 3)
 
 
 def test_a_crafted_paper_state_cannot_name_a_directory_outside_its_own():
@@ -573,8 +621,8 @@ def test_a_paper_scene_carries_only_the_files_its_importer_reads(tmp_path):
 
 
 def test_a_paper_scene_names_its_own_files_in_notes_and_errors(tmp_path):
-    """A paper scene is built from copies of its files (read once): its notes and errors name
-    the files it was given, not the copies."""
+    """A paper scene is built from its files' contents (read once): its notes and errors name
+    the files it was given (not the copies it was once built from)."""
     src = REPO / "verification/paper/bridgesus"
     for f in src.iterdir():
         (tmp_path / f.name).write_bytes(f.read_bytes())

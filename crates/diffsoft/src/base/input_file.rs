@@ -51,16 +51,20 @@ pub fn read_text(path: &Path) -> std::io::Result<String> {
         ));
     }
     let bytes = std::fs::read(path)?;
-    let mut text = String::from_utf8(bytes).map_err(|e| {
+    text_of(&bytes).map(str::to_owned)
+}
+
+/// The text of an input file's `bytes` read as [`read_text`] reads a file's (for contents
+/// carried in memory): UTF-8, a leading byte-order mark removed; other bytes are an
+/// [`InvalidData`](std::io::ErrorKind::InvalidData) error that does not name the file.
+pub(crate) fn text_of(bytes: &[u8]) -> std::io::Result<&str> {
+    let text = std::str::from_utf8(bytes).map_err(|e| {
         std::io::Error::new(
             std::io::ErrorKind::InvalidData,
             format!("not UTF-8 text (binary files are not supported): {e}"),
         )
     })?;
-    if text.starts_with('\u{feff}') {
-        text.drain(..'\u{feff}'.len_utf8());
-    }
-    Ok(text)
+    Ok(text.strip_prefix('\u{feff}').unwrap_or(text))
 }
 
 #[cfg(test)]
@@ -86,5 +90,14 @@ mod tests {
         std::fs::write(&p, [0x76, 0xff, 0x0a]).unwrap();
         assert!(read_text(&p).unwrap_err().to_string().contains("not UTF-8"));
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn bytes_in_memory_read_as_a_files_text() {
+        assert_eq!(text_of(b"\xef\xbb\xbfv 1 2 3\n").unwrap(), "v 1 2 3\n");
+        assert_eq!(text_of(b"t 0 1 2 3").unwrap(), "t 0 1 2 3");
+        let e = text_of(&[0x76, 0xff, 0x0a]).unwrap_err();
+        assert_eq!(e.kind(), std::io::ErrorKind::InvalidData);
+        assert!(e.to_string().starts_with("not UTF-8 text"), "{e}");
     }
 }

@@ -483,18 +483,10 @@ pub fn load_with(path: impl AsRef<Path>, opts: LoadOptions) -> Result<LoadedMesh
         .map(|e| e.to_ascii_lowercase())
         .unwrap_or_default();
     match ext.as_str() {
-        "obj" => {
-            let text = read_text(path)?;
-            let raw = obj::parse(&shown, &text)?;
-            TetMesh::from_raw(&shown, MeshFormat::Obj, raw, opts)
-        }
+        "obj" => parse_obj_text(&shown, &read_text(path)?, opts),
         "node" | "ele" => {
-            // The siblings in the case the file was named with (`T.NODE` goes with `T.ELE`).
-            let upper = path
-                .extension()
-                .and_then(|e| e.to_str())
-                .is_some_and(|e| e.chars().all(|c| c.is_ascii_uppercase()));
-            let (node_ext, ele_ext) = if upper { ("NODE", "ELE") } else { ("node", "ele") };
+            let original = path.extension().and_then(|e| e.to_str()).unwrap_or_default();
+            let (node_ext, ele_ext) = tetgen_extensions(original);
             let node_path = path.with_extension(node_ext);
             let ele_path = path.with_extension(ele_ext);
             let node_text = read_text(&node_path)?;
@@ -507,25 +499,48 @@ pub fn load_with(path: impl AsRef<Path>, opts: LoadOptions) -> Result<LoadedMesh
             )?;
             TetMesh::from_raw(&ele_path.display().to_string(), MeshFormat::Tetgen, raw, opts)
         }
-        "msh" => {
-            let text = read_text(path)?;
-            let (raw, format) = gmsh::parse(&shown, &text)?;
-            TetMesh::from_raw(&shown, format, raw, opts)
-        }
-        _ => {
-            let what = if ext.is_empty() {
-                "no file extension".to_string()
-            } else {
-                format!("extension '.{ext}'")
-            };
-            Err(MeshError::file(
-                &shown,
-                MeshErrorKind::UnsupportedFormat(format!(
-                    "{what} (expected .obj with t lines, TetGen .node/.ele, or Gmsh .msh)"
-                )),
-            ))
-        }
+        "msh" => parse_gmsh_text(&shown, &read_text(path)?, opts),
+        _ => Err(unsupported_extension(&shown, &ext)),
     }
+}
+
+/// The extensions of a TetGen pair, in the case of `ext` (the extension one half was named
+/// with: `T.NODE` goes with `T.ELE`, `t.node` and `t.Node` with `t.ele`): `(node, ele)`.
+pub(crate) fn tetgen_extensions(ext: &str) -> (&'static str, &'static str) {
+    let upper = !ext.is_empty() && ext.chars().all(|c| c.is_ascii_uppercase());
+    if upper {
+        ("NODE", "ELE")
+    } else {
+        ("node", "ele")
+    }
+}
+
+/// The mesh in the text of OBJ file `shown` (named in messages), validated with `opts`.
+pub(crate) fn parse_obj_text(shown: &str, text: &str, opts: LoadOptions) -> Result<LoadedMesh, MeshError> {
+    let raw = obj::parse(shown, text)?;
+    TetMesh::from_raw(shown, MeshFormat::Obj, raw, opts)
+}
+
+/// The mesh in the text of Gmsh file `shown` (named in messages), validated with `opts`.
+pub(crate) fn parse_gmsh_text(shown: &str, text: &str, opts: LoadOptions) -> Result<LoadedMesh, MeshError> {
+    let (raw, format) = gmsh::parse(shown, text)?;
+    TetMesh::from_raw(shown, format, raw, opts)
+}
+
+/// The error for mesh file `shown`, whose lower-case extension `ext` (empty: none) no reader
+/// takes.
+pub(crate) fn unsupported_extension(shown: &str, ext: &str) -> MeshError {
+    let what = if ext.is_empty() {
+        "no file extension".to_string()
+    } else {
+        format!("extension '.{ext}'")
+    };
+    MeshError::file(
+        shown,
+        MeshErrorKind::UnsupportedFormat(format!(
+            "{what} (expected .obj with t lines, TetGen .node/.ele, or Gmsh .msh)"
+        )),
+    )
 }
 
 /// Parse mesh text already in memory; `format_hint` is a file name used for the extension and
@@ -545,11 +560,9 @@ pub fn load_with(path: impl AsRef<Path>, opts: LoadOptions) -> Result<LoadedMesh
 pub fn parse_str(name: &str, text: &str) -> Result<LoadedMesh, MeshError> {
     let lower = name.to_ascii_lowercase();
     if lower.ends_with(".obj") {
-        let raw = obj::parse(name, text)?;
-        TetMesh::from_raw(name, MeshFormat::Obj, raw, LoadOptions::default())
+        parse_obj_text(name, text, LoadOptions::default())
     } else if lower.ends_with(".msh") {
-        let (raw, format) = gmsh::parse(name, text)?;
-        TetMesh::from_raw(name, format, raw, LoadOptions::default())
+        parse_gmsh_text(name, text, LoadOptions::default())
     } else {
         Err(MeshError::file(
             name,
@@ -583,11 +596,14 @@ pub fn parse_tetgen_str(
 }
 
 fn read_text(path: &Path) -> Result<String, MeshError> {
-    crate::base::input_file::read_text(path).map_err(|e| {
-        let shown = path.display().to_string();
-        match e.kind() {
-            std::io::ErrorKind::InvalidData => MeshError::file(&shown, MeshErrorKind::UnsupportedFormat(e.to_string())),
-            _ => MeshError::file(&shown, MeshErrorKind::Io(e.to_string())),
-        }
-    })
+    crate::base::input_file::read_text(path).map_err(|e| text_error(&path.display().to_string(), &e))
+}
+
+/// A mesh file's text that could not be had (`e`, from [`crate::base::input_file`]) as the
+/// error naming the file `shown`: bytes that are not text are an unsupported format.
+pub(crate) fn text_error(shown: &str, e: &std::io::Error) -> MeshError {
+    match e.kind() {
+        std::io::ErrorKind::InvalidData => MeshError::file(shown, MeshErrorKind::UnsupportedFormat(e.to_string())),
+        _ => MeshError::file(shown, MeshErrorKind::Io(e.to_string())),
+    }
 }

@@ -9,6 +9,7 @@ mod materials;
 mod mesh_errors;
 mod mesh_formats;
 mod newton;
+mod paper_carried;
 mod reference_values;
 mod registry;
 mod scenes;

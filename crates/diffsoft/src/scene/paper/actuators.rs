@@ -2,12 +2,12 @@
 //! a `"Muscle filename"` file (lines `muscle sample x y z`) as muscle groups (see the parent
 //! module's documentation for how each maps to diffsoft's actuators).
 
-use std::path::Path;
-
 use nalgebra::Vector3;
 use serde_json::Value;
 
 use super::context::Ctx;
+use super::files::FileSource;
+use super::read;
 use crate::scene::SceneError;
 
 /// The paper's "Volume Verts" groups as pneumatic groups (see the module docs).
@@ -62,22 +62,19 @@ pub(super) fn paper_pneumatic(
     Ok(out)
 }
 
-/// The paper's muscle file (`muscle sample x y z` per line, mesh units) as muscle groups.
+/// The paper's muscle file `src` (`muscle sample x y z` per line, mesh units) as muscle groups.
 pub(super) fn paper_muscles(
     cx: &mut Ctx<'_>,
     w: &str,
-    path: &Path,
+    src: &FileSource<'_>,
     mesh: &crate::mesh::TetMesh,
     scale: f64,
     stiffness: f64,
 ) -> Result<Vec<crate::actuator::ActuatorSpec>, SceneError> {
     use crate::actuator::{nearest_segments, ActuatorSpec};
     use crate::base::Schedule;
-    let shown = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|e| SceneError::Io {
-        path: shown.clone(),
-        message: e.to_string(),
-    })?;
+    let shown = src.shown();
+    let text = read::text(src)?;
     // Per muscle: (sample number, point, line number) in file order.
     let mut samples: std::collections::BTreeMap<i64, Vec<(i64, Vector3<f64>, usize)>> = Default::default();
     for (n, line) in text.lines().enumerate() {

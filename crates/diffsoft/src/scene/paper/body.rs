@@ -10,9 +10,9 @@ use super::bones::paper_bones;
 use super::context::Ctx;
 use super::keys::{MESH_IGNORED, MESH_UNSUPPORTED, MESH_USED};
 use super::naming::Names;
-use super::settings;
+use super::{read, settings};
 use crate::base::Material;
-use crate::mesh::{self, MeshInfo};
+use crate::mesh::MeshInfo;
 use crate::model::{BodySpec, MassSpec};
 use crate::scene::SceneError;
 
@@ -30,7 +30,7 @@ pub(super) fn paper_body(
         .get("Obj filename")
         .and_then(|f| f.as_str())
         .ok_or_else(|| cx.invalid(format!("{w}: \"Obj filename\" is required")))?;
-    let loaded = mesh::load(cx.resolve(file)?)?;
+    let loaded = read::tet_mesh(cx, file)?;
     let scale = settings::scale(cx, mj, 0.05, &w)?;
     if mj.get("Scale").is_none() {
         cx.notes
@@ -71,8 +71,8 @@ pub(super) fn paper_body(
         let file = file
             .as_str()
             .ok_or_else(|| cx.invalid(format!("{w}: \"Muscle filename\" must be a file name")))?;
-        let muscle_path = cx.resolve(file)?;
-        let muscles = paper_muscles(cx, &w, &muscle_path, &spec.mesh, scale, stiffness)?;
+        let muscle_file = cx.resolve(file)?;
+        let muscles = paper_muscles(cx, &w, &muscle_file, &spec.mesh, scale, stiffness)?;
         spec.actuators.extend(muscles);
     }
     names.actuators(&mut cx.notes, &w, &name, &mut spec.actuators);

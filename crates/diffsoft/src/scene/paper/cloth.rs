@@ -7,9 +7,8 @@ use serde_json::Value;
 use super::attach::cloth_attachments;
 use super::context::Ctx;
 use super::keys::{CLOTH_IGNORED, CLOTH_USED};
-use super::settings;
+use super::{read, settings};
 use crate::cloth::ClothSpec;
-use crate::mesh;
 use crate::scene::SceneError;
 
 /// One entry of the paper's "Clothes": a triangle mesh (OBJ `f` lines) with "Area Density",
@@ -22,14 +21,14 @@ pub(super) fn paper_cloth(cx: &mut Ctx<'_>, k: usize, cj: &Value) -> Result<Clot
         .get("Obj filename")
         .and_then(|f| f.as_str())
         .ok_or_else(|| cx.invalid(format!("{w}: \"Obj filename\" is required")))?;
-    let path = cx.resolve(file)?;
+    let src = cx.resolve(file)?;
     let scale = settings::scale(cx, cj, 1.0, &w)?;
     if cj.get("Scale").is_none() {
         cx.notes.push(format!(
             "{w}: no \"Scale\": scale 1 (the reference's default for cloth is 0.05, which would shrink {file} to a twentieth of the scene it is modelled in)"
         ));
     }
-    let surface = mesh::surface::load_obj(&path)?;
+    let surface = read::surface(&src)?;
     crate::scene::scaled_size(&w, scale, &surface.vertices).map_err(|m| cx.invalid(m))?;
     let surface = surface.scaled(scale);
     let area_density = cx.number(cj, "Area Density", 1.5, &w)?;
@@ -46,7 +45,7 @@ pub(super) fn paper_cloth(cx: &mut Ctx<'_>, k: usize, cj: &Value) -> Result<Clot
         .unwrap_or("cloth")
         .to_string();
     let mut spec = ClothSpec::new(&name, surface, stretching, bending, area_density);
-    spec.source = path.display().to_string();
+    spec.source = src.shown();
     cloth_attachments(cx, &w, file, cj, &mut spec)?;
     Ok(spec)
 }

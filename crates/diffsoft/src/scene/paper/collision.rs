@@ -6,10 +6,10 @@ use serde_json::Value;
 
 use super::context::{excerpt, Ctx};
 use super::keys::OBSTACLE_KEYS;
+use super::read;
 use crate::base::number;
 use crate::contact::pair::BodyCollision;
 use crate::contact::{Obstacle, TriMeshObstacle};
-use crate::mesh;
 use crate::scene::SceneError;
 
 /// Distance kept between the surfaces of two bodies in the paper's scenes (m): a cloth's
@@ -136,7 +136,7 @@ pub(super) fn obstacles(
             .get("Obj filename")
             .and_then(|f| f.as_str())
             .ok_or_else(|| cx.invalid(format!("{w}: \"Obj filename\" is required")))?;
-        let s = mesh::surface::load_obj(cx.resolve(file)?)?;
+        let s = read::surface(&cx.resolve(file)?)?;
         cx.notes.push(format!(
             "{w}: triangle mesh {file} at scale 1 and thickness 1e-4 as in the reference (its \"Scale\" and \"Collision tolerance\" are not read there); friction {mu} {source} (the reference hard-codes 1)"
         ));

@@ -1,13 +1,12 @@
 //! The importer's state while it reads one paper scene ([`Ctx`]: the scene's path, the notes
-//! gathered so far, `--passive`, the carried files of a rebuilt scene) and its readers of JSON
-//! values, which report a malformed value as an error naming the scene and the key.
+//! gathered so far, `--passive`, where the file names lead) and its readers of JSON values,
+//! which report a malformed value as an error naming the scene and the key.
 
-use std::collections::HashMap;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use serde_json::Value;
 
-use super::files::file_candidates;
+use super::files::{file_candidates, FileSource, Files};
 use crate::scene::SceneError;
 
 /// The state of one import: where errors point, what the notes say so far.
@@ -18,12 +17,12 @@ pub(super) struct Ctx<'a> {
     pub(super) notes: Vec<String>,
     /// `--passive`: features that cannot be simulated yet are noted and ignored, not refused.
     pub(super) passive: bool,
-    /// Where each file name the scene gives was found when it was first read, for a scene
-    /// rebuilt from the files it carried (a pickled scene): names resolve only through it.
-    pub(super) carried: Option<&'a HashMap<String, PathBuf>>,
+    /// Where the file names the scene gives lead: searched for beside the scene, or, for a
+    /// scene rebuilt from the files it carried (a pickled scene), only to those.
+    pub(super) files: Files<'a>,
 }
 
-impl Ctx<'_> {
+impl<'a> Ctx<'a> {
     /// The scene's path as the errors show it.
     pub(super) fn shown(&self) -> String {
         self.path.display().to_string()
@@ -113,19 +112,28 @@ impl Ctx<'_> {
     }
     /// A file the scene names: through the carried files of a rebuilt scene, else as
     /// [`find_file`](super::files::find_file) looks for it.
-    pub(super) fn resolve(&self, file: &str) -> Result<PathBuf, SceneError> {
-        if let Some(carried) = self.carried {
-            return carried.get(file).cloned().ok_or_else(|| {
-                self.invalid(format!(
-                    "cannot find \"{file}\": this scene was rebuilt from the files it named when it was first read, and this name was not one of them"
-                ))
-            });
+    pub(super) fn resolve(&self, file: &str) -> Result<FileSource<'a>, SceneError> {
+        let not_carried = || {
+            self.invalid(format!(
+                "cannot find \"{file}\": this scene was rebuilt from the files it named when it was first read, and this name was not one of them"
+            ))
+        };
+        match self.files {
+            Files::Carried(carried) => carried.get(file).map(FileSource::Carried).ok_or_else(not_carried),
+            Files::Paths(carried) => carried.get(file).cloned().map(FileSource::Disk).ok_or_else(not_carried),
+            Files::Search => {
+                let candidates = file_candidates(self.path, file);
+                candidates
+                    .iter()
+                    .find(|p| p.is_file())
+                    .cloned()
+                    .map(FileSource::Disk)
+                    .ok_or_else(|| {
+                        let looked: Vec<String> = candidates.iter().map(|p| p.display().to_string()).collect();
+                        self.invalid(format!("cannot find \"{file}\" (looked in {})", looked.join(", ")))
+                    })
+            }
         }
-        let candidates = file_candidates(self.path, file);
-        candidates.iter().find(|p| p.is_file()).cloned().ok_or_else(|| {
-            let looked: Vec<String> = candidates.iter().map(|p| p.display().to_string()).collect();
-            self.invalid(format!("cannot find \"{file}\" (looked in {})", looked.join(", ")))
-        })
     }
 }
 
@@ -157,7 +165,7 @@ mod tests {
             path: Path::new("scene.json"),
             notes: Vec::new(),
             passive: false,
-            carried: None,
+            files: Files::Search,
         };
         let obj = serde_json::json!({"a": 2.5, "b": "yes", "c": [0, 3]});
         assert_eq!(cx.number(&obj, "a", 1.0, "P").unwrap(), 2.5);

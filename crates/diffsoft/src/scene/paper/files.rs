@@ -1,7 +1,23 @@
 //! Where a paper scene's file names lead: relative to the paper's data root, to the scene's
-//! own folder, or beside the scene.
+//! own folder, or beside the scene; or, for a scene rebuilt from the files it carried, only to
+//! those.
 
+use std::collections::HashMap;
 use std::path::{Path, PathBuf};
+
+use super::carried::CarriedFile;
+
+/// Where the file names of one import lead.
+#[derive(Debug, Clone, Copy)]
+pub(super) enum Files<'a> {
+    /// To the files [`find_file`] finds beside the scene.
+    Search,
+    /// Only to these files on disk, by the name the scene gives each ([`super::import_carried`]).
+    Paths(&'a HashMap<String, PathBuf>),
+    /// Only to these contents, by the name the scene gives each
+    /// ([`super::import_carried_bytes`]).
+    Carried(&'a HashMap<String, CarriedFile>),
+}
 
 /// Where a paper scene at `scene` looks for a file it names `file`, in order: relative to the
 /// paper's data root (the scene's parent directory), to the scene's own directory, and by its
@@ -34,6 +50,49 @@ pub fn find_file(scene: &Path, file: &str) -> Option<PathBuf> {
         return None;
     }
     file_candidates(scene, file).into_iter().find(|p| p.is_file())
+}
+
+/// Where a file the scene names is read from (where [`Files`] led its name).
+#[derive(Debug, Clone)]
+pub(super) enum FileSource<'a> {
+    /// A file on disk, read when it is needed.
+    Disk(PathBuf),
+    /// Contents carried in memory.
+    Carried(&'a CarriedFile),
+}
+
+impl FileSource<'_> {
+    /// The path that messages name for the file.
+    pub(super) fn shown(&self) -> String {
+        match self {
+            FileSource::Disk(path) => path.display().to_string(),
+            FileSource::Carried(file) => file.shown().display().to_string(),
+        }
+    }
+}
+
+/// The file that a scene naming `file` needs besides it, where its format is a pair of files:
+/// the other half of a TetGen pair (`m.node` and `m.ele`, in the case of `file`'s extension, as
+/// [`crate::mesh::load`] pairs them), which a scene rebuilt from carried files must carry under
+/// this name. `None` for a single-file format.
+///
+/// ```
+/// use diffsoft::scene::paper;
+///
+/// assert_eq!(paper::companion_file("bodies/m.node").as_deref(), Some("bodies/m.ele"));
+/// assert_eq!(paper::companion_file("M.ELE").as_deref(), Some("M.NODE"));
+/// assert_eq!(paper::companion_file("fish/fish.obj"), None);
+/// ```
+pub fn companion_file(file: &str) -> Option<String> {
+    let path = Path::new(file);
+    let ext = path.extension()?.to_str()?;
+    let (node, ele) = crate::mesh::tetgen_extensions(ext);
+    let other = match ext.to_ascii_lowercase().as_str() {
+        "node" => ele,
+        "ele" => node,
+        _ => return None,
+    };
+    Some(path.with_extension(other).to_string_lossy().into_owned())
 }
 
 #[cfg(test)]

@@ -32,6 +32,10 @@
 //!
 //! Every other key is either known and ignored (listed in the scene's notes with the reason) or
 //! an error naming it.
+//!
+//! A scene rebuilt elsewhere from the files it named when it was first read (a pickled scene)
+//! is imported from their contents in memory ([`import_carried_bytes`], [`CarriedFile`]): no
+//! file is looked for, read or written, and messages name each file as the caller shows it.
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -49,13 +53,15 @@ mod attach;
 mod body;
 // `"Bones"` as an embedded skeleton.
 mod bones;
+// A file carried in memory: its contents and the path its messages name.
+mod carried;
 // One `"Clothes"` entry as a cloth body.
 mod cloth;
 // Friction, collisions between bodies and obstacles.
 mod collision;
 // The import's state (`Ctx`) and its readers of JSON values.
 mod context;
-// Where the files a scene names are looked for.
+// Where the files a scene names are looked for, or carried.
 mod files;
 // The keys of each object: read, ignored (with the reason) or unsupported.
 mod keys;
@@ -63,16 +69,20 @@ mod keys;
 mod naming;
 // The `"Parameters"` object and its gravity.
 mod parameters;
+// The files a scene names read from disk or from memory: meshes, surfaces, text.
+mod read;
 // The checked scalar keys: the solver's settings, a body's scale and mass.
 mod settings;
 
 pub use attach::DIRICHLET_STIFFNESS;
+pub use carried::CarriedFile;
 pub use collision::CLOTH_THICKNESS;
-pub use files::find_file;
+pub use files::{companion_file, find_file};
 
 use super::{LoadOptions, Scene, SceneError, SceneFormat};
 use crate::model::ModelBuilder;
 use context::Ctx;
+use files::Files;
 use keys::TOP_KEYS;
 use naming::Names;
 
@@ -89,34 +99,68 @@ use naming::Names;
 /// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```
 pub fn import(path: &Path, value: &Value, opts: LoadOptions) -> Result<Scene, SceneError> {
-    import_with(path, value, opts, None)
+    import_with(path, value, opts, Files::Search)
 }
 
 /// Import a paper scene rebuilt from the files it named when it was first read: `carried` maps
 /// each name as the scene gives it to where that file now is, and no other file is looked for
-/// (a scene unpickled elsewhere must not pick up whatever lies at its names there).
+/// (a scene unpickled elsewhere must not pick up whatever lies at its names there). To import
+/// from the files' contents without writing them anywhere, see [`import_carried_bytes`].
 pub fn import_carried(
     path: &Path,
     value: &Value,
     opts: LoadOptions,
     carried: &HashMap<String, PathBuf>,
 ) -> Result<Scene, SceneError> {
-    import_with(path, value, opts, Some(carried))
+    import_with(path, value, opts, Files::Paths(carried))
+}
+
+/// Import a paper scene from the contents of the files it names, in memory: `carried` maps each
+/// name as the scene gives it (`"Obj filename"`, `"Muscle filename"`, and the other half of a
+/// TetGen pair under [`companion_file`]'s name) to its contents. Nothing is read from disk or
+/// written: a name that is not carried is an error naming it, even where a file lies at that
+/// name. `path` is the scene's path as messages show it (no file is read there); each file's
+/// messages, notes and [`MeshInfo::path`](crate::mesh::MeshInfo::path) name it as its
+/// [`CarriedFile::shown`] path, as [`import`] names the files it reads.
+///
+/// ```
+/// use std::collections::HashMap;
+/// use std::path::Path;
+/// use diffsoft::scene::paper::{self, CarriedFile};
+///
+/// let root = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../../verification/paper"));
+/// let path = root.join("bridgesus/bridgesus.json");
+/// let value: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&path)?)?;
+/// let name = "bridgesus/bridgesus200_tet_cen.obj";
+/// let shown = root.join(name);
+/// let carried = HashMap::from([(name.to_string(), CarriedFile::new(&shown, std::fs::read(&shown)?))]);
+/// let from_memory = paper::import_carried_bytes(&path, &value, Default::default(), &carried)?;
+/// let from_disk = paper::import(&path, &value, Default::default())?;
+/// assert_eq!(from_memory.model.rest(), from_disk.model.rest());
+/// assert_eq!(from_memory.notes, from_disk.notes);
+///
+/// // Only carried files are read: without the mesh, its name is refused.
+/// let err = paper::import_carried_bytes(&path, &value, Default::default(), &HashMap::new()).unwrap_err();
+/// assert!(err.to_string().contains(name));
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+pub fn import_carried_bytes(
+    path: &Path,
+    value: &Value,
+    opts: LoadOptions,
+    carried: &HashMap<String, CarriedFile>,
+) -> Result<Scene, SceneError> {
+    import_with(path, value, opts, Files::Carried(carried))
 }
 
 /// The import: the top level's keys, `"Parameters"`, friction, the meshes, the cloths, the
 /// collisions between bodies and with obstacles, then the model and the solver's settings.
-fn import_with(
-    path: &Path,
-    value: &Value,
-    opts: LoadOptions,
-    carried: Option<&HashMap<String, PathBuf>>,
-) -> Result<Scene, SceneError> {
+fn import_with(path: &Path, value: &Value, opts: LoadOptions, files: Files<'_>) -> Result<Scene, SceneError> {
     let mut cx = Ctx {
         path,
         notes: Vec::new(),
         passive: opts.passive,
-        carried,
+        files,
     };
     let top = value
         .as_object()
