@@ -1,7 +1,7 @@
 //! Long calls that Ctrl-C can stop: the work runs on a worker thread without the GIL while the
 //! calling thread polls Python's signal handlers every [`POLL`]. When a handler raises (a
 //! `KeyboardInterrupt`, or whatever a user's handler raises), the work's cancellation token
-//! ([`diffsoft::base::cancel`]) is cancelled, the worker stops at its next step, its partial
+//! ([`diffsoft::base::cancel`]) is cancelled, the worker stops within its current step, its partial
 //! result is dropped, and the handler's exception is raised. Nothing the call was given is
 //! changed, so the scene stays usable.
 

@@ -6,6 +6,11 @@ use super::prelude::*;
 /// Set by SIGINT/SIGTERM: the run stops after its current step and finalises its log.
 static INTERRUPTED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
 
+/// The token the steps run under: the first signal cancels it, so a step that runs long (a
+/// contact solve of thousands of sweeps) stops within it, its state left as the step found it.
+static CANCEL: std::sync::LazyLock<diffsoft::base::cancel::Cancel> =
+    std::sync::LazyLock::new(diffsoft::base::cancel::Cancel::new);
+
 /// Where `simulate` writes, and whether it may replace an earlier run's files.
 pub(crate) struct RunOutput<'a> {
     pub(crate) dir: Option<&'a Path>,
@@ -13,16 +18,19 @@ pub(crate) struct RunOutput<'a> {
     pub(crate) overwrite: bool,
 }
 
-/// Catch SIGINT and SIGTERM from here on: the first asks the run to stop after the current
-/// step (or before the first, when it comes during the set-up) with its log finalised and exit
-/// status 130; a second ends the process at once, also with 130. Called before the scene is
-/// loaded, so a signal during the set-up ends the run the same way.
+/// Catch SIGINT and SIGTERM from here on: the first stops the run within the current step
+/// (which is dropped: the run ends at the last completed one; before the first step, when it
+/// comes during the set-up) with its log finalised and exit status 130; a second ends the
+/// process at once, also with 130. Called before the scene is loaded, so a signal during the
+/// set-up ends the run the same way.
 pub(crate) fn catch_signals() {
+    std::sync::LazyLock::force(&CANCEL);
     if let Err(e) = ctrlc::set_handler(|| {
         // A second signal ends the process at once; the log of the last refresh stays.
         if INTERRUPTED.swap(true, std::sync::atomic::Ordering::SeqCst) {
             std::process::exit(130);
         }
+        CANCEL.cancel();
     }) {
         warn!("warning: cannot catch SIGINT/SIGTERM ({e}); an interrupted run keeps its last log refresh");
     }
@@ -161,10 +169,14 @@ pub(crate) fn simulate(
             log.status = RunStatus::Interrupted;
             break;
         }
-        match sim.step() {
+        match CANCEL.scope(|| sim.step()) {
             Ok(s) => {
                 bar.set_message(format!("{} it", s.iterations));
                 log.steps.push(s);
+            }
+            Err(diffsoft::SolverError::Interrupted) => {
+                log.status = RunStatus::Interrupted;
+                break;
             }
             Err(e) => {
                 log.status = RunStatus::Failed;

@@ -1,7 +1,8 @@
 //! Cooperative cancellation of long calls (a Python caller's Ctrl-C, a host's deadline).
 //!
 //! A [`Cancel`] token is installed for the current thread by [`Cancel::scope`]; the step loops
-//! of the simulator and of the backward passes ask [`requested`] before every step, and stop
+//! of the simulator and of the backward passes ask [`requested`] before every step (and a
+//! step asks again in its iterations, contact rounds and contact solves), and stop
 //! with an "interrupted" error once the token is cancelled. Code that fans work out to other
 //! threads (a pool, a rayon `par_iter`) passes the token on with [`Cancel::current`] and
 //! `scope` in each worker. Without a token installed nothing is ever cancelled, and the check

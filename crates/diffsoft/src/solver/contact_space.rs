@@ -49,6 +49,10 @@ const DENSE_WORK_RATIO: f64 = 32.0;
 /// Active-set attempts per contact solve.
 const MAX_ATTEMPTS: usize = 12;
 
+/// Gauss-Seidel sweeps between two checks of whether the run was asked to stop
+/// ([`crate::base::cancel`]): a batch of sweeps of a large contact set can take seconds.
+const CANCEL_CHECK_SWEEPS: usize = 64;
+
 /// Full Newton steps an active-set attempt may take that raise the residual (when no damped
 /// step lowers it); the attempt keeps its best iterate.
 const NON_MONOTONE_STEPS: usize = 5;
@@ -245,6 +249,11 @@ impl ContactSpace {
         let mut budget = 2usize;
         let mut attempts = 0;
         while out.sweeps < max_sweeps {
+            if crate::base::cancel::requested() {
+                // Asked to stop: the step is abandoned (the iteration above returns
+                // `Interrupted`), so the iterate so far serves.
+                break;
+            }
             let n = budget.min(max_sweeps - out.sweeps);
             let before = out.last_change;
             let (done, change) = Self::sweeps(p, lambda, tolerance, n);
@@ -291,6 +300,9 @@ impl ContactSpace {
         let m = p.m();
         let mut change = f64::INFINITY;
         for sweep in 0..max {
+            if sweep % CANCEL_CHECK_SWEEPS == CANCEL_CHECK_SWEEPS - 1 && crate::base::cancel::requested() {
+                return (sweep, change);
+            }
             change = 0.0f64;
             for j in 0..m {
                 let djj = p.d[j * m + j];

@@ -47,6 +47,9 @@ impl Simulator {
             stats.converged = false;
             observer.contact_set(&self.contacts.free);
             self.iterate(&mut stats, observer)?;
+            if crate::base::cancel::requested() {
+                return Err(SolverError::Interrupted);
+            }
             if self.model.obstacles.is_empty() && self.model.collision.is_none() {
                 break;
             }

@@ -508,3 +508,49 @@ fn paper_muscles_on_one_polyline_are_named() {
         "{e}"
     );
 }
+
+/// A step that runs long stops within itself when its run is cancelled (a Python Ctrl-C, the
+/// command line's SIGINT), not only before the next step: two identical cloths lying on each
+/// other make the second step's contact solves run for minutes; cancelled while it runs, the
+/// step returns `Interrupted` and leaves the state the step started from. (The 120 s wait is
+/// a liveness bound only: the step stops within a fraction of a second of the cancel.)
+#[test]
+fn a_long_step_stops_within_itself_when_its_run_is_cancelled() {
+    use diffsoft::base::cancel::Cancel;
+    use diffsoft::solver::Simulator;
+    let mut doc: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(root().join("verification/scenes/box_on_cloth.json")).unwrap())
+            .unwrap();
+    let o = doc.as_object_mut().unwrap();
+    o.remove("bodies");
+    let mut second = o["cloths"][0].clone();
+    second["name"] = "cloth2".into();
+    o["cloths"].as_array_mut().unwrap().push(second);
+    let dir = tmp_dir("cancel-in-step");
+    let path = write(&dir, "two_cloths.json", &doc.to_string());
+    let sc = scene::load(&path, LoadOptions::default()).unwrap();
+    let mut sim = Simulator::new(sc.model, sc.settings).unwrap();
+    sim.step().unwrap();
+    let before = sim.state().clone();
+    let token = Cancel::new();
+    let (tx, rx) = std::sync::mpsc::channel();
+    let worker = {
+        let token = token.clone();
+        std::thread::spawn(move || {
+            let r = token.scope(|| sim.step());
+            tx.send(()).unwrap();
+            (r, sim)
+        })
+    };
+    std::thread::sleep(std::time::Duration::from_millis(300));
+    token.cancel();
+    assert!(
+        rx.recv_timeout(std::time::Duration::from_secs(120)).is_ok(),
+        "the cancelled step did not stop"
+    );
+    let (r, sim) = worker.join().unwrap();
+    assert!(matches!(r, Err(diffsoft::SolverError::Interrupted)), "{r:?}");
+    assert_eq!(sim.state().step, before.step);
+    assert_eq!(sim.state().q, before.q);
+    assert_eq!(sim.state().v, before.v);
+}

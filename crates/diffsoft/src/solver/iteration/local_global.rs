@@ -130,6 +130,11 @@ impl StepIteration for LocalGlobal {
             let tg = Instant::now();
             let g = global_phase(cx, self.global.as_mut(), observer)?;
             stats.global_ms += tg.elapsed().as_secs_f64() * 1e3;
+            // A step whose iterations or contact solves run long still stops when asked (its
+            // state stays the one it started from).
+            if crate::base::cancel::requested() {
+                return Err(SolverError::Interrupted);
+            }
             stats.iterations += 1;
             stats.global_iterations += g.iterations;
             stats.contact_iterations += g.contact_iterations;

@@ -328,6 +328,9 @@ impl StepIteration for Newton {
         // This round's budget (the seeding iteration counts).
         let iterations = settings.max_iterations.saturating_sub(usize::from(!cs.is_empty()));
         for _ in 0..iterations {
+            if crate::base::cancel::requested() {
+                return Err(SolverError::Interrupted);
+            }
             // The projected Hessian at the iterate and the Newton direction.
             let tg = Instant::now();
             // The exact Hessian first (quadratic convergence near the minimum); where it shows

@@ -631,6 +631,9 @@ fn newton_skeletal_loop(
     stats.local_ms += tl.elapsed().as_secs_f64() * 1e3;
     let mut z_first = f64::NAN;
     for _ in 0..settings.max_iterations {
+        if crate::base::cancel::requested() {
+            return Err(SolverError::Interrupted);
+        }
         let tg = Instant::now();
         nw.active_set(sk);
         nw.prepare_reduced(reduced, sk)?;
