@@ -905,6 +905,22 @@ fn duplicates_are_errors_and_tiny_directions_are_directions() {
              "material": { "youngs_modulus": 1e5, "poisson_ratio": 0.3 }, "density": 1000 }] }"#,
     );
     check(&scene, "dup.obj:6: tet 1 repeats tet 0");
+    // One vertex attached twice (in one list or two attachments): its stiffness would double.
+    write(&dir, "one.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nt 0 1 2 3\n");
+    for attachments in [
+        r#"[{ "stiffness": 1e4, "vertices": { "indices": [0, 0] } }]"#,
+        r#"[{ "stiffness": 1e4, "vertices": { "indices": [2, 0] } }, { "stiffness": 1e3, "vertices": { "indices": [0] } }]"#,
+    ] {
+        let scene = write(
+            &dir,
+            "dup_attach.json",
+            &format!(
+                r#"{{ "schema": "diffsoft.scene/1", "time_step": 0.01, "bodies": [{{ "name": "a", "mesh": "one.obj",
+                 "material": {{ "youngs_modulus": 1e5, "poisson_ratio": 0.3 }}, "density": 1000, "attachments": {attachments} }}] }}"#
+            ),
+        );
+        check(&scene, "body 'a': vertex 0 is attached twice");
+    }
     // Two bodies of one name.
     write(&dir, "a.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nt 0 1 2 3\n");
     write(&dir, "b.obj", "v 5 0 0\nv 6 0 0\nv 5 1 0\nv 5 0 1\nt 0 1 2 3\n");

@@ -315,10 +315,17 @@ impl ModelBuilder {
                 is_fixed[v] = true;
             }
             fixed.extend(is_fixed);
+            let mut is_attached = vec![false; nb];
             for &(v, w) in &b.attachments {
                 if v >= nb {
                     return Err(InputError::new(format!(
                         "body '{}': attached vertex {v} out of range ({nb} vertices)",
+                        b.name
+                    )));
+                }
+                if std::mem::replace(&mut is_attached[v], true) {
+                    return Err(InputError::new(format!(
+                        "body '{}': vertex {v} is attached twice (two attachments of one vertex add their stiffnesses; attach it once, with the stiffness wanted)",
                         b.name
                     )));
                 }
