@@ -558,6 +558,12 @@ fn run(command: Command) -> Result<()> {
         } => {
             cli::simulate::catch_signals();
             let mut sc = diffsoft::scene::load(&scene, diffsoft::scene::LoadOptions { passive })?;
+            if passive && sc.format != diffsoft::scene::SceneFormat::Paper {
+                bail!(
+                    "--passive applies to the paper's scene files only; {} is a diffsoft scene",
+                    scene.display()
+                );
+            }
             overrides.apply(&mut sc.settings)?;
             let mut held = Vec::new();
             for a in &activation {

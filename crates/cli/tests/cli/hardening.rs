@@ -1400,7 +1400,8 @@ fn schemas_never_write_through_links_or_into_fifos() {
 
 /// A flag that would be ignored or overridden is refused, naming it: `--gmsh-version` for a
 /// mesh that is not `.msh`, `--implicit-tolerance` in unrolled mode, a `--set` of one
-/// parameter twice (the last one won); a scene's one-key object with two keys names both.
+/// parameter twice (the last one won), `--passive` on a diffsoft scene; a scene's one-key
+/// object with two keys names both.
 #[test]
 fn flags_that_would_be_ignored_or_overridden_are_refused() {
     let dir = tmp_dir("hard-ignored-flags");
@@ -1450,6 +1451,14 @@ fn flags_that_would_be_ignored_or_overridden_are_refused() {
     assert!(grad(&["--set", "density=1000", "--set", "youngs_modulus=2e5"])
         .status
         .success());
+    // `--passive` is for the paper's files; a diffsoft scene ignored it.
+    let o = diffsoft(&["simulate", s, "--steps", "1", "--passive"]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("--passive applies to the paper's scene files only"),
+        "{}",
+        stderr(&o)
+    );
     // A spec file is the whole sweep: grid options beside it were silently dropped.
     for flag in [&["--steps", "10"][..], &["--time-axis", "iterations"], &["--caps", "1"]] {
         let mut args = vec!["tradeoff", "--spec", "sweep.json"];

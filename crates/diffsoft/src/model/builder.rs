@@ -272,8 +272,17 @@ impl ModelBuilder {
                 MassSpec::Total(m) => m / total_volume,
             };
             if !(rho.is_finite() && rho > 0.0) {
+                let given = match b.mass {
+                    MassSpec::Density(rho) => format!("density {}", crate::base::number(rho)),
+                    MassSpec::Total(m) => format!(
+                        "total mass {}, over a volume of {} (density {})",
+                        crate::base::number(m),
+                        crate::base::number(total_volume),
+                        crate::base::number(rho)
+                    ),
+                };
                 return Err(InputError::new(format!(
-                    "body '{}': density and total mass must be finite and positive (density {rho})",
+                    "body '{}': density and total mass must be finite and positive ({given})",
                     b.name
                 )));
             }

@@ -104,7 +104,12 @@ fn diffsoft_scenes_reject_unknown_keys_and_meaningless_values() {
         (
             r#", "density": -5"#,
             "",
-            "density and total mass must be finite and positive",
+            "density and total mass must be finite and positive (density -5)",
+        ),
+        (
+            r#", "total_mass": -1"#,
+            "",
+            "density and total mass must be finite and positive (total mass -1, over a volume of",
         ),
         (
             r#", "density": 1000, "fixed": {"indices": [9]}"#,
