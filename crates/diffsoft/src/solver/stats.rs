@@ -94,7 +94,7 @@ impl StepStats {
     /// Estimated distance of the step's last iterate from the step's converged solution,
     /// relative to the length scale: for iterations contracting at the rate
     /// `rho = relative_change / previous_change`, the remaining changes sum to
-    /// `relative_change rho / (1 - rho)` (rho capped at [`MAX_EXTRAPOLATED_RATE`]); the last
+    /// `relative_change rho / (1 - rho)` (rho capped at `MAX_EXTRAPOLATED_RATE`); the last
     /// change itself when the round took one iteration (no rate). 0 before any iteration.
     ///
     /// ```
